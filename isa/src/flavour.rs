@@ -1,0 +1,186 @@
+//! ISA flavours: what a vector machine has natively. An op a flavour lacks is
+//! expanded (in the traced backend) into the ops that flavour really needs.
+//!
+//! | flavour  | lanes | FMA | masks           | gather | scatter | compress | approx rcp/rsqrt |
+//! |----------|-------|-----|-----------------|--------|---------|----------|------------------|
+//! | `lrb16`  | 16    | yes | 16-bit k regs   | yes    | yes     | yes      | 23 bits (see below) |
+//! | `avx512` | 16    | yes | 16-bit k regs   | yes    | yes     | yes      | 14 bits (vrcp14ps) |
+//! | `avx2`   | 8     | yes | vector (blendv) | yes    | no      | no       | 12 bits (vrcpps) |
+//! | `sse4`   | 4     | no  | vector (blendv) | no     | no      | no       | 12 bits (rcpps)  |
+//!
+//! Approximate reciprocal precision. AVX2/SSE `rcpps`/`rsqrtps`: relative error
+//! at most 1.5 * 2^-12 (Intel SDM, RCPPS); AVX-512 `vrcp14ps`: less than 2^-14
+//! (Intel SDM, VRCP14PS). Larrabee: LRBni's precision is not public. We model
+//! its successor Knights Corner's `vrcp23ps`/`vrsqrt23ps` (the KNC ISA reference
+//! manual gives 23-bit results), because Larrabee's renderer relied on
+//! full-precision reciprocals for its slab tests and KNC kept the LRBni
+//! encoding space. rtsim implements "k-bit approximate" deterministically: the
+//! correctly rounded f32 result with its mantissa truncated to k bits, so the
+//! relative error is below 2^-k on every host (hardware tables differ between
+//! Intel and AMD, and results must be identical on every run and machine).
+
+use std::fmt;
+
+/// Which flavour, as a value (for trace headers, reports, CLI).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum FlavourId {
+    /// Larrabee LRBni, 16 lanes.
+    Lrb16 = 0,
+    /// AVX-512, 16 lanes.
+    Avx512 = 1,
+    /// AVX2 + FMA, 8 lanes.
+    Avx2 = 2,
+    /// SSE4.1, 4 lanes.
+    Sse4 = 3,
+}
+
+impl FlavourId {
+    /// Every flavour.
+    pub const ALL: [FlavourId; 4] = [
+        FlavourId::Lrb16,
+        FlavourId::Avx512,
+        FlavourId::Avx2,
+        FlavourId::Sse4,
+    ];
+    /// Stable name (`lrb16`, `avx512`, `avx2`, `sse4`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            FlavourId::Lrb16 => "lrb16",
+            FlavourId::Avx512 => "avx512",
+            FlavourId::Avx2 => "avx2",
+            FlavourId::Sse4 => "sse4",
+        }
+    }
+    /// The flavour with this name.
+    #[must_use]
+    pub fn from_name(s: &str) -> Option<FlavourId> {
+        FlavourId::ALL.into_iter().find(|f| f.name() == s)
+    }
+    /// The flavour with this id.
+    #[must_use]
+    pub fn from_id(id: u8) -> Option<FlavourId> {
+        FlavourId::ALL.get(id as usize).copied()
+    }
+    /// Vector lanes (32-bit elements).
+    #[must_use]
+    pub fn lanes(self) -> usize {
+        match self {
+            FlavourId::Lrb16 | FlavourId::Avx512 => 16,
+            FlavourId::Avx2 => 8,
+            FlavourId::Sse4 => 4,
+        }
+    }
+}
+
+impl fmt::Display for FlavourId {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// What a flavour has natively. Implemented by the marker types below for
+/// their lane count `N` only, so `Traced<Avx2, 16>` does not compile.
+pub trait Flavour<const N: usize>: Copy + Default + fmt::Debug + 'static {
+    /// This flavour as a value.
+    const ID: FlavourId;
+    /// Fused multiply-add (else mul + add, two roundings).
+    const FMA: bool;
+    /// Mask registers and masked ops (else masks are vectors and masking is a blend).
+    const MASK_REGS: bool;
+    /// Hardware gather (else per-lane extract, scalar load, insert).
+    const GATHER: bool;
+    /// Hardware scatter (else per-lane extracts and scalar stores).
+    const SCATTER: bool;
+    /// Compress-store of active lanes (else movemask, LUT, permute, store, popcount).
+    const COMPRESS: bool;
+    /// Masked vector load and store (vmaskmovps on AVX2; SSE4 has none).
+    const MASKED_MEM: bool;
+    /// Any-lane permutes of one source in one op (vpermps); SSE4 has only in-lane shuffles.
+    const CROSS_PERMUTE: bool;
+    /// Two-source arbitrary permute in one op (vpermt2ps, LRBni shuffles).
+    const PERMUTE2: bool;
+    /// Mantissa bits of the approximate reciprocal and rsqrt.
+    const RCP_BITS: u32;
+}
+
+/// Larrabee LRBni (Seiler et al. 2008; Abrash, "A First Look at the Larrabee New Instructions").
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Lrb16;
+/// AVX-512F (Intel SDM).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Avx512;
+/// AVX2 + FMA3 (Haswell).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Avx2;
+/// SSE4.1 (Core 2 Penryn / Nehalem).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Sse4;
+
+impl Flavour<16> for Lrb16 {
+    const ID: FlavourId = FlavourId::Lrb16;
+    const FMA: bool = true;
+    const MASK_REGS: bool = true;
+    const GATHER: bool = true;
+    const SCATTER: bool = true;
+    const COMPRESS: bool = true; // vpackstoreps
+    const MASKED_MEM: bool = true;
+    const CROSS_PERMUTE: bool = true;
+    const PERMUTE2: bool = true;
+    const RCP_BITS: u32 = 23;
+}
+
+impl Flavour<16> for Avx512 {
+    const ID: FlavourId = FlavourId::Avx512;
+    const FMA: bool = true;
+    const MASK_REGS: bool = true;
+    const GATHER: bool = true;
+    const SCATTER: bool = true;
+    const COMPRESS: bool = true;
+    const MASKED_MEM: bool = true;
+    const CROSS_PERMUTE: bool = true;
+    const PERMUTE2: bool = true;
+    const RCP_BITS: u32 = 14;
+}
+
+impl Flavour<8> for Avx2 {
+    const ID: FlavourId = FlavourId::Avx2;
+    const FMA: bool = true;
+    const MASK_REGS: bool = false;
+    const GATHER: bool = true;
+    const SCATTER: bool = false;
+    const COMPRESS: bool = false;
+    const MASKED_MEM: bool = true;
+    const CROSS_PERMUTE: bool = true;
+    const PERMUTE2: bool = false;
+    const RCP_BITS: u32 = 12;
+}
+
+impl Flavour<4> for Sse4 {
+    const ID: FlavourId = FlavourId::Sse4;
+    const FMA: bool = false;
+    const MASK_REGS: bool = false;
+    const GATHER: bool = false;
+    const SCATTER: bool = false;
+    const COMPRESS: bool = false;
+    const MASKED_MEM: bool = false;
+    const CROSS_PERMUTE: bool = true; // 4 lanes are one 128-bit lane: pshufd reaches all
+    const PERMUTE2: bool = false;
+    const RCP_BITS: u32 = 12;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_and_lanes() {
+        for f in FlavourId::ALL {
+            assert_eq!(FlavourId::from_name(f.name()), Some(f));
+            assert_eq!(FlavourId::from_id(f as u8), Some(f));
+        }
+        assert_eq!(FlavourId::Avx2.lanes(), 8);
+        assert_eq!(<Lrb16 as Flavour<16>>::ID.lanes(), 16);
+    }
+}

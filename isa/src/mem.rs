@@ -1,0 +1,389 @@
+//! Memory a kernel touches: registered regions with deterministic simulated
+//! addresses (never host pointers), and byte buffers that hold their data.
+//!
+//! Addresses: regions are placed in registration order from `BASE`, each at a
+//! 4 KiB boundary (or its own larger alignment) with a 4 KiB guard gap, so the
+//! same registrations always give the same addresses, and the layout and
+//! alignment of every structure are what the cache model sees.
+
+use crate::types::{Addr, MemId, MemKind};
+
+/// Where the first region starts.
+pub const BASE: u64 = 0x1000_0000;
+/// Region alignment and the gap between regions.
+pub const PAGE: u64 = 4096;
+/// Size of the ISA layer's own lookup-table region (id 0): the AVX2
+/// compress-store permutation table, 256 entries of 8 x u32.
+pub const LUT_BYTES: u64 = 256 * 32;
+
+/// One registered region.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MemRegion {
+    /// Its id.
+    pub id: MemId,
+    /// What it holds.
+    pub kind: MemKind,
+    /// A name a person can read (e.g. `bvh4-nodes`).
+    pub name: String,
+    /// First byte.
+    pub base: Addr,
+    /// Size in bytes.
+    pub size: u64,
+}
+
+impl MemRegion {
+    /// Whether `a` lies inside.
+    #[must_use]
+    pub fn contains(&self, a: Addr) -> bool {
+        a.0 >= self.base.0 && a.0 < self.base.0 + self.size
+    }
+}
+
+/// The simulated address space of one run.
+#[derive(Clone, Debug)]
+pub struct AddrSpace {
+    regions: Vec<MemRegion>,
+    next: u64,
+}
+
+impl Default for AddrSpace {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl AddrSpace {
+    /// A new space holding only the ISA lookup-table region (id 0).
+    #[must_use]
+    pub fn new() -> Self {
+        let mut s = AddrSpace {
+            regions: Vec::new(),
+            next: BASE,
+        };
+        s.place(MemKind::Lut, "isa-lut", LUT_BYTES, 64);
+        s
+    }
+
+    /// A space with exactly these regions (from a trace header).
+    #[must_use]
+    pub fn from_regions(regions: Vec<MemRegion>) -> Self {
+        let next = regions
+            .iter()
+            .map(|r| r.base.0 + r.size)
+            .max()
+            .unwrap_or(BASE);
+        AddrSpace { regions, next }
+    }
+
+    fn place(&mut self, kind: MemKind, name: &str, size: u64, align: u64) -> MemRegion {
+        assert!(
+            align.is_power_of_two(),
+            "alignment {align} is not a power of two"
+        );
+        assert!(self.regions.len() < u16::MAX as usize, "too many regions");
+        let a = align.max(PAGE);
+        let base = self.next.div_ceil(a) * a;
+        self.next = base + size.max(1).div_ceil(PAGE) * PAGE + PAGE;
+        let r = MemRegion {
+            id: MemId(self.regions.len() as u16),
+            kind,
+            name: name.to_string(),
+            base: Addr(base),
+            size,
+        };
+        self.regions.push(r.clone());
+        r
+    }
+
+    /// Register a zero-filled region of `size` bytes at `align` (power of two).
+    pub fn alloc(&mut self, kind: MemKind, name: &str, size: usize, align: usize) -> Buf {
+        let r = self.place(kind, name, size as u64, align as u64);
+        Buf {
+            data: vec![0u8; size],
+            base: r.base,
+            id: r.id,
+        }
+    }
+
+    /// Register a region holding `bytes`.
+    pub fn alloc_bytes(&mut self, kind: MemKind, name: &str, bytes: Vec<u8>, align: usize) -> Buf {
+        let r = self.place(kind, name, bytes.len() as u64, align as u64);
+        Buf {
+            data: bytes,
+            base: r.base,
+            id: r.id,
+        }
+    }
+
+    /// Register a region holding these f32 values (little-endian).
+    pub fn alloc_f32(&mut self, kind: MemKind, name: &str, v: &[f32], align: usize) -> Buf {
+        let bytes = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.alloc_bytes(kind, name, bytes, align)
+    }
+
+    /// Register a region holding these u32 values (little-endian).
+    pub fn alloc_u32(&mut self, kind: MemKind, name: &str, v: &[u32], align: usize) -> Buf {
+        let bytes = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.alloc_bytes(kind, name, bytes, align)
+    }
+
+    /// A buffer over the ISA lookup-table region (id 0). Its contents are not
+    /// modelled (the expansions compute their results directly), only its addresses.
+    #[must_use]
+    pub fn lut(&self) -> Buf {
+        let r = &self.regions[0];
+        Buf {
+            data: vec![0u8; r.size as usize],
+            base: r.base,
+            id: r.id,
+        }
+    }
+
+    /// Every region, by id.
+    #[must_use]
+    pub fn regions(&self) -> &[MemRegion] {
+        &self.regions
+    }
+
+    /// The region holding `a`, if any.
+    #[must_use]
+    pub fn find(&self, a: Addr) -> Option<&MemRegion> {
+        self.regions.iter().find(|r| r.contains(a))
+    }
+}
+
+/// The bytes of one registered region. Host-side reads and writes through
+/// these methods are not recorded (they are setup and result extraction);
+/// kernels access a `Buf` only through the machine's ops.
+#[derive(Clone, Debug)]
+pub struct Buf {
+    data: Vec<u8>,
+    base: Addr,
+    id: MemId,
+}
+
+impl Buf {
+    /// Simulated address of byte `off`.
+    #[inline(always)]
+    #[must_use]
+    pub fn addr(&self, off: usize) -> Addr {
+        Addr(self.base.0 + off as u64)
+    }
+    /// The region id.
+    #[inline(always)]
+    #[must_use]
+    pub fn id(&self) -> MemId {
+        self.id
+    }
+    /// Size in bytes.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.data.len()
+    }
+    /// Whether empty.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+    /// All bytes.
+    #[must_use]
+    pub fn bytes(&self) -> &[u8] {
+        &self.data
+    }
+    /// All bytes, writable.
+    pub fn bytes_mut(&mut self) -> &mut [u8] {
+        &mut self.data
+    }
+
+    #[inline(always)]
+    fn check(&self, off: usize, n: usize) {
+        assert!(
+            off.checked_add(n).is_some_and(|e| e <= self.data.len()),
+            "access of {n} bytes at offset {off} outside region {} of {} bytes",
+            self.id.0,
+            self.data.len()
+        );
+    }
+
+    /// Read `N` bytes at `off`.
+    #[inline(always)]
+    #[must_use]
+    pub fn read<const B: usize>(&self, off: usize) -> [u8; B] {
+        self.check(off, B);
+        let mut r = [0u8; B];
+        r.copy_from_slice(&self.data[off..off + B]);
+        r
+    }
+    /// Write bytes at `off`.
+    #[inline(always)]
+    pub fn write(&mut self, off: usize, b: &[u8]) {
+        self.check(off, b.len());
+        self.data[off..off + b.len()].copy_from_slice(b);
+    }
+    /// Read an f32 at `off`.
+    #[inline(always)]
+    #[must_use]
+    pub fn f32_at(&self, off: usize) -> f32 {
+        f32::from_le_bytes(self.read::<4>(off))
+    }
+    /// Write an f32 at `off`.
+    #[inline(always)]
+    pub fn set_f32(&mut self, off: usize, v: f32) {
+        self.write(off, &v.to_le_bytes());
+    }
+    /// Read a u32 at `off`.
+    #[inline(always)]
+    #[must_use]
+    pub fn u32_at(&self, off: usize) -> u32 {
+        u32::from_le_bytes(self.read::<4>(off))
+    }
+    /// Write a u32 at `off`.
+    #[inline(always)]
+    pub fn set_u32(&mut self, off: usize, v: u32) {
+        self.write(off, &v.to_le_bytes());
+    }
+    /// Read a u16 at `off`.
+    #[inline(always)]
+    #[must_use]
+    pub fn u16_at(&self, off: usize) -> u16 {
+        u16::from_le_bytes(self.read::<2>(off))
+    }
+    /// Write a u16 at `off`.
+    #[inline(always)]
+    pub fn set_u16(&mut self, off: usize, v: u16) {
+        self.write(off, &v.to_le_bytes());
+    }
+
+    /// Read `N` f32 lanes at `off`.
+    #[inline(always)]
+    #[must_use]
+    pub fn f32s<const N: usize>(&self, off: usize) -> [f32; N] {
+        self.check(off, 4 * N);
+        let mut r = [0f32; N];
+        // SAFETY: bounds checked above; unaligned read of plain bytes.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                self.data.as_ptr().add(off),
+                r.as_mut_ptr() as *mut u8,
+                4 * N,
+            );
+        }
+        #[cfg(target_endian = "big")]
+        for x in &mut r {
+            *x = f32::from_bits(x.to_bits().swap_bytes());
+        }
+        r
+    }
+    /// Write `N` f32 lanes at `off`.
+    #[inline(always)]
+    pub fn set_f32s<const N: usize>(&mut self, off: usize, v: &[f32; N]) {
+        self.check(off, 4 * N);
+        #[cfg(target_endian = "big")]
+        let v = &v.map(|x| f32::from_bits(x.to_bits().swap_bytes()));
+        // SAFETY: bounds checked above; unaligned write of plain bytes.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                v.as_ptr() as *const u8,
+                self.data.as_mut_ptr().add(off),
+                4 * N,
+            );
+        }
+    }
+    /// Read an unsigned little-endian integer of `width` bytes (1, 2, 4 or 8).
+    #[inline(always)]
+    #[must_use]
+    pub fn uint_at(&self, off: usize, width: usize) -> u64 {
+        match width {
+            1 => u64::from(self.read::<1>(off)[0]),
+            2 => u64::from(self.u16_at(off)),
+            4 => u64::from(self.u32_at(off)),
+            8 => u64::from_le_bytes(self.read::<8>(off)),
+            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
+        }
+    }
+    /// Write the low `width` bytes of `v` little-endian.
+    #[inline(always)]
+    pub fn set_uint(&mut self, off: usize, width: usize, v: u64) {
+        match width {
+            1 => self.write(off, &[v as u8]),
+            2 => self.set_u16(off, v as u16),
+            4 => self.set_u32(off, v as u32),
+            8 => self.write(off, &v.to_le_bytes()),
+            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
+        }
+    }
+}
+
+/// An effective address operand: `index * scale + disp` bytes into a buffer,
+/// like x86's `[base + index*scale + disp]`. The index is a machine scalar, so
+/// a load whose address comes from loaded data depends on that load.
+#[derive(Clone, Copy, Debug)]
+pub struct At<S> {
+    /// Optional index value.
+    pub index: Option<S>,
+    /// Index scale: 1, 2, 4 or 8 (x86 addressing modes; free).
+    pub scale: u8,
+    /// Constant byte displacement.
+    pub disp: usize,
+}
+
+impl<S> At<S> {
+    /// A constant byte offset.
+    #[inline(always)]
+    pub fn off(disp: usize) -> Self {
+        At {
+            index: None,
+            scale: 1,
+            disp,
+        }
+    }
+    /// `index * scale + disp`.
+    #[inline(always)]
+    pub fn idx(index: S, scale: u8, disp: usize) -> Self {
+        debug_assert!(matches!(scale, 1 | 2 | 4 | 8), "scale {scale}");
+        At {
+            index: Some(index),
+            scale,
+            disp,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn placement_is_deterministic_and_aligned() {
+        let mut a = AddrSpace::new();
+        let x = a.alloc(MemKind::Nodes, "nodes", 100, 64);
+        let y = a.alloc(MemKind::Rays, "rays", 5000, 8192);
+        assert_eq!(x.addr(0).0 % PAGE, 0);
+        assert_eq!(y.addr(0).0 % 8192, 0);
+        assert!(y.addr(0).0 >= x.addr(100).0 + PAGE);
+        let mut b = AddrSpace::new();
+        let x2 = b.alloc(MemKind::Nodes, "nodes", 100, 64);
+        assert_eq!(x.addr(0), x2.addr(0));
+        assert_eq!(a.regions()[0].kind, MemKind::Lut);
+        assert_eq!(a.find(y.addr(4999)).map(|r| r.id), Some(y.id()));
+        assert!(a.find(y.addr(5000)).is_none());
+    }
+
+    #[test]
+    fn host_access() {
+        let mut s = AddrSpace::new();
+        let mut b = s.alloc(MemKind::Other, "b", 64, 64);
+        b.set_f32s(4, &[1.0f32, 2.0, 3.0]);
+        assert_eq!(b.f32s::<3>(4), [1.0, 2.0, 3.0]);
+        b.set_uint(20, 2, 0xbeef);
+        assert_eq!(b.uint_at(20, 2), 0xbeef);
+    }
+
+    #[test]
+    #[should_panic(expected = "outside region")]
+    fn out_of_bounds_is_caught() {
+        let mut s = AddrSpace::new();
+        let b = s.alloc(MemKind::Other, "b", 16, 64);
+        let _ = b.f32s::<8>(0);
+    }
+}

@@ -1,0 +1,533 @@
+//! The native backend: the generic kernel code compiled to real SIMD where the
+//! host has it (lane arrays that LLVM vectorises; with `target-cpu=x86-64-v3`
+//! the 8-lane ops become AVX2 instructions). No recording, no allocation, no
+//! per-op branching. Results are bit-identical to the traced backend's.
+
+use crate::flavour::{Flavour, FlavourId};
+use crate::lanes::{
+    cvt_round, cvt_trunc, permute2, rcp_approx, reduce, rsqrt_approx, BinOp, Cmp, Fma, IOp, Shift,
+    Vf, Vi, Vk,
+};
+use crate::machine::{Float, Int, Logic, Machine, SOp};
+use crate::mem::{AddrSpace, At, Buf};
+use crate::types::{Region, Site};
+use std::marker::PhantomData;
+
+/// Scalar integer of the native backend.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NS(pub i64);
+impl Int for NS {
+    #[inline(always)]
+    fn get(self) -> i64 {
+        self.0
+    }
+}
+
+/// Scalar f32 of the native backend.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NX(pub f32);
+impl Float for NX {
+    #[inline(always)]
+    fn get(self) -> f32 {
+        self.0
+    }
+}
+
+/// A native machine of flavour `FL` with `N` lanes (e.g. `Native<Avx2, 8>`).
+#[derive(Debug)]
+pub struct Native<FL, const N: usize> {
+    space: AddrSpace,
+    _f: PhantomData<FL>,
+}
+
+impl<FL: Flavour<N>, const N: usize> Default for Native<FL, N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
+    /// A machine with a fresh address space.
+    #[must_use]
+    pub fn new() -> Self {
+        Native {
+            space: AddrSpace::new(),
+            _f: PhantomData,
+        }
+    }
+}
+
+/// Byte offset of an effective address.
+#[inline(always)]
+pub(crate) fn ea_off(index: Option<i64>, scale: u8, disp: usize) -> usize {
+    let off = index.map_or(0, |i| i * i64::from(scale)) + disp as i64;
+    assert!(off >= 0, "negative effective address {off}");
+    off as usize
+}
+
+#[inline(always)]
+fn ea(at: At<NS>) -> usize {
+    ea_off(at.index.map(|s| s.0), at.scale, at.disp)
+}
+
+/// Lanes stored by a compress: active lanes in order, then the inactive ones.
+#[inline(always)]
+pub(crate) fn compress_lanes<const N: usize>(k: Vk<N>, v: Vf<N>) -> (Vf<N>, usize) {
+    let mut r = [0f32; N];
+    let mut n = 0;
+    for i in 0..N {
+        if k.get(i) {
+            r[n] = v.0[i];
+            n += 1;
+        }
+    }
+    let mut j = n;
+    for i in 0..N {
+        if !k.get(i) {
+            r[j] = v.0[i];
+            j += 1;
+        }
+    }
+    (Vf(r), n)
+}
+
+/// Load an integer of `width` bytes, zero- or sign-extended.
+#[inline(always)]
+pub(crate) fn load_int(buf: &Buf, off: usize, width: u8, signed: bool) -> i64 {
+    let u = buf.uint_at(off, width as usize);
+    if signed && width < 8 {
+        let sh = 64 - 8 * u32::from(width);
+        ((u << sh) as i64) >> sh
+    } else {
+        u as i64
+    }
+}
+
+/// Horizontal reduction op.
+#[inline(always)]
+pub(crate) fn reduce_op<const N: usize>(op: BinOp, a: Vf<N>) -> f32 {
+    assert!(
+        matches!(op, BinOp::Add | BinOp::Min | BinOp::Max | BinOp::Mul),
+        "reduce by {op:?}"
+    );
+    reduce(a, |x, y| op.eval(x, y))
+}
+
+/// Lanes for `consts` from a slice.
+#[inline(always)]
+pub(crate) fn arr<T: Copy + Default, const N: usize>(v: &[T]) -> [T; N] {
+    assert_eq!(
+        v.len(),
+        N,
+        "constant vector of {} lanes, machine has {N}",
+        v.len()
+    );
+    let mut r = [T::default(); N];
+    r.copy_from_slice(v);
+    r
+}
+
+/// Permutation index array from a slice.
+#[inline(always)]
+pub(crate) fn idx_arr<const N: usize>(idx: &[u8], limit: usize) -> [u8; N] {
+    assert_eq!(
+        idx.len(),
+        N,
+        "permute of {} lanes, machine has {N}",
+        idx.len()
+    );
+    let mut r = [0u8; N];
+    for (o, &i) in r.iter_mut().zip(idx) {
+        assert!((i as usize) < limit, "permute index {i} out of range");
+        *o = i;
+    }
+    r
+}
+
+impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
+    const LANES: usize = N;
+    const FLAVOUR: FlavourId = FL::ID;
+    type F = Vf<N>;
+    type I = Vi<N>;
+    type K = Vk<N>;
+    type S = NS;
+    type X = NX;
+
+    fn space(&mut self) -> &mut AddrSpace {
+        &mut self.space
+    }
+    #[inline(always)]
+    fn region(&mut self, _r: Region) {}
+    #[inline(always)]
+    fn active(&mut self, _k: Option<Vk<N>>) {}
+
+    #[inline(always)]
+    fn splat(&mut self, x: f32) -> Vf<N> {
+        Vf([x; N])
+    }
+    #[inline(always)]
+    fn consts(&mut self, v: &[f32]) -> Vf<N> {
+        Vf(arr(v))
+    }
+    #[inline(always)]
+    fn splat_i(&mut self, x: i32) -> Vi<N> {
+        Vi([x; N])
+    }
+    #[inline(always)]
+    fn consts_i(&mut self, v: &[i32]) -> Vi<N> {
+        Vi(arr(v))
+    }
+    #[inline(always)]
+    fn mask(&mut self, bits: u32) -> Vk<N> {
+        Vk::from_bits(bits)
+    }
+    #[inline(always)]
+    fn int(&mut self, v: i64) -> NS {
+        NS(v)
+    }
+    #[inline(always)]
+    fn float(&mut self, v: f32) -> NX {
+        NX(v)
+    }
+
+    #[inline(always)]
+    fn bin(&mut self, op: BinOp, a: Vf<N>, b: Vf<N>) -> Vf<N> {
+        a.zip(b, |x, y| op.eval(x, y))
+    }
+    #[inline(always)]
+    fn masked(&mut self, op: BinOp, k: Vk<N>, src: Vf<N>, a: Vf<N>, b: Vf<N>) -> Vf<N> {
+        k.select(a.zip(b, |x, y| op.eval(x, y)), src)
+    }
+    #[inline(always)]
+    fn fma(&mut self, kind: Fma, a: Vf<N>, b: Vf<N>, c: Vf<N>) -> Vf<N> {
+        a.zip3(b, c, |x, y, z| kind.eval(FL::FMA, x, y, z))
+    }
+    #[inline(always)]
+    fn masked_fma(&mut self, kind: Fma, k: Vk<N>, a: Vf<N>, b: Vf<N>, c: Vf<N>) -> Vf<N> {
+        k.select(a.zip3(b, c, |x, y, z| kind.eval(FL::FMA, x, y, z)), c)
+    }
+    #[inline(always)]
+    fn abs(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(f32::abs)
+    }
+    #[inline(always)]
+    fn neg(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(|x| -x)
+    }
+    #[inline(always)]
+    fn sqrt(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(f32::sqrt)
+    }
+    #[inline(always)]
+    fn rcp(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(|x| 1.0 / x)
+    }
+    #[inline(always)]
+    fn rcp_approx(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(|x| rcp_approx(x, FL::RCP_BITS))
+    }
+    #[inline(always)]
+    fn rsqrt(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(|x| 1.0 / x.sqrt())
+    }
+    #[inline(always)]
+    fn rsqrt_approx(&mut self, a: Vf<N>) -> Vf<N> {
+        a.map(|x| rsqrt_approx(x, FL::RCP_BITS))
+    }
+    #[inline(always)]
+    fn cmp(&mut self, p: Cmp, a: Vf<N>, b: Vf<N>) -> Vk<N> {
+        a.cmp(p, b)
+    }
+    #[inline(always)]
+    fn select(&mut self, k: Vk<N>, t: Vf<N>, f: Vf<N>) -> Vf<N> {
+        k.select(t, f)
+    }
+    #[inline(always)]
+    fn logic(&mut self, op: Logic, a: Vf<N>, b: Vf<N>) -> Vf<N> {
+        a.zip(b, |x, y| f32::from_bits(op.eval(x.to_bits(), y.to_bits())))
+    }
+    #[inline(always)]
+    fn broadcast(&mut self, x: NX) -> Vf<N> {
+        Vf([x.0; N])
+    }
+    #[inline(always)]
+    fn extract(&mut self, a: Vf<N>, i: usize) -> NX {
+        NX(a.0[i])
+    }
+    #[inline(always)]
+    fn permute(&mut self, a: Vf<N>, idx: &[u8]) -> Vf<N> {
+        permute2(a, a, &idx_arr(idx, N))
+    }
+    #[inline(always)]
+    fn shuffle2(&mut self, a: Vf<N>, b: Vf<N>, idx: &[u8]) -> Vf<N> {
+        permute2(a, b, &idx_arr(idx, 2 * N))
+    }
+    #[inline(always)]
+    fn reduce(&mut self, op: BinOp, a: Vf<N>) -> NX {
+        NX(reduce_op(op, a))
+    }
+    #[inline(always)]
+    fn to_int(&mut self, a: Vf<N>) -> Vi<N> {
+        let mut r = [0i32; N];
+        for i in 0..N {
+            r[i] = cvt_trunc(a.0[i]);
+        }
+        Vi(r)
+    }
+    #[inline(always)]
+    fn to_int_round(&mut self, a: Vf<N>) -> Vi<N> {
+        let mut r = [0i32; N];
+        for i in 0..N {
+            r[i] = cvt_round(a.0[i]);
+        }
+        Vi(r)
+    }
+    #[inline(always)]
+    fn to_float(&mut self, a: Vi<N>) -> Vf<N> {
+        let mut r = [0f32; N];
+        for i in 0..N {
+            r[i] = a.0[i] as f32;
+        }
+        Vf(r)
+    }
+    #[inline(always)]
+    fn bits_to_i(&mut self, a: Vf<N>) -> Vi<N> {
+        a.to_bits()
+    }
+    #[inline(always)]
+    fn bits_to_f(&mut self, a: Vi<N>) -> Vf<N> {
+        a.to_f32_bits()
+    }
+
+    #[inline(always)]
+    fn iop(&mut self, op: IOp, a: Vi<N>, b: Vi<N>) -> Vi<N> {
+        a.zip(b, |x, y| op.eval(x, y))
+    }
+    #[inline(always)]
+    fn ishift(&mut self, s: Shift, a: Vi<N>, n: u32) -> Vi<N> {
+        a.map(|x| s.eval32(x, n))
+    }
+    #[inline(always)]
+    fn icmp(&mut self, p: Cmp, a: Vi<N>, b: Vi<N>) -> Vk<N> {
+        let mut r = [0i32; N];
+        for i in 0..N {
+            r[i] = -(p.eval_i(i64::from(a.0[i]), i64::from(b.0[i])) as i32);
+        }
+        Vk(r)
+    }
+    #[inline(always)]
+    fn iselect(&mut self, k: Vk<N>, t: Vi<N>, f: Vi<N>) -> Vi<N> {
+        k.select_i(t, f)
+    }
+
+    #[inline(always)]
+    fn klogic(&mut self, op: Logic, a: Vk<N>, b: Vk<N>) -> Vk<N> {
+        a.zip(b, |x, y| op.eval_b(x, y))
+    }
+    #[inline(always)]
+    fn knot(&mut self, a: Vk<N>) -> Vk<N> {
+        a.zip(a, |x, _| !x)
+    }
+    #[inline(always)]
+    fn movemask(&mut self, k: Vk<N>) -> NS {
+        NS(i64::from(k.bits()))
+    }
+    #[inline(always)]
+    fn popcnt(&mut self, k: Vk<N>) -> NS {
+        NS(i64::from(k.bits().count_ones()))
+    }
+    #[inline(always)]
+    fn bitscan(&mut self, k: Vk<N>) -> NS {
+        NS(i64::from(k.bits().trailing_zeros().min(N as u32)))
+    }
+    #[inline(always)]
+    fn any(&mut self, k: Vk<N>) -> NS {
+        NS(i64::from(k.bits() != 0))
+    }
+    #[inline(always)]
+    fn all(&mut self, k: Vk<N>) -> NS {
+        NS(i64::from(k.bits().count_ones() == N as u32))
+    }
+
+    #[inline(always)]
+    fn load(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
+        let off = ea(at);
+        debug_assert!(
+            buf.addr(off).0 % (4 * N as u64) == 0,
+            "misaligned load at {}",
+            buf.addr(off)
+        );
+        Vf(buf.f32s::<N>(off))
+    }
+    #[inline(always)]
+    fn loadu(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
+        Vf(buf.f32s::<N>(ea(at)))
+    }
+    #[inline(always)]
+    fn load_bcast(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
+        Vf([buf.f32_at(ea(at)); N])
+    }
+    #[inline(always)]
+    fn load_repeat(&mut self, buf: &Buf, at: At<NS>, n: usize) -> Vf<N> {
+        assert!(n > 0 && N % n == 0, "repeat of {n} lanes in {N}");
+        let off = ea(at);
+        let mut r = [0f32; N];
+        for (i, x) in r.iter_mut().enumerate() {
+            *x = buf.f32_at(off + 4 * (i % n));
+        }
+        Vf(r)
+    }
+    #[inline(always)]
+    fn load_masked(&mut self, k: Vk<N>, src: Vf<N>, buf: &Buf, at: At<NS>) -> Vf<N> {
+        let off = ea(at);
+        let mut r = src.0;
+        for (i, x) in r.iter_mut().enumerate() {
+            if k.get(i) {
+                *x = buf.f32_at(off + 4 * i);
+            }
+        }
+        Vf(r)
+    }
+    #[inline(always)]
+    fn store(&mut self, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
+        let off = ea(at);
+        debug_assert!(
+            buf.addr(off).0 % (4 * N as u64) == 0,
+            "misaligned store at {}",
+            buf.addr(off)
+        );
+        buf.set_f32s(off, &v.0);
+    }
+    #[inline(always)]
+    fn storeu(&mut self, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
+        buf.set_f32s(ea(at), &v.0);
+    }
+    #[inline(always)]
+    fn store_masked(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
+        let off = ea(at);
+        for i in 0..N {
+            if k.get(i) {
+                buf.set_f32(off + 4 * i, v.0[i]);
+            }
+        }
+    }
+    #[inline(always)]
+    fn gather(
+        &mut self,
+        k: Vk<N>,
+        src: Vf<N>,
+        buf: &Buf,
+        at: At<NS>,
+        idx: Vi<N>,
+        scale: u8,
+    ) -> Vf<N> {
+        let off = ea(at);
+        let mut r = src.0;
+        for (i, x) in r.iter_mut().enumerate() {
+            if k.get(i) {
+                *x = buf.f32_at(ea_off(Some(i64::from(idx.0[i])), scale, off));
+            }
+        }
+        Vf(r)
+    }
+    #[inline(always)]
+    fn scatter(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, idx: Vi<N>, scale: u8, v: Vf<N>) {
+        let off = ea(at);
+        for i in 0..N {
+            if k.get(i) {
+                let o = ea_off(Some(i64::from(idx.0[i])), scale, off);
+                buf.set_f32(o, v.0[i]);
+            }
+        }
+    }
+    #[inline(always)]
+    fn compress_store(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, v: Vf<N>) -> NS {
+        let off = ea(at);
+        let (packed, n) = compress_lanes(k, v);
+        if FL::COMPRESS {
+            for i in 0..n {
+                buf.set_f32(off + 4 * i, packed.0[i]);
+            }
+        } else {
+            buf.set_f32s(off, &packed.0);
+        }
+        NS(n as i64)
+    }
+
+    #[inline(always)]
+    fn s_op(&mut self, op: SOp, a: NS, b: NS) -> NS {
+        NS(op.eval(a.0, b.0))
+    }
+    #[inline(always)]
+    fn s_shift(&mut self, s: Shift, a: NS, n: u32) -> NS {
+        NS(s.eval64(a.0, n))
+    }
+    #[inline(always)]
+    fn s_cmp(&mut self, p: Cmp, a: NS, b: NS) -> NS {
+        NS(i64::from(p.eval_i(a.0, b.0)))
+    }
+    #[inline(always)]
+    fn s_select(&mut self, c: NS, a: NS, b: NS) -> NS {
+        if c.0 != 0 {
+            a
+        } else {
+            b
+        }
+    }
+    #[inline(always)]
+    fn s_popcnt(&mut self, a: NS) -> NS {
+        NS(i64::from(a.0.count_ones()))
+    }
+    #[inline(always)]
+    fn s_tzcnt(&mut self, a: NS) -> NS {
+        NS(i64::from(a.0.trailing_zeros()))
+    }
+    #[inline(always)]
+    fn s_load(&mut self, buf: &Buf, at: At<NS>, width: u8, signed: bool) -> NS {
+        NS(load_int(buf, ea(at), width, signed))
+    }
+    #[inline(always)]
+    fn s_store(&mut self, buf: &mut Buf, at: At<NS>, width: u8, v: NS) {
+        buf.set_uint(ea(at), width as usize, v.0 as u64);
+    }
+
+    #[inline(always)]
+    fn x_op(&mut self, op: BinOp, a: NX, b: NX) -> NX {
+        NX(op.eval(a.0, b.0))
+    }
+    #[inline(always)]
+    fn x_fma(&mut self, kind: Fma, a: NX, b: NX, c: NX) -> NX {
+        NX(kind.eval(FL::FMA, a.0, b.0, c.0))
+    }
+    #[inline(always)]
+    fn x_sqrt(&mut self, a: NX) -> NX {
+        NX(a.0.sqrt())
+    }
+    #[inline(always)]
+    fn x_cmp(&mut self, p: Cmp, a: NX, b: NX) -> NS {
+        NS(i64::from(p.eval(a.0, b.0)))
+    }
+    #[inline(always)]
+    fn x_load(&mut self, buf: &Buf, at: At<NS>) -> NX {
+        NX(buf.f32_at(ea(at)))
+    }
+    #[inline(always)]
+    fn x_store(&mut self, buf: &mut Buf, at: At<NS>, v: NX) {
+        buf.set_f32(ea(at), v.0);
+    }
+
+    #[inline(always)]
+    fn branch(&mut self, _site: Site, c: NS) -> bool {
+        c.0 != 0
+    }
+
+    fn lane(&self, a: Vf<N>, i: usize) -> f32 {
+        a.0[i]
+    }
+    fn lane_i(&self, a: Vi<N>, i: usize) -> i32 {
+        a.0[i]
+    }
+    fn bits(&self, k: Vk<N>) -> u32 {
+        k.bits()
+    }
+}

@@ -1,0 +1,189 @@
+//! The op stream: what the traced backend records and the timing model reads.
+
+use crate::class::OpClass;
+use crate::flavour::FlavourId;
+use crate::mem::MemRegion;
+use crate::types::{Addr, LaneMask, MemId, Region, Site, ValId};
+
+/// Maximum source operands of one op (a masked FMA: a, b, c, k).
+pub const MAX_SRCS: usize = 4;
+
+/// One recorded machine instruction.
+///
+/// Layout (48 bytes): class, region, flags, nsrc (4 x u8); mask (u32);
+/// dst (u32); srcs (4 x u32); addr (u64); bytes (u32); mem (u16); pad (u16);
+/// aux (u32: branch site, or the first index into [`Trace::lane_addrs`] of a
+/// gather or scatter).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Op {
+    /// Instruction kind.
+    pub class: OpClass,
+    /// Code region it belongs to.
+    pub region: Region,
+    /// `FLAG_*` bits.
+    pub flags: u8,
+    /// Number of sources in `srcs`.
+    pub nsrc: u8,
+    /// Active lanes (1 for scalar ops).
+    pub mask: LaneMask,
+    /// The value it produces, or `ValId::NONE`.
+    pub dst: ValId,
+    /// Values it reads (constants are not listed).
+    pub srcs: [ValId; MAX_SRCS],
+    /// First byte accessed (memory ops; for gather/scatter the first active lane's).
+    pub addr: Addr,
+    /// Bytes accessed (per lane for gather/scatter).
+    pub bytes: u32,
+    /// Memory region accessed.
+    pub mem: MemId,
+    /// Branch site, or first lane address index for gather/scatter.
+    pub aux: u32,
+}
+
+const _: () = assert!(std::mem::size_of::<Op>() == 48);
+
+/// `Op::flags`: a branch that was taken.
+pub const FLAG_TAKEN: u8 = 1;
+
+impl Op {
+    /// A blank op of `class` in `region`.
+    #[must_use]
+    pub fn new(class: OpClass, region: Region) -> Op {
+        Op {
+            class,
+            region,
+            flags: 0,
+            nsrc: 0,
+            mask: LaneMask(1),
+            dst: ValId::NONE,
+            srcs: [ValId::NONE; MAX_SRCS],
+            addr: Addr(0),
+            bytes: 0,
+            mem: MemId(0),
+            aux: 0,
+        }
+    }
+    /// The sources.
+    #[must_use]
+    pub fn sources(&self) -> &[ValId] {
+        &self.srcs[..self.nsrc as usize]
+    }
+    /// Add a source (ignored if it is a constant).
+    pub fn push_src(&mut self, v: ValId) {
+        if v.is_some() {
+            assert!((self.nsrc as usize) < MAX_SRCS, "too many sources");
+            self.srcs[self.nsrc as usize] = v;
+            self.nsrc += 1;
+        }
+    }
+    /// Branch site (branches only).
+    #[must_use]
+    pub fn site(&self) -> Site {
+        Site(self.aux)
+    }
+    /// Whether a branch was taken.
+    #[must_use]
+    pub fn taken(&self) -> bool {
+        self.flags & FLAG_TAKEN != 0
+    }
+}
+
+/// A recorded run: header facts and the ops.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Trace {
+    /// ISA flavour.
+    pub flavour: FlavourId,
+    /// What produced it (e.g. `micro:fma-chain`).
+    pub source: String,
+    /// Parameters of the producer, as key/value text.
+    pub params: Vec<(String, String)>,
+    /// Memory regions (their ids are `MemId`s in ops).
+    pub regions: Vec<MemRegion>,
+    /// The ops, in program order.
+    pub ops: Vec<Op>,
+    /// Per-lane addresses of gathers and scatters (active lanes, in lane order).
+    pub lane_addrs: Vec<Addr>,
+}
+
+impl Trace {
+    /// An empty trace.
+    #[must_use]
+    pub fn new(flavour: FlavourId, source: &str) -> Trace {
+        Trace {
+            flavour,
+            source: source.to_string(),
+            params: Vec::new(),
+            regions: Vec::new(),
+            ops: Vec::new(),
+            lane_addrs: Vec::new(),
+        }
+    }
+    /// The per-lane addresses of gather/scatter `op`.
+    #[must_use]
+    pub fn lanes_of(&self, op: &Op) -> &[Addr] {
+        if op.class.is_per_lane_mem() {
+            let s = op.aux as usize;
+            &self.lane_addrs[s..s + op.mask.count() as usize]
+        } else {
+            &[]
+        }
+    }
+    /// Every address an op touches with its byte count: one for ordinary
+    /// memory ops, one per active lane for gather and scatter.
+    pub fn accesses<'a>(&'a self, op: &'a Op) -> impl Iterator<Item = (Addr, u32)> + 'a {
+        let single =
+            (op.class.is_mem() && !op.class.is_per_lane_mem()).then_some((op.addr, op.bytes));
+        single
+            .into_iter()
+            .chain(self.lanes_of(op).iter().map(move |&a| (a, op.bytes)))
+    }
+    /// Check internal consistency: sources defined before use, lane address
+    /// ranges in bounds, memory ops inside their region, ids in range.
+    pub fn validate(&self) -> Result<(), String> {
+        let lanes = self.flavour.lanes();
+        let full = LaneMask::full(lanes).0;
+        let mut defined = std::collections::HashSet::new();
+        let mut lane_next = 0usize;
+        for (i, op) in self.ops.iter().enumerate() {
+            let at = |m: String| format!("op {i} ({}): {m}", op.class);
+            for s in op.sources() {
+                if !defined.contains(s) {
+                    return Err(at(format!("source %{} is not defined before use", s.0)));
+                }
+            }
+            if op.mask.0 & !full != 0 {
+                return Err(at(format!(
+                    "mask {:#x} has lanes beyond {lanes}",
+                    op.mask.0
+                )));
+            }
+            if op.class.is_mem() {
+                let r = self
+                    .regions
+                    .get(op.mem.0 as usize)
+                    .ok_or_else(|| at(format!("memory region {} does not exist", op.mem.0)))?;
+                if op.class.is_per_lane_mem() {
+                    if op.aux as usize != lane_next {
+                        return Err(at("lane addresses out of order".into()));
+                    }
+                    lane_next += op.mask.count() as usize;
+                    if lane_next > self.lane_addrs.len() {
+                        return Err(at("lane addresses missing".into()));
+                    }
+                }
+                for (a, n) in self.accesses(op) {
+                    if a.0 < r.base.0 || a.0 + u64::from(n) > r.base.0 + r.size {
+                        return Err(at(format!("access {a}+{n} outside region {}", r.name)));
+                    }
+                }
+            }
+            if op.dst.is_some() && !defined.insert(op.dst) {
+                return Err(at(format!("value %{} defined twice", op.dst.0)));
+            }
+        }
+        if lane_next != self.lane_addrs.len() {
+            return Err("unreferenced lane addresses at the end".into());
+        }
+        Ok(())
+    }
+}

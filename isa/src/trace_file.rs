@@ -1,0 +1,462 @@
+//! Binary trace files (`.rtt`), format version 1. `traces/FORMAT.md` is the
+//! specification; this is its implementation.
+//!
+//! ```text
+//! magic "RTSIMTRC" | version u16 LE | header (varints, strings) | ops | FNV-1a-64 of all before it, u64 LE
+//! ```
+//! Ops are delta-encoded: a produced value's id is implicit when it is the
+//! previous one plus one, sources are distances back from it, addresses are
+//! deltas from the previous address; a typical op takes 3 to 6 bytes.
+
+use crate::class::OpClass;
+use crate::flavour::FlavourId;
+use crate::mem::MemRegion;
+use crate::trace::{Op, Trace, FLAG_TAKEN, MAX_SRCS};
+use crate::types::{Addr, LaneMask, MemId, MemKind, Region, ValId};
+use std::fmt;
+
+/// File magic.
+pub const MAGIC: &[u8; 8] = b"RTSIMTRC";
+/// Format version written and read.
+pub const VERSION: u16 = 1;
+
+const F_NSRC: u8 = 0b0000_0111;
+const F_DST: u8 = 0b0000_1000;
+const F_DST_EXPLICIT: u8 = 0b0001_0000;
+const F_MASK: u8 = 0b0010_0000;
+const F_REGION: u8 = 0b0100_0000;
+const F_TAKEN: u8 = 0b1000_0000;
+
+/// A malformed file: what is wrong and at which byte.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FormatError {
+    /// Byte offset where decoding failed.
+    pub offset: usize,
+    /// What was wrong.
+    pub msg: String,
+}
+
+impl fmt::Display for FormatError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "byte {}: {}", self.offset, self.msg)
+    }
+}
+
+impl std::error::Error for FormatError {}
+
+/// FNV-1a, 64-bit.
+#[must_use]
+pub fn fnv1a64(bytes: &[u8]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for &b in bytes {
+        h ^= u64::from(b);
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h
+}
+
+fn put_varint(out: &mut Vec<u8>, mut v: u64) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+fn zigzag(v: i64) -> u64 {
+    ((v << 1) ^ (v >> 63)) as u64
+}
+
+fn unzigzag(v: u64) -> i64 {
+    ((v >> 1) as i64) ^ -((v & 1) as i64)
+}
+
+fn put_str(out: &mut Vec<u8>, s: &str) {
+    put_varint(out, s.len() as u64);
+    out.extend_from_slice(s.as_bytes());
+}
+
+/// Encode a trace.
+#[must_use]
+pub fn encode(t: &Trace) -> Vec<u8> {
+    let mut out = Vec::with_capacity(64 + t.ops.len() * 5);
+    out.extend_from_slice(MAGIC);
+    out.extend_from_slice(&VERSION.to_le_bytes());
+    out.push(t.flavour as u8);
+    put_str(&mut out, &t.source);
+    put_varint(&mut out, t.params.len() as u64);
+    for (k, v) in &t.params {
+        put_str(&mut out, k);
+        put_str(&mut out, v);
+    }
+    put_varint(&mut out, t.regions.len() as u64);
+    for r in &t.regions {
+        out.push(r.kind as u8);
+        put_str(&mut out, &r.name);
+        put_varint(&mut out, r.base.0);
+        put_varint(&mut out, r.size);
+    }
+    put_varint(&mut out, t.ops.len() as u64);
+    put_varint(&mut out, t.lane_addrs.len() as u64);
+
+    let full = LaneMask::full(t.flavour.lanes());
+    let mut last_dst = 0u32;
+    let mut region = Region::Other;
+    let mut prev_addr = 0u64;
+    for op in &t.ops {
+        out.push(op.class as u8);
+        let implicit = last_dst + 1;
+        let mut flags = op.nsrc & F_NSRC;
+        if op.dst.is_some() {
+            flags |= F_DST;
+            if op.dst.0 != implicit {
+                flags |= F_DST_EXPLICIT;
+            }
+        }
+        if op.mask != default_mask(op.class, full) {
+            flags |= F_MASK;
+        }
+        if op.region != region {
+            flags |= F_REGION;
+        }
+        if op.taken() {
+            flags |= F_TAKEN;
+        }
+        out.push(flags);
+        if flags & F_REGION != 0 {
+            out.push(op.region as u8);
+            region = op.region;
+        }
+        if flags & F_DST_EXPLICIT != 0 {
+            put_varint(&mut out, u64::from(op.dst.0));
+        }
+        let reference = if op.dst.is_some() { op.dst.0 } else { implicit };
+        for s in op.sources() {
+            put_varint(&mut out, zigzag(i64::from(reference) - i64::from(s.0)));
+        }
+        if flags & F_MASK != 0 {
+            put_varint(&mut out, u64::from(op.mask.0));
+        }
+        if op.class.is_mem() {
+            put_varint(&mut out, u64::from(op.mem.0));
+            put_varint(&mut out, u64::from(op.bytes));
+            if op.class.is_per_lane_mem() {
+                for a in t.lanes_of(op) {
+                    put_varint(&mut out, zigzag(a.0 as i64 - prev_addr as i64));
+                    prev_addr = a.0;
+                }
+            } else {
+                put_varint(&mut out, zigzag(op.addr.0 as i64 - prev_addr as i64));
+                prev_addr = op.addr.0;
+            }
+        }
+        if op.class == OpClass::Branch {
+            put_varint(&mut out, u64::from(op.aux));
+        }
+        if op.dst.is_some() {
+            last_dst = op.dst.0;
+        }
+    }
+    let sum = fnv1a64(&out);
+    out.extend_from_slice(&sum.to_le_bytes());
+    out
+}
+
+/// The mask an op has unless stated: every lane for vector ops, one for scalar.
+#[must_use]
+pub fn default_mask(class: OpClass, full: LaneMask) -> LaneMask {
+    if class.is_vector() {
+        full
+    } else {
+        LaneMask(1)
+    }
+}
+
+struct Reader<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn err<T>(&self, at: usize, msg: impl Into<String>) -> Result<T, FormatError> {
+        Err(FormatError {
+            offset: at,
+            msg: msg.into(),
+        })
+    }
+    fn u8(&mut self, what: &str) -> Result<u8, FormatError> {
+        match self.b.get(self.pos) {
+            Some(&v) => {
+                self.pos += 1;
+                Ok(v)
+            }
+            None => self.err(self.pos, format!("file ends inside {what} (truncated?)")),
+        }
+    }
+    fn varint(&mut self, what: &str) -> Result<u64, FormatError> {
+        let start = self.pos;
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let b = self.u8(what)?;
+            v |= u64::from(b & 0x7f) << shift;
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        self.err(start, format!("{what}: varint longer than 10 bytes"))
+    }
+    fn u32v(&mut self, what: &str) -> Result<u32, FormatError> {
+        let at = self.pos;
+        let v = self.varint(what)?;
+        u32::try_from(v).or_else(|_| self.err(at, format!("{what} {v} does not fit in 32 bits")))
+    }
+    fn str(&mut self, what: &str) -> Result<String, FormatError> {
+        let at = self.pos;
+        let n = self.varint(what)? as usize;
+        if n > self.b.len().saturating_sub(self.pos) {
+            return self.err(
+                at,
+                format!("{what}: length {n} runs past the end of the file"),
+            );
+        }
+        let s = &self.b[self.pos..self.pos + n];
+        self.pos += n;
+        String::from_utf8(s.to_vec()).or_else(|_| self.err(at, format!("{what} is not UTF-8")))
+    }
+}
+
+/// Decode a trace, checking structure, ids, regions and the checksum.
+pub fn decode(bytes: &[u8]) -> Result<Trace, FormatError> {
+    if bytes.len() < MAGIC.len() + 2 + 8 {
+        return Err(FormatError {
+            offset: bytes.len(),
+            msg: format!(
+                "file is {} bytes, too short for a trace (truncated?)",
+                bytes.len()
+            ),
+        });
+    }
+    if &bytes[..8] != MAGIC {
+        return Err(FormatError {
+            offset: 0,
+            msg: "not an rtsim binary trace (bad magic)".into(),
+        });
+    }
+    let version = u16::from_le_bytes([bytes[8], bytes[9]]);
+    if version != VERSION {
+        return Err(FormatError {
+            offset: 8,
+            msg: format!("unsupported trace format version {version} (this rtsim reads {VERSION})"),
+        });
+    }
+    let body_end = bytes.len() - 8;
+    let mut r = Reader {
+        b: &bytes[..body_end],
+        pos: 10,
+    };
+    let at = r.pos;
+    let fl = r.u8("header")?;
+    let flavour = FlavourId::from_id(fl).ok_or_else(|| FormatError {
+        offset: at,
+        msg: format!("unknown ISA flavour id {fl}"),
+    })?;
+    let source = r.str("source")?;
+    let np = r.varint("parameter count")?;
+    let mut params = Vec::new();
+    for _ in 0..np {
+        let k = r.str("parameter name")?;
+        let v = r.str("parameter value")?;
+        params.push((k, v));
+    }
+    let nr = r.varint("region count")?;
+    if nr > u64::from(u16::MAX) {
+        return r.err(r.pos, format!("{nr} memory regions (at most 65535)"));
+    }
+    let mut regions = Vec::new();
+    for i in 0..nr {
+        let at = r.pos;
+        let k = r.u8("region kind")?;
+        let kind = MemKind::from_id(k).ok_or_else(|| FormatError {
+            offset: at,
+            msg: format!("unknown memory kind {k}"),
+        })?;
+        let name = r.str("region name")?;
+        let base = r.varint("region base")?;
+        let size = r.varint("region size")?;
+        regions.push(MemRegion {
+            id: MemId(i as u16),
+            kind,
+            name,
+            base: Addr(base),
+            size,
+        });
+    }
+    let nops = r.varint("op count")?;
+    let nlanes = r.varint("lane address count")?;
+    let remaining = body_end - r.pos;
+    let mut ops = Vec::with_capacity((nops as usize).min(remaining / 2));
+    let mut lane_addrs = Vec::with_capacity((nlanes as usize).min(remaining));
+    let full = LaneMask::full(flavour.lanes());
+    let mut last_dst = 0u32;
+    let mut region = Region::Other;
+    let mut prev_addr = 0u64;
+    for i in 0..nops {
+        let at = r.pos;
+        let c = r.u8("op")?;
+        let class = OpClass::from_id(c).ok_or_else(|| FormatError {
+            offset: at,
+            msg: format!("op {i}: unknown op class {c}"),
+        })?;
+        let flags = r.u8("op flags")?;
+        let mut op = Op::new(class, region);
+        if flags & F_REGION != 0 {
+            let rat = r.pos;
+            let rid = r.u8("region")?;
+            region = Region::from_id(rid).ok_or_else(|| FormatError {
+                offset: rat,
+                msg: format!("op {i}: unknown code region {rid}"),
+            })?;
+            op.region = region;
+        }
+        let implicit = last_dst + 1;
+        if flags & F_DST != 0 {
+            op.dst = ValId(if flags & F_DST_EXPLICIT != 0 {
+                r.u32v("destination id")?
+            } else {
+                implicit
+            });
+            if !op.dst.is_some() {
+                return r.err(at, format!("op {i}: destination id 0"));
+            }
+        } else if flags & F_DST_EXPLICIT != 0 {
+            return r.err(at + 1, format!("op {i}: explicit id without a destination"));
+        }
+        let nsrc = (flags & F_NSRC) as usize;
+        if nsrc > MAX_SRCS {
+            return r.err(
+                at + 1,
+                format!("op {i}: {nsrc} sources (at most {MAX_SRCS})"),
+            );
+        }
+        let reference = if op.dst.is_some() { op.dst.0 } else { implicit };
+        for _ in 0..nsrc {
+            let sat = r.pos;
+            let d = unzigzag(r.varint("source")?);
+            let s = i64::from(reference) - d;
+            if s <= 0 || s > i64::from(u32::MAX) {
+                return r.err(sat, format!("op {i}: source id {s} out of range"));
+            }
+            op.push_src(ValId(s as u32));
+        }
+        op.mask = if flags & F_MASK != 0 {
+            let mat = r.pos;
+            let m = r.u32v("mask")?;
+            if m & !full.0 != 0 {
+                return r.err(
+                    mat,
+                    format!("op {i}: mask {m:#x} has lanes beyond {}", flavour.lanes()),
+                );
+            }
+            LaneMask(m)
+        } else {
+            default_mask(class, full)
+        };
+        if flags & F_TAKEN != 0 {
+            if class != OpClass::Branch {
+                return r.err(at + 1, format!("op {i}: taken flag on a {class}"));
+            }
+            op.flags |= FLAG_TAKEN;
+        }
+        if class.is_mem() {
+            let mat = r.pos;
+            let m = r.varint("memory region")?;
+            if m >= regions.len() as u64 {
+                return r.err(mat, format!("op {i}: memory region {m} does not exist"));
+            }
+            op.mem = MemId(m as u16);
+            op.bytes = r.u32v("access size")?;
+            if class.is_per_lane_mem() {
+                op.aux = lane_addrs.len() as u32;
+                for _ in 0..op.mask.count() {
+                    let d = unzigzag(r.varint("lane address")?);
+                    prev_addr = (prev_addr as i64).wrapping_add(d) as u64;
+                    lane_addrs.push(Addr(prev_addr));
+                }
+                op.addr = lane_addrs.get(op.aux as usize).copied().unwrap_or(Addr(0));
+            } else {
+                let d = unzigzag(r.varint("address")?);
+                prev_addr = (prev_addr as i64).wrapping_add(d) as u64;
+                op.addr = Addr(prev_addr);
+            }
+        }
+        if class == OpClass::Branch {
+            op.aux = r.u32v("branch site")?;
+        }
+        if op.dst.is_some() {
+            last_dst = op.dst.0;
+        }
+        ops.push(op);
+    }
+    if r.pos != body_end {
+        return r.err(
+            r.pos,
+            format!("{} unexpected bytes after the last op", body_end - r.pos),
+        );
+    }
+    if lane_addrs.len() as u64 != nlanes {
+        return r.err(
+            body_end,
+            format!(
+                "header says {nlanes} lane addresses, ops hold {}",
+                lane_addrs.len()
+            ),
+        );
+    }
+    let stored = u64::from_le_bytes(bytes[body_end..].try_into().expect("8 bytes"));
+    let computed = fnv1a64(&bytes[..body_end]);
+    if stored != computed {
+        return Err(FormatError {
+            offset: body_end,
+            msg: format!(
+                "checksum mismatch (stored {stored:#018x}, computed {computed:#018x}): the file is corrupt"
+            ),
+        });
+    }
+    let t = Trace {
+        flavour,
+        source,
+        params,
+        regions,
+        ops,
+        lane_addrs,
+    };
+    t.validate().map_err(|m| FormatError {
+        offset: 10,
+        msg: format!("inconsistent trace: {m}"),
+    })?;
+    Ok(t)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn varints_and_zigzag() {
+        for v in [0u64, 1, 127, 128, 300, u64::MAX] {
+            let mut b = Vec::new();
+            put_varint(&mut b, v);
+            let mut r = Reader { b: &b, pos: 0 };
+            assert_eq!(r.varint("x").unwrap(), v);
+        }
+        for v in [0i64, -1, 1, i64::MIN, i64::MAX] {
+            assert_eq!(unzigzag(zigzag(v)), v);
+        }
+    }
+
+    #[test]
+    fn fnv_known_value() {
+        assert_eq!(fnv1a64(b""), 0xcbf2_9ce4_8422_2325);
+        assert_eq!(fnv1a64(b"a"), 0xaf63_dc4c_8601_ec8c);
+    }
+}

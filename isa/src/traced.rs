@@ -1,0 +1,1114 @@
+//! The traced backend: computes every result (with the same lane semantics as
+//! the native backend) and records the machine instructions the flavour needs
+//! for it. An op a flavour lacks expands into the ops it would really issue,
+//! each recorded, so its cost shows up honestly:
+//!
+//! | op | mask-register flavours (lrb16, avx512) | avx2 | sse4 |
+//! |----|-----|-----|-----|
+//! | `masked(op)` | 1 masked op | op + vblend | op + vblend |
+//! | `select` | vmaskmov | vblend | vblend |
+//! | `fma` | vfma | vfma | vmul + vadd (+ vlogic for -(ab)-c) |
+//! | `masked_fma` | vfma{k} | vfma + vblend | vmul + vadd + vblend |
+//! | `rcp` / `rsqrt` (exact) | vdiv / vsqrt + vdiv | same | same |
+//! | `abs`, `neg` | vlogic | vlogic | vlogic |
+//! | `extract(i)`, i > 0 | vshuf (i < 4), else vperm (+ vshuf if i % 4 != 0) | same | vshuf |
+//! | `permute` | vshuf in-lane, else vperm | same | vshuf |
+//! | `shuffle2` | vshuf if shufps/unpck/blend-able, else vperm | vshuf, vperm if whole 128-bit blocks, else 2 permutes + blend | vshuf, else 2 shuffles + blend |
+//! | `reduce` | log2(N) x (vperm or vshuf + op) | same | same |
+//! | `icmp` Ne/Le/Ge | vicmp | vicmp + vilogic | vicmp + vilogic |
+//! | `knot`, `klogic` | klogic | vlogic | vlogic |
+//! | `popcnt(k)` | movmsk + bitcnt | same | same |
+//! | `bitscan(k)` | movmsk + alu (sentinel bit) + bitcnt | same | same |
+//! | `load_masked` | vloadmasked | vloadmasked + vblend (vmaskmovps zeroes) | vload + vblend |
+//! | `store_masked` | vstoremasked | vstoremasked | movmsk + per active lane: extract + store |
+//! | `gather` | vgather | vgather | per active lane: vshuf + load + vinsert |
+//! | `scatter` | vscatter | movmsk + per active lane: extract idx, extract value, store | same |
+//! | `compress_store` | vcompress + movmsk + bitcnt | movmsk + LUT vload + vperm + vstore + bitcnt | movmsk + LUT vload + vshuf + vstore + bitcnt |
+//! | `s_op` Min/Max | cmp + cmov | same | same |
+//! | `x_fma` | vfma (1 lane) | vfma | vmul + vadd (+ vlogic) |
+
+use crate::class::OpClass;
+use crate::flavour::{Flavour, FlavourId};
+use crate::lanes::{
+    cvt_round, cvt_trunc, permute2, rcp_approx, rsqrt_approx, xor_pattern, BinOp, Cmp, Fma, IOp,
+    Shift, Vf, Vi, Vk,
+};
+use crate::machine::{Float, Int, Logic, Machine, SOp};
+use crate::mem::{AddrSpace, At, Buf};
+use crate::native::{arr, compress_lanes, ea_off, idx_arr, load_int, reduce_op};
+use crate::trace::{Op, Trace, FLAG_TAKEN};
+use crate::types::{LaneMask, Region, Site, ValId};
+use std::marker::PhantomData;
+
+/// Traced f32 vector: value and id.
+#[derive(Clone, Copy, Debug)]
+pub struct TF<const N: usize> {
+    /// Lanes.
+    pub v: Vf<N>,
+    /// Producer.
+    pub id: ValId,
+}
+/// Traced i32 vector.
+#[derive(Clone, Copy, Debug)]
+pub struct TI<const N: usize> {
+    /// Lanes.
+    pub v: Vi<N>,
+    /// Producer.
+    pub id: ValId,
+}
+/// Traced mask.
+#[derive(Clone, Copy, Debug)]
+pub struct TK<const N: usize> {
+    /// Lanes.
+    pub v: Vk<N>,
+    /// Producer.
+    pub id: ValId,
+}
+/// Traced scalar integer.
+#[derive(Clone, Copy, Debug)]
+pub struct TS {
+    /// Value.
+    pub v: i64,
+    /// Producer.
+    pub id: ValId,
+}
+/// Traced scalar f32.
+#[derive(Clone, Copy, Debug)]
+pub struct TX {
+    /// Value.
+    pub v: f32,
+    /// Producer.
+    pub id: ValId,
+}
+
+impl Int for TS {
+    #[inline(always)]
+    fn get(self) -> i64 {
+        self.v
+    }
+}
+impl Float for TX {
+    #[inline(always)]
+    fn get(self) -> f32 {
+        self.v
+    }
+}
+
+/// A traced machine of flavour `FL` with `N` lanes (e.g. `Traced<Avx2, 8>`).
+#[derive(Debug)]
+pub struct Traced<FL, const N: usize> {
+    space: AddrSpace,
+    trace: Trace,
+    next: u32,
+    region: Region,
+    active: u32,
+    /// The ISA's own lookup table region (compress-store permutations).
+    lut: Option<Buf>,
+    _f: PhantomData<FL>,
+}
+
+impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
+    /// A machine recording a trace whose header says it came from `source`.
+    #[must_use]
+    pub fn new(source: &str) -> Self {
+        let space = AddrSpace::new();
+        let lut = Some(space.lut());
+        Traced {
+            lut,
+            space,
+            trace: Trace::new(FL::ID, source),
+            next: 1,
+            region: Region::Other,
+            active: LaneMask::full(N).0,
+            _f: PhantomData,
+        }
+    }
+    /// Record a parameter in the trace header.
+    pub fn param(&mut self, key: &str, value: impl ToString) {
+        self.trace.params.push((key.to_string(), value.to_string()));
+    }
+    /// Ops recorded so far.
+    #[must_use]
+    pub fn ops(&self) -> &[Op] {
+        &self.trace.ops
+    }
+    /// Finish: the trace with the address space's regions in its header.
+    #[must_use]
+    pub fn finish(mut self) -> Trace {
+        self.trace.regions = self.space.regions().to_vec();
+        self.trace
+    }
+
+    const FULL: u32 = if N == 32 { u32::MAX } else { (1u32 << N) - 1 };
+
+    #[inline]
+    fn fresh(&mut self) -> ValId {
+        let id = ValId(self.next);
+        self.next = self.next.checked_add(1).expect("more than 2^32 values");
+        id
+    }
+
+    /// Record one op; returns its destination id (or NONE when `dst` is false).
+    #[inline]
+    fn emit(&mut self, class: OpClass, srcs: &[ValId], mask: u32, dst: bool) -> ValId {
+        let mut op = Op::new(class, self.region);
+        for &s in srcs {
+            op.push_src(s);
+        }
+        op.mask = LaneMask(if class.is_vector() {
+            mask & self.active
+        } else {
+            mask
+        });
+        if dst {
+            op.dst = self.fresh();
+        }
+        let id = op.dst;
+        self.trace.ops.push(op);
+        id
+    }
+
+    /// A full-width vector op with a result.
+    #[inline]
+    fn v(&mut self, class: OpClass, srcs: &[ValId]) -> ValId {
+        self.emit(class, srcs, Self::FULL, true)
+    }
+
+    /// A scalar op with a result.
+    #[inline]
+    fn s(&mut self, class: OpClass, srcs: &[ValId]) -> ValId {
+        self.emit(class, srcs, 1, true)
+    }
+
+    /// Record a memory op at byte `off` of `buf`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn mem(
+        &mut self,
+        class: OpClass,
+        srcs: &[ValId],
+        mask: u32,
+        buf: &Buf,
+        off: usize,
+        bytes: usize,
+        dst: bool,
+    ) -> ValId {
+        assert!(
+            off + bytes <= buf.len(),
+            "{class} of {bytes} bytes at offset {off} outside region {} of {} bytes",
+            buf.id().0,
+            buf.len()
+        );
+        let id = self.emit(class, srcs, mask, dst);
+        let op = self.trace.ops.last_mut().expect("just pushed");
+        op.addr = buf.addr(off);
+        op.bytes = bytes as u32;
+        op.mem = buf.id();
+        id
+    }
+
+    /// Record a gather or scatter with one address per active lane.
+    fn per_lane(
+        &mut self,
+        class: OpClass,
+        srcs: &[ValId],
+        mask: u32,
+        buf: &Buf,
+        offs: &[usize],
+        dst: bool,
+    ) -> ValId {
+        let first = self.trace.lane_addrs.len() as u32;
+        for &o in offs {
+            assert!(
+                o + 4 <= buf.len(),
+                "{class} lane at offset {o} outside region {}",
+                buf.id().0
+            );
+            self.trace.lane_addrs.push(buf.addr(o));
+        }
+        let id = self.emit(class, srcs, mask, dst);
+        let op = self.trace.ops.last_mut().expect("just pushed");
+        op.mask = LaneMask(mask);
+        op.addr = offs.first().map_or(buf.addr(0), |&o| buf.addr(o));
+        op.bytes = 4;
+        op.mem = buf.id();
+        op.aux = first;
+        id
+    }
+
+    #[inline]
+    fn ea(at: &At<TS>) -> (usize, ValId) {
+        (
+            ea_off(at.index.map(|s| s.v), at.scale, at.disp),
+            at.index.map_or(ValId::NONE, |s| s.id),
+        )
+    }
+
+    fn bin_class(op: BinOp) -> OpClass {
+        match op {
+            BinOp::Add | BinOp::Sub => OpClass::VAdd,
+            BinOp::Mul => OpClass::VMul,
+            BinOp::Div => OpClass::VDiv,
+            BinOp::Min | BinOp::Max => OpClass::VMinMax,
+        }
+    }
+
+    /// FMA family on `mask` lanes: fused op, or mul + add (+ sign flip).
+    fn rec_fma(&mut self, kind: Fma, a: ValId, b: ValId, c: ValId, mask: u32) -> ValId {
+        if FL::FMA {
+            self.emit(OpClass::VFma, &[a, b, c], mask, true)
+        } else {
+            let p = self.emit(OpClass::VMul, &[a, b], mask, true);
+            let s = self.emit(OpClass::VAdd, &[p, c], mask, true);
+            if kind == Fma::NMSub {
+                self.emit(OpClass::VLogic, &[s], mask, true)
+            } else {
+                s
+            }
+        }
+    }
+
+    /// Blend or masked move: `k ? t : f`.
+    fn rec_select(&mut self, k: ValId, t: ValId, f: ValId) -> ValId {
+        let class = if FL::MASK_REGS {
+            OpClass::VMaskMov
+        } else {
+            OpClass::VBlend
+        };
+        self.v(class, &[f, t, k])
+    }
+
+    /// Lane `i` of vector `a` to a scalar register.
+    fn rec_extract(&mut self, a: ValId, i: usize) -> ValId {
+        if i == 0 {
+            return a;
+        }
+        if i < 4 {
+            return self.s(OpClass::VShuf, &[a]);
+        }
+        let blk = self.s(OpClass::VPerm, &[a]);
+        if i % 4 == 0 {
+            blk
+        } else {
+            self.s(OpClass::VShuf, &[blk])
+        }
+    }
+
+    /// Class of a one-source permute.
+    fn perm_class(idx: &[u8; N]) -> OpClass {
+        let in_lane = idx
+            .iter()
+            .enumerate()
+            .all(|(i, &j)| j as usize / 4 == i / 4);
+        if in_lane || !FL::CROSS_PERMUTE {
+            OpClass::VShuf
+        } else {
+            OpClass::VPerm
+        }
+    }
+
+    /// Whether a two-source pattern is one in-lane instruction: shufps
+    /// (two lanes from x, two from y, same offsets in every 128-bit block),
+    /// unpcklps/unpckhps, or blendps with an immediate.
+    fn one_shuf(idx: &[u8; N]) -> bool {
+        let n = N;
+        let blend = idx
+            .iter()
+            .enumerate()
+            .all(|(i, &j)| j as usize == i || j as usize == i + n);
+        if blend {
+            return true;
+        }
+        // (source, offset) per lane, requiring the lane's own block.
+        let mut parts = [(0usize, 0usize); 32];
+        for (i, &j) in idx.iter().enumerate() {
+            let j = j as usize;
+            let (src, e) = if j < n { (0, j) } else { (1, j - n) };
+            if e / 4 != i / 4 {
+                return false;
+            }
+            parts[i] = (src, e % 4);
+        }
+        let block0 = &parts[..4];
+        let same_each_block = (0..n / 4).all(|b| parts[4 * b..4 * b + 4] == *block0);
+        if !same_each_block {
+            return false;
+        }
+        let shufps = block0[0].0 == block0[1].0 && block0[2].0 == block0[3].0;
+        let unpck = [[0usize, 0, 1, 1], [2, 2, 3, 3]].iter().any(|offs| {
+            (0..4).all(|i| block0[i].1 == offs[i])
+                && block0[0].0 != block0[1].0
+                && block0[0].0 == block0[2].0
+                && block0[1].0 == block0[3].0
+        });
+        shufps || unpck
+    }
+
+    /// Whether each 128-bit block of the result is one whole block of a or b.
+    fn block_perm(idx: &[u8; N]) -> bool {
+        (0..N / 4).all(|b| {
+            let s = idx[4 * b] as usize;
+            s % 4 == 0 && (0..4).all(|i| idx[4 * b + i] as usize == s + i)
+        })
+    }
+
+    fn rec_shuffle2(&mut self, a: ValId, b: ValId, idx: &[u8; N]) -> ValId {
+        if idx.iter().all(|&j| (j as usize) < N) {
+            let c = Self::perm_class(idx);
+            return self.v(c, &[a]);
+        }
+        if idx.iter().all(|&j| (j as usize) >= N) {
+            let mut p = [0u8; N];
+            for (o, &j) in p.iter_mut().zip(idx) {
+                *o = j - N as u8;
+            }
+            let c = Self::perm_class(&p);
+            return self.v(c, &[b]);
+        }
+        if Self::one_shuf(idx) {
+            return self.v(OpClass::VShuf, &[a, b]);
+        }
+        if FL::PERMUTE2 || (N == 8 && Self::block_perm(idx)) {
+            return self.v(OpClass::VPerm, &[a, b]);
+        }
+        // Two one-source permutes into place, then a blend by immediate.
+        let mut pa = [0u8; N];
+        let mut pb = [0u8; N];
+        for i in 0..N {
+            let j = idx[i] as usize;
+            pa[i] = if j < N { j as u8 } else { i as u8 };
+            pb[i] = if j >= N { (j - N) as u8 } else { i as u8 };
+        }
+        let ca = Self::perm_class(&pa);
+        let x = self.v(ca, &[a]);
+        let cb = Self::perm_class(&pb);
+        let y = self.v(cb, &[b]);
+        self.v(OpClass::VShuf, &[x, y])
+    }
+
+    fn tf(v: Vf<N>, id: ValId) -> TF<N> {
+        TF { v, id }
+    }
+}
+
+impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
+    const LANES: usize = N;
+    const FLAVOUR: FlavourId = FL::ID;
+    type F = TF<N>;
+    type I = TI<N>;
+    type K = TK<N>;
+    type S = TS;
+    type X = TX;
+
+    fn space(&mut self) -> &mut AddrSpace {
+        &mut self.space
+    }
+    fn region(&mut self, r: Region) {
+        self.region = r;
+    }
+    fn active(&mut self, k: Option<TK<N>>) {
+        self.active = k.map_or(Self::FULL, |k| k.v.bits());
+    }
+
+    fn splat(&mut self, x: f32) -> TF<N> {
+        Self::tf(Vf([x; N]), ValId::NONE)
+    }
+    fn consts(&mut self, v: &[f32]) -> TF<N> {
+        Self::tf(Vf(arr(v)), ValId::NONE)
+    }
+    fn splat_i(&mut self, x: i32) -> TI<N> {
+        TI {
+            v: Vi([x; N]),
+            id: ValId::NONE,
+        }
+    }
+    fn consts_i(&mut self, v: &[i32]) -> TI<N> {
+        TI {
+            v: Vi(arr(v)),
+            id: ValId::NONE,
+        }
+    }
+    fn mask(&mut self, bits: u32) -> TK<N> {
+        TK {
+            v: Vk::from_bits(bits),
+            id: ValId::NONE,
+        }
+    }
+    fn int(&mut self, v: i64) -> TS {
+        TS { v, id: ValId::NONE }
+    }
+    fn float(&mut self, v: f32) -> TX {
+        TX { v, id: ValId::NONE }
+    }
+
+    fn bin(&mut self, op: BinOp, a: TF<N>, b: TF<N>) -> TF<N> {
+        let id = self.v(Self::bin_class(op), &[a.id, b.id]);
+        Self::tf(a.v.zip(b.v, |x, y| op.eval(x, y)), id)
+    }
+    fn masked(&mut self, op: BinOp, k: TK<N>, src: TF<N>, a: TF<N>, b: TF<N>) -> TF<N> {
+        let v = k.v.select(a.v.zip(b.v, |x, y| op.eval(x, y)), src.v);
+        let id = if FL::MASK_REGS {
+            self.emit(
+                Self::bin_class(op),
+                &[a.id, b.id, k.id, src.id],
+                k.v.bits(),
+                true,
+            )
+        } else {
+            let t = self.v(Self::bin_class(op), &[a.id, b.id]);
+            self.rec_select(k.id, t, src.id)
+        };
+        Self::tf(v, id)
+    }
+    fn fma(&mut self, kind: Fma, a: TF<N>, b: TF<N>, c: TF<N>) -> TF<N> {
+        let id = self.rec_fma(kind, a.id, b.id, c.id, Self::FULL);
+        Self::tf(
+            a.v.zip3(b.v, c.v, |x, y, z| kind.eval(FL::FMA, x, y, z)),
+            id,
+        )
+    }
+    fn masked_fma(&mut self, kind: Fma, k: TK<N>, a: TF<N>, b: TF<N>, c: TF<N>) -> TF<N> {
+        let v = k.v.select(
+            a.v.zip3(b.v, c.v, |x, y, z| kind.eval(FL::FMA, x, y, z)),
+            c.v,
+        );
+        let id = if FL::MASK_REGS {
+            self.emit(OpClass::VFma, &[a.id, b.id, c.id, k.id], k.v.bits(), true)
+        } else {
+            let t = self.rec_fma(kind, a.id, b.id, c.id, Self::FULL);
+            self.rec_select(k.id, t, c.id)
+        };
+        Self::tf(v, id)
+    }
+    fn abs(&mut self, a: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VLogic, &[a.id]);
+        Self::tf(a.v.map(f32::abs), id)
+    }
+    fn neg(&mut self, a: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VLogic, &[a.id]);
+        Self::tf(a.v.map(|x| -x), id)
+    }
+    fn sqrt(&mut self, a: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VSqrt, &[a.id]);
+        Self::tf(a.v.map(f32::sqrt), id)
+    }
+    fn rcp(&mut self, a: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VDiv, &[a.id]);
+        Self::tf(a.v.map(|x| 1.0 / x), id)
+    }
+    fn rcp_approx(&mut self, a: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VRcp, &[a.id]);
+        Self::tf(a.v.map(|x| rcp_approx(x, FL::RCP_BITS)), id)
+    }
+    fn rsqrt(&mut self, a: TF<N>) -> TF<N> {
+        let s = self.v(OpClass::VSqrt, &[a.id]);
+        let id = self.v(OpClass::VDiv, &[s]);
+        Self::tf(a.v.map(|x| 1.0 / x.sqrt()), id)
+    }
+    fn rsqrt_approx(&mut self, a: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VRsqrt, &[a.id]);
+        Self::tf(a.v.map(|x| rsqrt_approx(x, FL::RCP_BITS)), id)
+    }
+    fn cmp(&mut self, p: Cmp, a: TF<N>, b: TF<N>) -> TK<N> {
+        let id = self.v(OpClass::VCmp, &[a.id, b.id]);
+        TK {
+            v: a.v.cmp(p, b.v),
+            id,
+        }
+    }
+    fn select(&mut self, k: TK<N>, t: TF<N>, f: TF<N>) -> TF<N> {
+        let id = self.rec_select(k.id, t.id, f.id);
+        Self::tf(k.v.select(t.v, f.v), id)
+    }
+    fn logic(&mut self, op: Logic, a: TF<N>, b: TF<N>) -> TF<N> {
+        let id = self.v(OpClass::VLogic, &[a.id, b.id]);
+        Self::tf(
+            a.v.zip(b.v, |x, y| {
+                f32::from_bits(op.eval(x.to_bits(), y.to_bits()))
+            }),
+            id,
+        )
+    }
+    fn broadcast(&mut self, x: TX) -> TF<N> {
+        let id = self.v(OpClass::VBcast, &[x.id]);
+        Self::tf(Vf([x.v; N]), id)
+    }
+    fn extract(&mut self, a: TF<N>, i: usize) -> TX {
+        assert!(i < N, "lane {i} of {N}");
+        let id = self.rec_extract(a.id, i);
+        TX { v: a.v.0[i], id }
+    }
+    fn permute(&mut self, a: TF<N>, idx: &[u8]) -> TF<N> {
+        let idx = idx_arr::<N>(idx, N);
+        let id = self.v(Self::perm_class(&idx), &[a.id]);
+        Self::tf(permute2(a.v, a.v, &idx), id)
+    }
+    fn shuffle2(&mut self, a: TF<N>, b: TF<N>, idx: &[u8]) -> TF<N> {
+        let idx = idx_arr::<N>(idx, 2 * N);
+        let id = self.rec_shuffle2(a.id, b.id, &idx);
+        Self::tf(permute2(a.v, b.v, &idx), id)
+    }
+    fn reduce(&mut self, op: BinOp, a: TF<N>) -> TX {
+        let v = reduce_op(op, a.v);
+        let class = Self::bin_class(op);
+        let mut id = a.id;
+        let mut d = N / 2;
+        while d >= 1 {
+            let pat = xor_pattern::<N>(d);
+            let sh = self.v(Self::perm_class(&pat), &[id]);
+            id = self.v(class, &[id, sh]);
+            d /= 2;
+        }
+        TX { v, id }
+    }
+    fn to_int(&mut self, a: TF<N>) -> TI<N> {
+        let id = self.v(OpClass::VCvt, &[a.id]);
+        let mut r = [0i32; N];
+        for i in 0..N {
+            r[i] = cvt_trunc(a.v.0[i]);
+        }
+        TI { v: Vi(r), id }
+    }
+    fn to_int_round(&mut self, a: TF<N>) -> TI<N> {
+        let id = self.v(OpClass::VCvt, &[a.id]);
+        let mut r = [0i32; N];
+        for i in 0..N {
+            r[i] = cvt_round(a.v.0[i]);
+        }
+        TI { v: Vi(r), id }
+    }
+    fn to_float(&mut self, a: TI<N>) -> TF<N> {
+        let id = self.v(OpClass::VCvt, &[a.id]);
+        let mut r = [0f32; N];
+        for i in 0..N {
+            r[i] = a.v.0[i] as f32;
+        }
+        Self::tf(Vf(r), id)
+    }
+    fn bits_to_i(&mut self, a: TF<N>) -> TI<N> {
+        TI {
+            v: a.v.to_bits(),
+            id: a.id,
+        }
+    }
+    fn bits_to_f(&mut self, a: TI<N>) -> TF<N> {
+        Self::tf(a.v.to_f32_bits(), a.id)
+    }
+
+    fn iop(&mut self, op: IOp, a: TI<N>, b: TI<N>) -> TI<N> {
+        let class = match op {
+            IOp::Add | IOp::Sub | IOp::Min | IOp::Max => OpClass::VIAdd,
+            IOp::Mul => OpClass::VIMul,
+            IOp::And | IOp::Or | IOp::Xor | IOp::AndNot => OpClass::VILogic,
+        };
+        let id = self.v(class, &[a.id, b.id]);
+        TI {
+            v: a.v.zip(b.v, |x, y| op.eval(x, y)),
+            id,
+        }
+    }
+    fn ishift(&mut self, s: Shift, a: TI<N>, n: u32) -> TI<N> {
+        let id = self.v(OpClass::VIShift, &[a.id]);
+        TI {
+            v: a.v.map(|x| s.eval32(x, n)),
+            id,
+        }
+    }
+    fn icmp(&mut self, p: Cmp, a: TI<N>, b: TI<N>) -> TK<N> {
+        assert!(!matches!(p, Cmp::Ord | Cmp::Unord), "integer compare {p:?}");
+        let mut id = self.v(OpClass::VICmp, &[a.id, b.id]);
+        if !FL::MASK_REGS && matches!(p, Cmp::Ne | Cmp::Le | Cmp::Ge) {
+            // pcmpeqd/pcmpgtd only: the complement needs an xor with all ones.
+            id = self.v(OpClass::VILogic, &[id]);
+        }
+        let mut r = [0i32; N];
+        for i in 0..N {
+            r[i] = -(p.eval_i(i64::from(a.v.0[i]), i64::from(b.v.0[i])) as i32);
+        }
+        TK { v: Vk(r), id }
+    }
+    fn iselect(&mut self, k: TK<N>, t: TI<N>, f: TI<N>) -> TI<N> {
+        let id = self.rec_select(k.id, t.id, f.id);
+        TI {
+            v: k.v.select_i(t.v, f.v),
+            id,
+        }
+    }
+
+    fn klogic(&mut self, op: Logic, a: TK<N>, b: TK<N>) -> TK<N> {
+        let class = if FL::MASK_REGS {
+            OpClass::KLogic
+        } else {
+            OpClass::VLogic
+        };
+        let id = self.v(class, &[a.id, b.id]);
+        TK {
+            v: a.v.zip(b.v, |x, y| op.eval_b(x, y)),
+            id,
+        }
+    }
+    fn knot(&mut self, a: TK<N>) -> TK<N> {
+        let class = if FL::MASK_REGS {
+            OpClass::KLogic
+        } else {
+            OpClass::VLogic
+        };
+        let id = self.v(class, &[a.id]);
+        TK {
+            v: a.v.zip(a.v, |x, _| !x),
+            id,
+        }
+    }
+    fn movemask(&mut self, k: TK<N>) -> TS {
+        let id = self.s(OpClass::MovMsk, &[k.id]);
+        TS {
+            v: i64::from(k.v.bits()),
+            id,
+        }
+    }
+    fn popcnt(&mut self, k: TK<N>) -> TS {
+        let m = self.s(OpClass::MovMsk, &[k.id]);
+        let id = self.s(OpClass::BitCnt, &[m]);
+        TS {
+            v: i64::from(k.v.bits().count_ones()),
+            id,
+        }
+    }
+    fn bitscan(&mut self, k: TK<N>) -> TS {
+        let m = self.s(OpClass::MovMsk, &[k.id]);
+        let g = self.s(OpClass::Alu, &[m]);
+        let id = self.s(OpClass::BitCnt, &[g]);
+        TS {
+            v: i64::from(k.v.bits().trailing_zeros().min(N as u32)),
+            id,
+        }
+    }
+    fn any(&mut self, k: TK<N>) -> TS {
+        let id = self.s(OpClass::KTest, &[k.id]);
+        TS {
+            v: i64::from(k.v.bits() != 0),
+            id,
+        }
+    }
+    fn all(&mut self, k: TK<N>) -> TS {
+        let id = self.s(OpClass::KTest, &[k.id]);
+        TS {
+            v: i64::from(k.v.bits() == Self::FULL),
+            id,
+        }
+    }
+
+    fn load(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
+        let (off, ix) = Self::ea(&at);
+        assert!(
+            buf.addr(off).0 % (4 * N as u64) == 0,
+            "misaligned {}-byte load at {}",
+            4 * N,
+            buf.addr(off)
+        );
+        let id = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * N, true);
+        Self::tf(Vf(buf.f32s::<N>(off)), id)
+    }
+    fn loadu(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
+        let (off, ix) = Self::ea(&at);
+        let id = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * N, true);
+        Self::tf(Vf(buf.f32s::<N>(off)), id)
+    }
+    fn load_bcast(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
+        let (off, ix) = Self::ea(&at);
+        let id = self.mem(OpClass::VLoadBcast, &[ix], Self::FULL, buf, off, 4, true);
+        Self::tf(Vf([buf.f32_at(off); N]), id)
+    }
+    fn load_repeat(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
+        assert!(n > 0 && N % n == 0, "repeat of {n} lanes in {N}");
+        let (off, ix) = Self::ea(&at);
+        let id = if n == N {
+            self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * n, true)
+        } else if matches!(n, 1 | 4 | 8) {
+            self.mem(
+                OpClass::VLoadBcast,
+                &[ix],
+                Self::FULL,
+                buf,
+                off,
+                4 * n,
+                true,
+            )
+        } else {
+            let l = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * n, true);
+            self.v(OpClass::VPerm, &[l])
+        };
+        let mut r = [0f32; N];
+        for (i, x) in r.iter_mut().enumerate() {
+            *x = buf.f32_at(off + 4 * (i % n));
+        }
+        Self::tf(Vf(r), id)
+    }
+    fn load_masked(&mut self, k: TK<N>, src: TF<N>, buf: &Buf, at: At<TS>) -> TF<N> {
+        let (off, ix) = Self::ea(&at);
+        let bits = k.v.bits();
+        let id = if FL::MASK_REGS {
+            self.mem(
+                OpClass::VLoadMasked,
+                &[ix, k.id, src.id],
+                bits,
+                buf,
+                off,
+                4 * N,
+                true,
+            )
+        } else {
+            let class = if FL::MASKED_MEM {
+                OpClass::VLoadMasked
+            } else {
+                OpClass::VLoad
+            };
+            let l = self.mem(class, &[ix, k.id], Self::FULL, buf, off, 4 * N, true);
+            self.rec_select(k.id, l, src.id)
+        };
+        let mut r = src.v.0;
+        for (i, x) in r.iter_mut().enumerate() {
+            if k.v.get(i) {
+                *x = buf.f32_at(off + 4 * i);
+            }
+        }
+        Self::tf(Vf(r), id)
+    }
+    fn store(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
+        let (off, ix) = Self::ea(&at);
+        assert!(
+            buf.addr(off).0 % (4 * N as u64) == 0,
+            "misaligned {}-byte store at {}",
+            4 * N,
+            buf.addr(off)
+        );
+        self.mem(
+            OpClass::VStore,
+            &[ix, v.id],
+            Self::FULL,
+            buf,
+            off,
+            4 * N,
+            false,
+        );
+        buf.set_f32s(off, &v.v.0);
+    }
+    fn storeu(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
+        let (off, ix) = Self::ea(&at);
+        self.mem(
+            OpClass::VStore,
+            &[ix, v.id],
+            Self::FULL,
+            buf,
+            off,
+            4 * N,
+            false,
+        );
+        buf.set_f32s(off, &v.v.0);
+    }
+    fn store_masked(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, v: TF<N>) {
+        let (off, ix) = Self::ea(&at);
+        let bits = k.v.bits();
+        if FL::MASKED_MEM {
+            self.mem(
+                OpClass::VStoreMasked,
+                &[ix, k.id, v.id],
+                bits,
+                buf,
+                off,
+                4 * N,
+                false,
+            );
+        } else {
+            self.s(OpClass::MovMsk, &[k.id]);
+            for i in 0..N {
+                if k.v.get(i) {
+                    let e = self.rec_extract(v.id, i);
+                    self.mem(OpClass::Store, &[ix, e], 1, buf, off + 4 * i, 4, false);
+                }
+            }
+        }
+        for i in 0..N {
+            if k.v.get(i) {
+                buf.set_f32(off + 4 * i, v.v.0[i]);
+            }
+        }
+    }
+    fn gather(
+        &mut self,
+        k: TK<N>,
+        src: TF<N>,
+        buf: &Buf,
+        at: At<TS>,
+        idx: TI<N>,
+        scale: u8,
+    ) -> TF<N> {
+        let (off, ix) = Self::ea(&at);
+        let bits = k.v.bits();
+        let mut offs = [0usize; N];
+        let mut n = 0;
+        let mut r = src.v.0;
+        for i in 0..N {
+            if k.v.get(i) {
+                let o = ea_off(Some(i64::from(idx.v.0[i])), scale, off);
+                r[i] = buf.f32_at(o);
+                offs[n] = o;
+                n += 1;
+            }
+        }
+        let id = if FL::GATHER {
+            self.per_lane(
+                OpClass::VGather,
+                &[ix, idx.id, k.id, src.id],
+                bits,
+                buf,
+                &offs[..n],
+                true,
+            )
+        } else {
+            let mut acc = src.id;
+            let mut j = 0;
+            for i in 0..N {
+                if k.v.get(i) {
+                    let e = self.rec_extract(idx.id, i);
+                    let l = self.mem(OpClass::Load, &[ix, e], 1, buf, offs[j], 4, true);
+                    acc = self.v(OpClass::VInsert, &[acc, l]);
+                    j += 1;
+                }
+            }
+            acc
+        };
+        Self::tf(Vf(r), id)
+    }
+    fn scatter(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, idx: TI<N>, scale: u8, v: TF<N>) {
+        let (off, ix) = Self::ea(&at);
+        let bits = k.v.bits();
+        let mut offs = [0usize; N];
+        let mut n = 0;
+        for i in 0..N {
+            if k.v.get(i) {
+                offs[n] = ea_off(Some(i64::from(idx.v.0[i])), scale, off);
+                n += 1;
+            }
+        }
+        if FL::SCATTER {
+            self.per_lane(
+                OpClass::VScatter,
+                &[ix, idx.id, k.id, v.id],
+                bits,
+                buf,
+                &offs[..n],
+                false,
+            );
+        } else {
+            self.s(OpClass::MovMsk, &[k.id]);
+            let mut j = 0;
+            for i in 0..N {
+                if k.v.get(i) {
+                    let ei = self.rec_extract(idx.id, i);
+                    let ev = self.rec_extract(v.id, i);
+                    self.mem(OpClass::Store, &[ix, ei, ev], 1, buf, offs[j], 4, false);
+                    j += 1;
+                }
+            }
+        }
+        let mut j = 0;
+        for i in 0..N {
+            if k.v.get(i) {
+                buf.set_f32(offs[j], v.v.0[i]);
+                j += 1;
+            }
+        }
+    }
+    fn compress_store(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, v: TF<N>) -> TS {
+        let (off, ix) = Self::ea(&at);
+        let bits = k.v.bits();
+        let (packed, n) = compress_lanes(k.v, v.v);
+        let id = if FL::COMPRESS {
+            self.mem(
+                OpClass::VCompress,
+                &[ix, k.id, v.id],
+                bits,
+                buf,
+                off,
+                4 * n,
+                false,
+            );
+            let m = self.s(OpClass::MovMsk, &[k.id]);
+            self.s(OpClass::BitCnt, &[m])
+        } else {
+            let m = self.s(OpClass::MovMsk, &[k.id]);
+            let lut = self.lut.take().expect("lut present");
+            let entry = 4 * N * bits as usize;
+            let p = self.mem(OpClass::VLoad, &[m], Self::FULL, &lut, entry, 4 * N, true);
+            self.lut = Some(lut);
+            let class = if N > 4 {
+                OpClass::VPerm
+            } else {
+                OpClass::VShuf
+            };
+            let s = self.v(class, &[v.id, p]);
+            self.mem(
+                OpClass::VStore,
+                &[ix, s],
+                Self::FULL,
+                buf,
+                off,
+                4 * N,
+                false,
+            );
+            self.s(OpClass::BitCnt, &[m])
+        };
+        if FL::COMPRESS {
+            for i in 0..n {
+                buf.set_f32(off + 4 * i, packed.0[i]);
+            }
+        } else {
+            buf.set_f32s(off, &packed.0);
+        }
+        TS { v: n as i64, id }
+    }
+
+    fn s_op(&mut self, op: SOp, a: TS, b: TS) -> TS {
+        let id = match op {
+            SOp::Add | SOp::Sub | SOp::And | SOp::Or | SOp::Xor => {
+                self.s(OpClass::Alu, &[a.id, b.id])
+            }
+            SOp::Mul => self.s(OpClass::IMul, &[a.id, b.id]),
+            SOp::Min | SOp::Max => {
+                let c = self.s(OpClass::Cmp, &[a.id, b.id]);
+                self.s(OpClass::Cmov, &[c, a.id, b.id])
+            }
+        };
+        TS {
+            v: op.eval(a.v, b.v),
+            id,
+        }
+    }
+    fn s_shift(&mut self, s: Shift, a: TS, n: u32) -> TS {
+        let id = self.s(OpClass::Alu, &[a.id]);
+        TS {
+            v: s.eval64(a.v, n),
+            id,
+        }
+    }
+    fn s_cmp(&mut self, p: Cmp, a: TS, b: TS) -> TS {
+        let id = self.s(OpClass::Cmp, &[a.id, b.id]);
+        TS {
+            v: i64::from(p.eval_i(a.v, b.v)),
+            id,
+        }
+    }
+    fn s_select(&mut self, c: TS, a: TS, b: TS) -> TS {
+        let id = self.s(OpClass::Cmov, &[c.id, a.id, b.id]);
+        TS {
+            v: if c.v != 0 { a.v } else { b.v },
+            id,
+        }
+    }
+    fn s_popcnt(&mut self, a: TS) -> TS {
+        let id = self.s(OpClass::BitCnt, &[a.id]);
+        TS {
+            v: i64::from(a.v.count_ones()),
+            id,
+        }
+    }
+    fn s_tzcnt(&mut self, a: TS) -> TS {
+        let id = self.s(OpClass::BitCnt, &[a.id]);
+        TS {
+            v: i64::from(a.v.trailing_zeros()),
+            id,
+        }
+    }
+    fn s_load(&mut self, buf: &Buf, at: At<TS>, width: u8, signed: bool) -> TS {
+        let (off, ix) = Self::ea(&at);
+        let id = self.mem(OpClass::Load, &[ix], 1, buf, off, width as usize, true);
+        TS {
+            v: load_int(buf, off, width, signed),
+            id,
+        }
+    }
+    fn s_store(&mut self, buf: &mut Buf, at: At<TS>, width: u8, v: TS) {
+        let (off, ix) = Self::ea(&at);
+        self.mem(
+            OpClass::Store,
+            &[ix, v.id],
+            1,
+            buf,
+            off,
+            width as usize,
+            false,
+        );
+        buf.set_uint(off, width as usize, v.v as u64);
+    }
+
+    fn x_op(&mut self, op: BinOp, a: TX, b: TX) -> TX {
+        let id = self.s(Self::bin_class(op), &[a.id, b.id]);
+        TX {
+            v: op.eval(a.v, b.v),
+            id,
+        }
+    }
+    fn x_fma(&mut self, kind: Fma, a: TX, b: TX, c: TX) -> TX {
+        let id = self.rec_fma(kind, a.id, b.id, c.id, 1);
+        TX {
+            v: kind.eval(FL::FMA, a.v, b.v, c.v),
+            id,
+        }
+    }
+    fn x_sqrt(&mut self, a: TX) -> TX {
+        let id = self.s(OpClass::VSqrt, &[a.id]);
+        TX { v: a.v.sqrt(), id }
+    }
+    fn x_cmp(&mut self, p: Cmp, a: TX, b: TX) -> TS {
+        let id = self.s(OpClass::VCmp, &[a.id, b.id]);
+        TS {
+            v: i64::from(p.eval(a.v, b.v)),
+            id,
+        }
+    }
+    fn x_load(&mut self, buf: &Buf, at: At<TS>) -> TX {
+        let (off, ix) = Self::ea(&at);
+        let id = self.mem(OpClass::Load, &[ix], 1, buf, off, 4, true);
+        TX {
+            v: buf.f32_at(off),
+            id,
+        }
+    }
+    fn x_store(&mut self, buf: &mut Buf, at: At<TS>, v: TX) {
+        let (off, ix) = Self::ea(&at);
+        self.mem(OpClass::Store, &[ix, v.id], 1, buf, off, 4, false);
+        buf.set_f32(off, v.v);
+    }
+
+    fn branch(&mut self, site: Site, c: TS) -> bool {
+        let taken = c.v != 0;
+        self.emit(OpClass::Branch, &[c.id], 1, false);
+        let op = self.trace.ops.last_mut().expect("just pushed");
+        op.aux = site.0;
+        if taken {
+            op.flags |= FLAG_TAKEN;
+        }
+        taken
+    }
+
+    fn lane(&self, a: TF<N>, i: usize) -> f32 {
+        a.v.0[i]
+    }
+    fn lane_i(&self, a: TI<N>, i: usize) -> i32 {
+        a.v.0[i]
+    }
+    fn bits(&self, k: TK<N>) -> u32 {
+        k.v.bits()
+    }
+}
+
+/// The ops of a trace that a closure produced, for expansion tests: returns
+/// the classes recorded by `f` on a fresh machine.
+pub fn classes_of<FL: Flavour<N>, const N: usize>(
+    f: impl FnOnce(&mut Traced<FL, N>),
+) -> Vec<OpClass> {
+    let mut m = Traced::<FL, N>::new("test");
+    f(&mut m);
+    m.ops().iter().map(|o| o.class).collect()
+}

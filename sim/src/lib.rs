@@ -1,0 +1,1 @@
+//! rtsim timing model (issue 3).

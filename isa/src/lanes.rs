@@ -7,6 +7,9 @@
 //! - float to int conversion out of range or NaN gives `i32::MIN` (cvttps2dq).
 //! - integer shifts by 32 or more give 0 (arithmetic: the sign) (vpslld).
 //! - denormals are kept (no FTZ/DAZ); Larrabee's behaviour there is not public.
+//! - the sign and payload of a NaN *result* are unspecified, as in Rust and
+//!   LLVM (x86 hardware makes negative default NaNs, constant folding positive
+//!   ones); NaN-ness itself is exact. Kernels must not branch on NaN bits.
 //!
 //! A mask lane is active when its i32 is negative (sign bit), as blendv reads
 //! it; masks made by compares hold -1 or 0.

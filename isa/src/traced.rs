@@ -37,7 +37,7 @@ use crate::machine::{Float, Int, Logic, Machine, SOp};
 use crate::mem::{AddrSpace, At, Buf};
 use crate::native::{arr, compress_lanes, ea_off, idx_arr, load_int, reduce_op};
 use crate::trace::{Op, Trace, FLAG_TAKEN};
-use crate::types::{LaneMask, Region, Site, ValId};
+use crate::types::{Addr, LaneMask, Region, Site, ValId};
 use std::marker::PhantomData;
 
 /// Traced f32 vector: value and id.
@@ -229,7 +229,7 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
         let id = self.emit(class, srcs, mask, dst);
         let op = self.trace.ops.last_mut().expect("just pushed");
         op.mask = LaneMask(mask);
-        op.addr = offs.first().map_or(buf.addr(0), |&o| buf.addr(o));
+        op.addr = offs.first().map_or(Addr(0), |&o| buf.addr(o));
         op.bytes = 4;
         op.mem = buf.id();
         op.aux = first;

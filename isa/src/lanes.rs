@@ -493,6 +493,27 @@ impl<const N: usize> Vk<N> {
 #[inline(always)]
 #[must_use]
 pub fn permute2<const N: usize>(a: Vf<N>, b: Vf<N>, idx: &[u8; N]) -> Vf<N> {
+    #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+    if N == 8 {
+        // vpermps per source and a blend; with a constant pattern LLVM folds
+        // this into the single best shuffle (vpermilps, vperm2f128, ...).
+        // SAFETY: Vf<8> is 32 bytes and 32-aligned; avx2 is enabled at compile time.
+        unsafe {
+            use std::arch::x86_64::*;
+            let mut ia = [0i32; 8];
+            let mut sel = [0i32; 8];
+            for i in 0..8 {
+                ia[i] = i32::from(idx[i] & 7);
+                sel[i] = -i32::from(idx[i] >= 8);
+            }
+            let iv = _mm256_loadu_si256(ia.as_ptr() as *const __m256i);
+            let va = _mm256_permutevar8x32_ps(_mm256_load_ps(a.0.as_ptr()), iv);
+            let vb = _mm256_permutevar8x32_ps(_mm256_load_ps(b.0.as_ptr()), iv);
+            let m = _mm256_loadu_ps(sel.as_ptr() as *const f32);
+            let r = _mm256_blendv_ps(va, vb, m);
+            return std::mem::transmute_copy::<__m256, Vf<N>>(&r);
+        }
+    }
     let mut r = [0f32; N];
     for i in 0..N {
         let j = idx[i] as usize;

@@ -61,8 +61,16 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
 #[inline(always)]
 pub(crate) fn ea_off(index: Option<i64>, scale: u8, disp: usize) -> usize {
     let off = index.map_or(0, |i| i * i64::from(scale)) + disp as i64;
-    assert!(off >= 0, "negative effective address {off}");
+    if off < 0 {
+        negative_address(off);
+    }
     off as usize
+}
+
+#[cold]
+#[inline(never)]
+fn negative_address(off: i64) -> ! {
+    panic!("negative effective address {off}")
 }
 
 #[inline(always)]

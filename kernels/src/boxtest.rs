@@ -91,31 +91,76 @@ pub fn box4_ref(node: &Node4, ray: &Ray32, fused: bool) -> u8 {
     bits
 }
 
-/// Patterns: lane i of the result takes element `8 * (i / 4) + base + i % 4`
-/// of the concatenated loads (ray i/4's first or second half).
-fn half_pattern<const N: usize>(base: usize) -> [u8; N] {
+/// Lane patterns, as constants so the native backend folds every permute
+/// into one shuffle instruction (runtime patterns cost a lookup per lane).
+struct Pat<const N: usize>;
+
+impl<const N: usize> Pat<N> {
+    /// dirNear of ray i/4 into block i/4 (permute2f128 0x20 on AVX2).
+    const DIR_NEAR: [u8; N] = half_pattern::<N>(0);
+    /// orgFar of ray i/4 into block i/4 (permute2f128 0x31 on AVX2).
+    const ORG_FAR: [u8; N] = half_pattern::<N>(4);
+    /// Whether DIR_NEAR is the first load itself (one ray per vector).
+    const DN_ID: bool = is_identity(&Self::DIR_NEAR, 0);
+    /// Whether ORG_FAR is the second load itself.
+    const OF_ID: bool = is_identity(&Self::ORG_FAR, N);
+    /// Broadcast element k within each 128-bit block (vpermilps).
+    const SPLAT: [[u8; N]; 4] = [
+        splat_pattern::<N>(0),
+        splat_pattern::<N>(1),
+        splat_pattern::<N>(2),
+        splat_pattern::<N>(3),
+    ];
+}
+
+/// Lane i of the result takes element `8 * (i / 4) + base + i % 4` of the
+/// concatenated loads (ray i/4's first or second half).
+const fn half_pattern<const N: usize>(base: usize) -> [u8; N] {
     let mut p = [0u8; N];
-    for (i, x) in p.iter_mut().enumerate() {
-        *x = (8 * (i / 4) + base + i % 4) as u8;
+    let mut i = 0;
+    while i < N {
+        p[i] = (8 * (i / 4) + base + i % 4) as u8;
+        i += 1;
     }
     p
 }
 
 /// Lane i takes lane `4 * (i / 4) + k` (broadcast element k within each block).
-fn splat_pattern<const N: usize>(k: usize) -> [u8; N] {
+const fn splat_pattern<const N: usize>(k: usize) -> [u8; N] {
     let mut p = [0u8; N];
-    for (i, x) in p.iter_mut().enumerate() {
-        *x = (4 * (i / 4) + k) as u8;
+    let mut i = 0;
+    while i < N {
+        p[i] = (4 * (i / 4) + k) as u8;
+        i += 1;
     }
     p
 }
 
-fn is_identity(p: &[u8], offset: usize) -> bool {
-    p.iter().enumerate().all(|(i, &j)| j as usize == i + offset)
+const fn is_identity(p: &[u8], offset: usize) -> bool {
+    let mut i = 0;
+    while i < p.len() {
+        if p[i] as usize != i + offset {
+            return false;
+        }
+        i += 1;
+    }
+    true
 }
 
-/// Test rays `[0, nrays)` of `rays` against `node`; write each ray's 4 hit
-/// bits to byte `i` of `out`. `nrays` must be a multiple of LANES/4.
+/// Bytes of hit bits per group of LANES/4 rays (4 bits per ray).
+#[must_use]
+pub const fn mask_bytes(lanes: usize) -> usize {
+    if lanes >= 16 {
+        2
+    } else {
+        1
+    }
+}
+
+/// Test rays `[0, nrays)` of `rays` against `node`. Each group of LANES/4 rays
+/// stores its movemask (4 bits per ray, ray j in bits 4j..4j+4) as one
+/// little-endian integer of [`mask_bytes`] bytes at `g * mask_bytes` in `out`.
+/// `nrays` must be a multiple of LANES/4.
 pub fn box4_stream<M: Machine, const N: usize>(
     m: &mut M,
     node: &Buf,
@@ -131,12 +176,11 @@ pub fn box4_stream<M: Machine, const N: usize>(
     );
     m.region(Region::Setup);
     let zero = m.int(0);
-    let b: Vec<M::F> = (0..6)
-        .map(|k| m.load_repeat(node, At::idx(zero, 1, 16 * k), 4))
-        .collect();
-    let dn = half_pattern::<N>(0);
-    let of = half_pattern::<N>(4);
-    let sp: [[u8; N]; 4] = [0, 1, 2, 3].map(splat_pattern::<N>);
+    let b: [M::F; 6] = std::array::from_fn(|k| m.load_repeat(node, At::idx(zero, 1, 16 * k), 4));
+    let dn = &Pat::<N>::DIR_NEAR;
+    let of = &Pat::<N>::ORG_FAR;
+    let sp = &Pat::<N>::SPLAT;
+    let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
     let mut ray = m.int(0);
     let groups = m.int((nrays / per) as i64);
     let mut g = m.int(0);
@@ -146,18 +190,18 @@ pub fn box4_stream<M: Machine, const N: usize>(
         let off = m.s_shift(Shift::Shl, ray, 5);
         let l0 = m.loadu(rays, At::idx(off, 1, 0));
         let l1 = m.loadu(rays, At::idx(off, 1, 4 * N));
-        let dir_near = if is_identity(&dn, 0) {
-            l0
-        } else {
-            m.shuffle2(l0, l1, &dn)
-        };
-        let org_far = if is_identity(&of, N) {
-            l1
-        } else {
-            m.shuffle2(l0, l1, &of)
-        };
-        let d = [0, 1, 2].map(|k| m.permute(dir_near, &sp[k]));
-        let o = [0, 1, 2].map(|k| m.permute(org_far, &sp[k]));
+        let dir_near = if dn_id { l0 } else { m.shuffle2(l0, l1, dn) };
+        let org_far = if of_id { l1 } else { m.shuffle2(l0, l1, of) };
+        let d = [
+            m.permute(dir_near, &sp[0]),
+            m.permute(dir_near, &sp[1]),
+            m.permute(dir_near, &sp[2]),
+        ];
+        let o = [
+            m.permute(org_far, &sp[0]),
+            m.permute(org_far, &sp[1]),
+            m.permute(org_far, &sp[2]),
+        ];
         let near = m.permute(dir_near, &sp[3]);
         let far = m.permute(org_far, &sp[3]);
         let mut tn = near;
@@ -172,16 +216,8 @@ pub fn box4_stream<M: Machine, const N: usize>(
         }
         let hit = m.cmp(Cmp::Le, tn, tf);
         let bits = m.movemask(hit);
-        let fifteen = m.int(15);
-        for r in 0..per {
-            let sh = if r == 0 {
-                bits
-            } else {
-                m.s_shift(Shift::Shr, bits, 4 * r as u32)
-            };
-            let v = m.s_and(sh, fifteen);
-            m.s_store(out, At::idx(ray, 1, r), 1, v);
-        }
+        let w = mask_bytes(N);
+        m.s_store(out, At::idx(g, w as u8, 0), w as u8, bits);
         ray = m.s_addi(ray, per as i64);
         g = m.s_addi(g, 1);
         if !m.branch_if(SITE_RAYS, Cmp::Lt, g, groups) {
@@ -255,6 +291,7 @@ impl Program for BoxStream {
         vec![("rays".into(), self.rays.len().to_string())]
     }
 
+    /// Each ray's 4 hit bits, one byte per ray.
     fn run<M: Machine>(&self, m: &mut M) -> Vec<u8> {
         let (node, rays, mut out) = self.buffers(m);
         match M::LANES {
@@ -263,8 +300,26 @@ impl Program for BoxStream {
             16 => box4_stream::<M, 16>(m, &node, &rays, self.rays.len(), &mut out),
             n => panic!("{n} lanes"),
         }
-        out.bytes().to_vec()
+        unpack_masks(out.bytes(), M::LANES, self.rays.len())
     }
+}
+
+/// Per-ray hit bits from the group masks `box4_stream` stores.
+#[must_use]
+pub fn unpack_masks(out: &[u8], lanes: usize, nrays: usize) -> Vec<u8> {
+    let w = mask_bytes(lanes);
+    let per = lanes / 4;
+    (0..nrays)
+        .map(|r| {
+            let g = r / per;
+            let v = if w == 2 {
+                u16::from_le_bytes([out[2 * g], out[2 * g + 1]])
+            } else {
+                u16::from(out[g])
+            };
+            ((v >> (4 * (r % per))) & 15) as u8
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -321,9 +376,9 @@ mod tests {
             .filter(|o| o.region == Region::CoreLoop)
             .collect();
         // 4 iterations of 2 rays: 2 loads, 2 vperm (permute2f128), 8 in-lane shuffles,
-        // 6 fmsub, 12 min/max, 1 cmp, 1 movemask, 3 scalar for the hit bits, 2 stores,
-        // 1 shl, and the loop's 2 adds, cmp, branch: 42.
-        assert_eq!(core.len(), 4 * 42);
+        // 6 fmsub, 12 min/max, 1 cmp, 1 movemask, 1 store of the mask, 1 shl,
+        // and the loop's 2 adds, cmp, branch: 38.
+        assert_eq!(core.len(), 4 * 38);
         let fmas = core
             .iter()
             .filter(|o| o.class == isa::OpClass::VFma)

@@ -205,7 +205,7 @@ pub fn rsqrt_approx(x: f32, bits: u32) -> f32 {
 #[inline(always)]
 #[must_use]
 pub fn cvt_trunc(x: f32) -> i32 {
-    if x.is_nan() || x >= 2147483648.0 || x < -2147483648.0 {
+    if x.is_nan() || !(-2147483648.0..2147483648.0).contains(&x) {
         i32::MIN
     } else {
         x as i32
@@ -217,7 +217,7 @@ pub fn cvt_trunc(x: f32) -> i32 {
 #[must_use]
 pub fn cvt_round(x: f32) -> i32 {
     let r = x.round_ties_even();
-    if r.is_nan() || r >= 2147483648.0 || r < -2147483648.0 {
+    if r.is_nan() || !(-2147483648.0..2147483648.0).contains(&r) {
         i32::MIN
     } else {
         r as i32

@@ -197,7 +197,7 @@ impl Buf {
 
     #[inline(always)]
     fn check(&self, off: usize, n: usize) {
-        if !off.checked_add(n).is_some_and(|e| e <= self.data.len()) {
+        if off.checked_add(n).is_none_or(|e| e > self.data.len()) {
             out_of_bounds(self.id, off, n, self.data.len());
         }
     }

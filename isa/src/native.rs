@@ -361,7 +361,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     fn load(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
         let off = ea(at);
         debug_assert!(
-            buf.addr(off).0 % (4 * N as u64) == 0,
+            buf.addr(off).0.is_multiple_of(4 * N as u64),
             "misaligned load at {}",
             buf.addr(off)
         );
@@ -377,7 +377,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     }
     #[inline(always)]
     fn load_repeat(&mut self, buf: &Buf, at: At<NS>, n: usize) -> Vf<N> {
-        assert!(n > 0 && N % n == 0, "repeat of {n} lanes in {N}");
+        assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
         let off = ea(at);
         let mut r = [0f32; N];
         for (i, x) in r.iter_mut().enumerate() {
@@ -400,7 +400,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     fn store(&mut self, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
         let off = ea(at);
         debug_assert!(
-            buf.addr(off).0 % (4 * N as u64) == 0,
+            buf.addr(off).0.is_multiple_of(4 * N as u64),
             "misaligned store at {}",
             buf.addr(off)
         );

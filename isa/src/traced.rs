@@ -287,7 +287,7 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
             return self.s(OpClass::VShuf, &[a]);
         }
         let blk = self.s(OpClass::VPerm, &[a]);
-        if i % 4 == 0 {
+        if i.is_multiple_of(4) {
             blk
         } else {
             self.s(OpClass::VShuf, &[blk])
@@ -348,7 +348,7 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
     fn block_perm(idx: &[u8; N]) -> bool {
         (0..N / 4).all(|b| {
             let s = idx[4 * b] as usize;
-            s % 4 == 0 && (0..4).all(|i| idx[4 * b + i] as usize == s + i)
+            s.is_multiple_of(4) && (0..4).all(|i| idx[4 * b + i] as usize == s + i)
         })
     }
 
@@ -701,7 +701,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     fn load(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
         let (off, ix) = Self::ea(&at);
         assert!(
-            buf.addr(off).0 % (4 * N as u64) == 0,
+            buf.addr(off).0.is_multiple_of(4 * N as u64),
             "misaligned {}-byte load at {}",
             4 * N,
             buf.addr(off)
@@ -720,7 +720,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         Self::tf(Vf([buf.f32_at(off); N]), id)
     }
     fn load_repeat(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
-        assert!(n > 0 && N % n == 0, "repeat of {n} lanes in {N}");
+        assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
         let (off, ix) = Self::ea(&at);
         let id = if n == N {
             self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * n, true)
@@ -777,7 +777,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     fn store(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
         let (off, ix) = Self::ea(&at);
         assert!(
-            buf.addr(off).0 % (4 * N as u64) == 0,
+            buf.addr(off).0.is_multiple_of(4 * N as u64),
             "misaligned {}-byte store at {}",
             4 * N,
             buf.addr(off)

@@ -171,7 +171,7 @@ pub fn box4_stream<M: Machine, const N: usize>(
     assert_eq!(M::LANES, N, "lane count");
     let per = N / 4;
     assert!(
-        nrays % per == 0 && nrays > 0,
+        nrays.is_multiple_of(per) && nrays > 0,
         "{nrays} rays is not a multiple of {per}"
     );
     m.region(Region::Setup);

@@ -1,0 +1,329 @@
+//! End-to-end tests of the `rtsim` app: the acceptance commands, bad
+//! input, and golden op streams (one op per line; `RTSIM_BLESS=1` rewrites them).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rtsim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtsim"))
+        .args(args)
+        .output()
+        .expect("rtsim runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rtsim-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn ok(o: &Output) -> String {
+    assert!(
+        o.status.success(),
+        "exit {:?}\nstdout: {}\nstderr: {}",
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8(o.stdout.clone()).unwrap()
+}
+
+fn err(o: &Output) -> String {
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "stdout: {}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let e = String::from_utf8(o.stderr.clone()).unwrap();
+    assert!(!e.contains("panicked"), "no panic: {e}");
+    e
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+#[test]
+fn record_twice_is_byte_identical_and_info_counts_classes() {
+    let (a, b) = (tmp("a.rtt"), tmp("b.rtt"));
+    ok(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "fma-chain",
+        "--isa",
+        "avx2",
+        "--out",
+        p(&a),
+    ]));
+    ok(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "fma-chain",
+        "--isa",
+        "avx2",
+        "--out",
+        p(&b),
+    ]));
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    let j: serde_json::Value =
+        serde_json::from_str(&ok(&rtsim(&["trace", "info", p(&a), "--format", "json"]))).unwrap();
+    assert_eq!(j["report"], "trace-info");
+    let rows = j["rows"].as_array().unwrap();
+    let class = |c: &str| {
+        rows.iter()
+            .find(|r| r["class"] == c && r["metric"] == "ops")
+            .map(|r| r["value"].as_f64().unwrap())
+    };
+    // 1000 iterations of 8 dependent FMAs and the loop's add, compare, branch.
+    assert_eq!(class("vfma"), Some(8000.0));
+    assert_eq!(class("alu"), Some(1000.0));
+    assert_eq!(class("branch"), Some(1000.0));
+    assert_eq!(j["ops_simulated"], 11000);
+}
+
+#[test]
+fn corrupt_truncated_and_wrong_version_files_exit_2_naming_the_file() {
+    let a = tmp("c.rtt");
+    ok(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "add-streams",
+        "--isa",
+        "sse4",
+        "--out",
+        p(&a),
+    ]));
+    let good = std::fs::read(&a).unwrap();
+    for (i, name) in [
+        (40usize, "flip1.rtt"),
+        (good.len() / 2, "flip2.rtt"),
+        (good.len() - 3, "flip3.rtt"),
+    ] {
+        let mut b = good.clone();
+        b[i] ^= 0x04;
+        let f = tmp(name);
+        std::fs::write(&f, &b).unwrap();
+        let e = err(&rtsim(&["trace", "info", p(&f)]));
+        assert!(e.contains(name) && e.contains("byte "), "{e}");
+    }
+    let f = tmp("trunc.rtt");
+    std::fs::write(&f, &good[..good.len() - 20]).unwrap();
+    assert!(err(&rtsim(&["trace", "info", p(&f)])).contains("trunc.rtt"));
+    let mut v = good.clone();
+    v[8] = 9;
+    let f = tmp("ver.rtt");
+    std::fs::write(&f, &v).unwrap();
+    assert!(err(&rtsim(&["trace", "info", p(&f)])).contains("version 9"));
+    let f = tmp("missing.rtt");
+    assert!(err(&rtsim(&["trace", "info", p(&f)])).contains("missing.rtt"));
+}
+
+#[test]
+fn text_conversion_round_trips_byte_for_byte() {
+    let (a, t, b) = (tmp("r.rtt"), tmp("r.txt"), tmp("r2.rtt"));
+    ok(&rtsim(&[
+        "trace",
+        "record",
+        "--kernel",
+        "boxtest",
+        "--isa",
+        "lrb16",
+        "--param",
+        "rays=64",
+        "--out",
+        p(&a),
+    ]));
+    ok(&rtsim(&["trace", "text", p(&a), p(&t)]));
+    ok(&rtsim(&["trace", "text", p(&t), p(&b)]));
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    let text = std::fs::read_to_string(&t).unwrap();
+    assert!(
+        text.starts_with("# rtsim trace")
+            && text.contains(".isa lrb16")
+            && text.contains("%1 = vloadbcast"),
+        "{text}"
+    );
+}
+
+#[test]
+fn hand_written_text_trace_is_read_and_bad_lines_are_named() {
+    let f = tmp("hand.txt");
+    std::fs::write(
+        &f,
+        ".trace 1\n.isa avx2\n.source hand:fma\n%1 = vfma\n%2 = vfma %1\n%3 = vfma %2\n",
+    )
+    .unwrap();
+    let out = ok(&rtsim(&["trace", "info", p(&f), "--format", "csv"]));
+    assert!(out.contains("vfma,,ops,3,ops"), "{out}");
+    std::fs::write(&f, ".trace 1\n.isa avx2\n%1 = vfma\n%2 = vfam %1\n").unwrap();
+    let e = err(&rtsim(&["trace", "info", p(&f)]));
+    assert!(e.contains("hand.txt: line 4") && e.contains("vfam"), "{e}");
+    std::fs::write(&f, ".trace 1\n.isa avx2\n%2 = vfma %1\n").unwrap();
+    let e = err(&rtsim(&["trace", "info", p(&f)]));
+    assert!(e.contains("not defined before use"), "{e}");
+}
+
+#[test]
+fn run_checks_every_ray_on_every_isa() {
+    for isa in ["lrb16", "avx512", "avx2", "sse4"] {
+        let j: serde_json::Value = serde_json::from_str(&ok(&rtsim(&[
+            "run", "--isa", isa, "--rays", "256", "--format", "json",
+        ])))
+        .unwrap();
+        let rows = j["rows"].as_array().unwrap();
+        let bad: Vec<f64> = rows
+            .iter()
+            .filter(|r| r["metric"] == "hit_mismatches")
+            .map(|r| r["value"].as_f64().unwrap())
+            .collect();
+        assert_eq!(bad, [0.0, 0.0], "{isa}");
+        assert_eq!(j["isa"], isa);
+    }
+}
+
+#[test]
+fn bad_arguments_exit_2_without_writing() {
+    let out = tmp("never.rtt");
+    assert!(err(&rtsim(&["run", "--rays", "3"])).contains("rays"));
+    assert!(err(&rtsim(&["run", "--isa", "avx9"])).contains("avx9"));
+    let e = err(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "fma-chian",
+        "--out",
+        p(&out),
+    ]));
+    assert!(e.contains("fma-chian"), "{e}");
+    let e = err(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "fma-chain",
+        "--param",
+        "iters=0",
+        "--out",
+        p(&out),
+    ]));
+    assert!(e.contains("iters"), "{e}");
+    let e = err(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "fma-chain",
+        "--param",
+        "iters",
+        "--out",
+        p(&out),
+    ]));
+    assert!(e.contains("KEY=VALUE"), "{e}");
+    assert!(!out.exists(), "nothing half-written");
+    let e = err(&rtsim(&[
+        "trace",
+        "record",
+        "--micro",
+        "fma-chain",
+        "--out",
+        "/nonexistent-dir/x.rtt",
+    ]));
+    assert!(e.contains("/nonexistent-dir/x.rtt"), "{e}");
+}
+
+#[test]
+fn list_micro_names_every_microkernel() {
+    let j: serde_json::Value =
+        serde_json::from_str(&ok(&rtsim(&["list", "micro", "--format", "json"]))).unwrap();
+    let names: Vec<&str> = j["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["name"].as_str().unwrap())
+        .collect();
+    for n in [
+        "fma-chain",
+        "fma-streams",
+        "pointer-chase",
+        "stream-load",
+        "stream-store",
+        "branch-predictable",
+        "branch-random",
+    ] {
+        assert!(names.contains(&n), "{n}");
+    }
+}
+
+fn golden(name: &str, args: &[&str]) {
+    let f = tmp(&format!("{name}.txt"));
+    let mut a: Vec<&str> = args.to_vec();
+    a.extend(["--out", p(&f)]);
+    ok(&rtsim(&a));
+    let got = std::fs::read_to_string(&f).unwrap();
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("traces/golden")
+        .join(format!("{name}.txt"));
+    if std::env::var_os("RTSIM_BLESS").is_some() {
+        std::fs::write(&path, &got).unwrap();
+    }
+    let want = std::fs::read_to_string(&path)
+        .unwrap_or_else(|_| panic!("{} missing: run with RTSIM_BLESS=1", path.display()));
+    if got != want {
+        let line = got
+            .lines()
+            .zip(want.lines())
+            .position(|(g, w)| g != w)
+            .unwrap_or(0);
+        panic!(
+            "{name}: op stream differs from {} at line {}:\n  got:  {}\n  want: {}",
+            path.display(),
+            line + 1,
+            got.lines().nth(line).unwrap_or(""),
+            want.lines().nth(line).unwrap_or("")
+        );
+    }
+}
+
+#[test]
+fn golden_op_streams() {
+    golden(
+        "fma-chain-avx2",
+        &[
+            "trace",
+            "record",
+            "--micro",
+            "fma-chain",
+            "--isa",
+            "avx2",
+            "--param",
+            "iters=2",
+            "--param",
+            "unroll=4",
+        ],
+    );
+    golden(
+        "pointer-chase-avx2",
+        &[
+            "trace",
+            "record",
+            "--micro",
+            "pointer-chase",
+            "--isa",
+            "avx2",
+            "--param",
+            "iters=8",
+            "--param",
+            "ws=1K",
+        ],
+    );
+    for isa in ["avx2", "sse4", "lrb16"] {
+        golden(
+            &format!("boxtest-{isa}"),
+            &[
+                "trace", "record", "--kernel", "boxtest", "--isa", isa, "--param", "rays=8",
+            ],
+        );
+    }
+}

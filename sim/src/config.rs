@@ -1,0 +1,477 @@
+//! Machine configs: RON files in `configs/machines/`, every field checked
+//! (`deny_unknown_fields`, value validation naming the field), every number
+//! with a source comment in the file.
+
+use isa::{FlavourId, OpClass};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+/// Core kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CoreKind {
+    /// Out-of-order (Haswell class).
+    OutOfOrder,
+    /// In-order, multi-threaded (Larrabee class).
+    InOrder,
+}
+
+/// The core.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CoreConfig {
+    /// Out-of-order or in-order.
+    pub kind: CoreKind,
+    /// Fused-domain ops dispatched (OoO) or issued (in-order) per cycle.
+    pub width: u32,
+    /// Ops retired per cycle (OoO).
+    #[serde(default)]
+    pub retire_width: u32,
+    /// Reorder buffer entries (OoO).
+    #[serde(default)]
+    pub rob: u32,
+    /// Unified scheduler entries (OoO).
+    #[serde(default)]
+    pub scheduler: u32,
+    /// Execution ports (OoO) or pipes (in-order: 0 = U, 1 = V).
+    pub ports: u32,
+    /// Store-to-load forwarding latency (OoO).
+    #[serde(default)]
+    pub store_forward_latency: u32,
+    /// A compare followed by the branch reading it takes one dispatch slot.
+    #[serde(default)]
+    pub macro_fusion: bool,
+    /// Hardware threads (in-order), interleaved on the core.
+    #[serde(default = "one")]
+    pub threads: u32,
+    /// A thread cannot issue in two consecutive cycles (Knights Corner rule).
+    #[serde(default)]
+    pub no_back_to_back: bool,
+    /// Cycles from a mispredicted branch's resolution to the first correct-path dispatch.
+    pub mispredict_penalty: u32,
+    /// Global history bits of the gshare predictor.
+    pub history_bits: u32,
+    /// log2 of the predictor's table of 2-bit counters.
+    pub predictor_bits: u32,
+}
+
+fn one() -> u32 {
+    1
+}
+
+/// Timing of one op class.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClassTiming {
+    /// Result latency in cycles (loads: added to nothing; their latency is the cache's).
+    pub lat: u32,
+    /// Unfused uops, each with the ports that can execute it.
+    pub uops: Vec<Vec<u32>>,
+    /// Cycles each uop keeps its port busy (non-pipelined units: divide, sqrt).
+    #[serde(default = "one")]
+    pub occ: u32,
+    /// Fused-domain uops: dispatch slots the op takes.
+    #[serde(default = "one")]
+    pub fused: u32,
+    /// Extra port cycles per distinct cache line beyond the first (gather/scatter).
+    #[serde(default)]
+    pub per_line: u32,
+}
+
+/// One cache level.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CacheConfig {
+    /// Name (`l1d`, `l2`, `l3`, `l4`): `--set l2.size_kib=128` uses it.
+    pub name: String,
+    /// Capacity in KiB.
+    pub size_kib: u32,
+    /// Associativity.
+    pub ways: u32,
+    /// Line size in bytes (a power of two).
+    pub line: u32,
+    /// Load-to-use latency of a hit at this level, in core cycles.
+    pub latency: u32,
+    /// Shared by all cores (else private per core).
+    #[serde(default)]
+    pub shared: bool,
+}
+
+/// Main memory.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DramConfig {
+    /// Load-to-use latency of a DRAM access in core cycles (all levels missed).
+    pub latency: u32,
+    /// Sustained bandwidth in GB/s (10^9 bytes), shared by all cores.
+    pub bandwidth_gbs: f64,
+}
+
+/// Hardware prefetcher.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Prefetch {
+    /// None.
+    None,
+    /// On a miss in the last private level, also fetch the next line into it.
+    NextLine,
+}
+
+/// A whole machine.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MachineConfig {
+    /// Name.
+    pub name: String,
+    /// What it models, in a few words.
+    pub about: String,
+    /// ISA flavour its kernels use.
+    pub isa: String,
+    /// Clock in GHz.
+    pub clock_ghz: f64,
+    /// Cores.
+    pub cores: u32,
+    /// The core.
+    pub core: CoreConfig,
+    /// Op class timings (every class a trace may hold).
+    pub classes: BTreeMap<String, ClassTiming>,
+    /// Cache levels, closest first.
+    pub caches: Vec<CacheConfig>,
+    /// Outstanding L1 misses per core.
+    pub mshrs: u32,
+    /// Prefetcher.
+    pub prefetch: Prefetch,
+    /// Main memory.
+    pub dram: DramConfig,
+}
+
+/// A config error: file, line if known, field, message.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ConfigError {
+    /// File (or machine name).
+    pub file: String,
+    /// Line, 1-based, if known.
+    pub line: Option<usize>,
+    /// Field path (e.g. `caches[1].ways`).
+    pub field: String,
+    /// What is wrong.
+    pub msg: String,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.file)?;
+        if let Some(l) = self.line {
+            write!(f, ": line {l}")?;
+        }
+        if !self.field.is_empty() {
+            write!(f, ": {}", self.field)?;
+        }
+        write!(f, ": {}", self.msg)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+/// The built-in machines: name and RON text (the files in `configs/machines/`).
+pub const BUILTIN: &[(&str, &str)] = &[
+    (
+        "haswell-i7-4750hq",
+        include_str!("../../configs/machines/haswell-i7-4750hq.ron"),
+    ),
+    (
+        "haswell-e5-2650v3",
+        include_str!("../../configs/machines/haswell-e5-2650v3.ron"),
+    ),
+    (
+        "larrabee",
+        include_str!("../../configs/machines/larrabee.ron"),
+    ),
+    (
+        "core2-q6600",
+        include_str!("../../configs/machines/core2-q6600.ron"),
+    ),
+    (
+        "nehalem-x5550",
+        include_str!("../../configs/machines/nehalem-x5550.ron"),
+    ),
+    ("zen3", include_str!("../../configs/machines/zen3.ron")),
+];
+
+impl MachineConfig {
+    /// Parse RON text; `file` names it in errors.
+    pub fn parse(text: &str, file: &str) -> Result<MachineConfig, ConfigError> {
+        let c: MachineConfig = ron::from_str(text).map_err(|e| ConfigError {
+            file: file.to_string(),
+            line: Some(e.position.line),
+            field: String::new(),
+            msg: e.code.to_string(),
+        })?;
+        c.validate().map_err(|(field, msg)| ConfigError {
+            file: file.to_string(),
+            line: find_line(text, &field),
+            field,
+            msg,
+        })?;
+        Ok(c)
+    }
+
+    /// A built-in machine by name, or a RON file by path.
+    pub fn load(name_or_path: &str) -> Result<MachineConfig, ConfigError> {
+        if let Some((_, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+            return MachineConfig::parse(text, &format!("configs/machines/{name_or_path}.ron"));
+        }
+        let p = Path::new(name_or_path);
+        if p.exists() || name_or_path.ends_with(".ron") {
+            let text = std::fs::read_to_string(p).map_err(|e| ConfigError {
+                file: name_or_path.to_string(),
+                line: None,
+                field: String::new(),
+                msg: e.to_string(),
+            })?;
+            return MachineConfig::parse(&text, name_or_path);
+        }
+        let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
+        Err(ConfigError {
+            file: name_or_path.to_string(),
+            line: None,
+            field: String::new(),
+            msg: format!("no such machine or file (built in: {})", names.join(", ")),
+        })
+    }
+
+    /// Apply `path=value` overrides (e.g. `core.width=6`, `l2.size_kib=128`,
+    /// `classes.vfma.lat=6`); the result is validated again.
+    pub fn with_sets(&self, sets: &[String]) -> Result<MachineConfig, ConfigError> {
+        if sets.is_empty() {
+            return Ok(self.clone());
+        }
+        let err = |field: &str, msg: String| ConfigError {
+            file: format!("--set on {}", self.name),
+            line: None,
+            field: field.to_string(),
+            msg,
+        };
+        let mut v = serde_json::to_value(self).expect("config serialises");
+        for s in sets {
+            let (path, value) = s
+                .split_once('=')
+                .ok_or_else(|| err(s, "expected KEY=VALUE".into()))?;
+            let mut parts: Vec<String> = path.split('.').map(str::to_string).collect();
+            if let Some(i) = self.caches.iter().position(|c| c.name == parts[0]) {
+                parts.splice(0..1, ["caches".to_string(), i.to_string()]);
+            }
+            let mut cur = &mut v;
+            for part in &parts {
+                cur = match cur {
+                    serde_json::Value::Object(m) => {
+                        if !m.contains_key(part) {
+                            return Err(err(path, format!("unknown field '{part}'")));
+                        }
+                        m.entry(part.clone()).or_insert(serde_json::Value::Null)
+                    }
+                    serde_json::Value::Array(a) => {
+                        let i: usize = part
+                            .parse()
+                            .map_err(|_| err(path, format!("'{part}' is not an index")))?;
+                        let n = a.len();
+                        a.get_mut(i)
+                            .ok_or_else(|| err(path, format!("index {i} out of range (0..{n})")))?
+                    }
+                    _ => {
+                        return Err(err(
+                            path,
+                            format!("'{part}' is inside a value, not a struct"),
+                        ))
+                    }
+                };
+            }
+            *cur =
+                serde_json::from_str(value).unwrap_or(serde_json::Value::String(value.to_string()));
+        }
+        let c: MachineConfig =
+            serde_json::from_value(v).map_err(|e| err(&sets.join(" "), e.to_string()))?;
+        c.validate().map_err(|(field, msg)| err(&field, msg))?;
+        Ok(c)
+    }
+
+    /// The ISA flavour.
+    #[must_use]
+    pub fn flavour(&self) -> FlavourId {
+        FlavourId::from_name(&self.isa).expect("validated")
+    }
+
+    /// Timing of a class.
+    #[must_use]
+    pub fn class(&self, c: OpClass) -> &ClassTiming {
+        &self.classes[c.name()]
+    }
+
+    /// Check every value; Err((field, message)).
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        let e = |f: &str, m: &str| Err((f.to_string(), m.to_string()));
+        if FlavourId::from_name(&self.isa).is_none() {
+            return e("isa", "unknown ISA flavour (lrb16, avx512, avx2, sse4)");
+        }
+        if self.clock_ghz.is_nan() || self.clock_ghz <= 0.0 || self.clock_ghz >= 100.0 {
+            return e("clock_ghz", "must be between 0 and 100");
+        }
+        if self.cores == 0 || self.cores > 1024 {
+            return e("cores", "must be 1 to 1024");
+        }
+        let c = &self.core;
+        if c.width == 0 || c.width > 64 {
+            return e("core.width", "must be 1 to 64");
+        }
+        if c.ports == 0 || c.ports > 16 {
+            return e("core.ports", "must be 1 to 16");
+        }
+        if c.kind == CoreKind::OutOfOrder {
+            if c.rob == 0 || c.rob > 4096 {
+                return e("core.rob", "must be 1 to 4096");
+            }
+            if c.scheduler == 0 || c.scheduler > c.rob {
+                return e("core.scheduler", "must be 1 to rob");
+            }
+            if c.retire_width == 0 {
+                return e("core.retire_width", "must be at least 1");
+            }
+        } else if c.threads == 0 || c.threads > 16 {
+            return e("core.threads", "must be 1 to 16");
+        }
+        if c.history_bits > 24 || c.predictor_bits == 0 || c.predictor_bits > 24 {
+            return e(
+                "core.predictor_bits",
+                "history_bits at most 24, predictor_bits 1 to 24",
+            );
+        }
+        for class in OpClass::ALL {
+            let Some(t) = self.classes.get(class.name()) else {
+                return Err((
+                    format!("classes.{}", class.name()),
+                    "missing: every op class needs a timing".into(),
+                ));
+            };
+            let f = format!("classes.{}", class.name());
+            if t.uops.is_empty() && !matches!(class, OpClass::Branch) && t.fused > 0 {
+                // Branches may be fused away; everything else executes somewhere.
+                return Err((format!("{f}.uops"), "needs at least one uop".into()));
+            }
+            for u in &t.uops {
+                if u.is_empty() {
+                    return Err((format!("{f}.uops"), "a uop with no port".into()));
+                }
+                if let Some(p) = u.iter().find(|&&p| p >= c.ports) {
+                    return Err((
+                        format!("{f}.uops"),
+                        format!("port {p} does not exist (core.ports = {})", c.ports),
+                    ));
+                }
+            }
+            if t.occ == 0 {
+                return Err((format!("{f}.occ"), "must be at least 1".into()));
+            }
+            if t.lat > 10_000 {
+                return Err((format!("{f}.lat"), "latency over 10000 cycles".into()));
+            }
+        }
+        if let Some(k) = self
+            .classes
+            .keys()
+            .find(|k| OpClass::from_name(k).is_none())
+        {
+            return Err((
+                format!("classes.{k}"),
+                "unknown op class (rtsim list classes)".into(),
+            ));
+        }
+        if self.caches.is_empty() {
+            return e("caches", "at least one cache level");
+        }
+        for (i, l) in self.caches.iter().enumerate() {
+            let f = |x: &str| format!("caches[{i}].{x}");
+            if l.ways == 0 {
+                return Err((f("ways"), "must be at least 1".into()));
+            }
+            if !l.line.is_power_of_two() || l.line < 8 {
+                return Err((
+                    f("line"),
+                    format!("{} is not a power of two of at least 8", l.line),
+                ));
+            }
+            let bytes = u64::from(l.size_kib) * 1024;
+            let sets = bytes / (u64::from(l.ways) * u64::from(l.line));
+            if sets == 0 || sets * u64::from(l.ways) * u64::from(l.line) != bytes {
+                return Err((
+                    f("size_kib"),
+                    format!(
+                        "{} KiB is not a whole number of sets of {} ways x {} B",
+                        l.size_kib, l.ways, l.line
+                    ),
+                ));
+            }
+            if l.line != self.caches[0].line {
+                return Err((f("line"), "all levels must share one line size".into()));
+            }
+            if i > 0 && l.latency <= self.caches[i - 1].latency {
+                return Err((f("latency"), "must exceed the level above".into()));
+            }
+        }
+        if self.dram.latency <= self.caches.last().map_or(0, |l| l.latency) {
+            return e("dram.latency", "must exceed the last cache level's");
+        }
+        if self.dram.bandwidth_gbs.is_nan() || self.dram.bandwidth_gbs <= 0.0 {
+            return e("dram.bandwidth_gbs", "must be positive");
+        }
+        if self.mshrs == 0 {
+            return e("mshrs", "must be at least 1");
+        }
+        Ok(())
+    }
+
+    /// Reciprocal throughput of a class implied by its uops and ports: the
+    /// most loaded set of ports, max over port sets S of (occupancy of the uops
+    /// that can only run in S) / |S|.
+    #[must_use]
+    pub fn recip_throughput(&self, c: OpClass) -> f64 {
+        let t = self.class(c);
+        let n = self.core.ports;
+        let mut best = 0f64;
+        for s in 1u32..(1 << n) {
+            let load: u32 = t
+                .uops
+                .iter()
+                .filter(|u| u.iter().all(|&p| s >> p & 1 == 1))
+                .map(|_| t.occ)
+                .sum();
+            best = best.max(f64::from(load) / f64::from(s.count_ones()));
+        }
+        best
+    }
+}
+
+/// The line of a field in RON text: for `caches[i].x` the (i+1)-th `x:`,
+/// for `classes.name...` the line naming `"name"`, else the first `x:`.
+fn find_line(text: &str, field: &str) -> Option<usize> {
+    let lines: Vec<&str> = text.lines().collect();
+    if let Some(rest) = field.strip_prefix("classes.") {
+        let name = rest.split('.').next()?;
+        let pat = format!("\"{name}\"");
+        return lines.iter().position(|l| l.contains(&pat)).map(|i| i + 1);
+    }
+    let last = field.rsplit('.').next()?;
+    let key = last.split('[').next()?;
+    let nth = field
+        .split('[')
+        .nth(1)
+        .and_then(|s| s.split(']').next())
+        .and_then(|s| s.parse::<usize>().ok())
+        .unwrap_or(0);
+    let pat = format!("{key}:");
+    lines
+        .iter()
+        .enumerate()
+        .filter(|(_, l)| l.split("//").next().unwrap_or("").contains(&pat))
+        .nth(nth)
+        .map(|(i, _)| i + 1)
+}

@@ -1,0 +1,339 @@
+//! Caches and DRAM: set-associative, LRU, write-back write-allocate, any
+//! number of private and shared levels, an optional next-line prefetcher, and
+//! a DRAM with latency and a bandwidth queue. Counts hits and misses per level
+//! and per memory region, and DRAM bytes read and written.
+
+use crate::config::{CacheConfig, MachineConfig, Prefetch};
+use isa::{LineAddr, MemId};
+
+/// One set-associative cache with LRU replacement.
+#[derive(Clone, Debug)]
+pub struct Cache {
+    sets: u64,
+    ways: usize,
+    tags: Vec<u64>,
+    stamp: Vec<u64>,
+    dirty: Vec<bool>,
+    clock: u64,
+}
+
+const EMPTY: u64 = u64::MAX;
+
+impl Cache {
+    /// An empty cache of `cfg`'s geometry.
+    #[must_use]
+    pub fn new(cfg: &CacheConfig) -> Cache {
+        let lines = u64::from(cfg.size_kib) * 1024 / u64::from(cfg.line);
+        let ways = cfg.ways as usize;
+        let sets = lines / ways as u64;
+        Cache {
+            sets,
+            ways,
+            tags: vec![EMPTY; lines as usize],
+            stamp: vec![0; lines as usize],
+            dirty: vec![false; lines as usize],
+            clock: 0,
+        }
+    }
+
+    #[inline]
+    fn set_of(&self, line: LineAddr) -> usize {
+        let set = if self.sets.is_power_of_two() {
+            line.0 & (self.sets - 1)
+        } else {
+            line.0 % self.sets
+        };
+        set as usize * self.ways
+    }
+
+    /// Look up a line; on a hit, update LRU (and mark dirty on a write).
+    #[inline]
+    pub fn lookup(&mut self, line: LineAddr, write: bool) -> bool {
+        let s = self.set_of(line);
+        self.clock += 1;
+        for w in s..s + self.ways {
+            if self.tags[w] == line.0 {
+                self.stamp[w] = self.clock;
+                self.dirty[w] |= write;
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Whether a line is present (no LRU update).
+    #[must_use]
+    pub fn contains(&self, line: LineAddr) -> bool {
+        let s = self.set_of(line);
+        self.tags[s..s + self.ways].contains(&line.0)
+    }
+
+    /// Insert a line (not present); returns the evicted line if it was dirty.
+    #[inline]
+    pub fn insert(&mut self, line: LineAddr, dirty: bool) -> Option<LineAddr> {
+        let s = self.set_of(line);
+        self.clock += 1;
+        let mut victim = s;
+        for w in s..s + self.ways {
+            if self.tags[w] == EMPTY {
+                victim = w;
+                break;
+            }
+            if self.stamp[w] < self.stamp[victim] {
+                victim = w;
+            }
+        }
+        let evicted = (self.tags[victim] != EMPTY && self.dirty[victim])
+            .then_some(LineAddr(self.tags[victim]));
+        self.tags[victim] = line.0;
+        self.stamp[victim] = self.clock;
+        self.dirty[victim] = dirty;
+        evicted
+    }
+}
+
+/// Counters of one level.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LevelStats {
+    /// Demand hits per memory region.
+    pub hits: Vec<u64>,
+    /// Demand misses per memory region.
+    pub misses: Vec<u64>,
+    /// Dirty lines written back to the next level.
+    pub writebacks: u64,
+    /// Prefetches issued into this level.
+    pub prefetches: u64,
+}
+
+impl LevelStats {
+    fn bump(v: &mut Vec<u64>, r: MemId) {
+        let i = r.0 as usize;
+        if v.len() <= i {
+            v.resize(i + 1, 0);
+        }
+        v[i] += 1;
+    }
+    /// All hits.
+    #[must_use]
+    pub fn total_hits(&self) -> u64 {
+        self.hits.iter().sum()
+    }
+    /// All misses.
+    #[must_use]
+    pub fn total_misses(&self) -> u64 {
+        self.misses.iter().sum()
+    }
+}
+
+/// Where an access was served.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Served {
+    /// Level index that hit, or the number of levels for DRAM.
+    pub level: usize,
+    /// Load-to-use latency in cycles, queueing included.
+    pub latency: u64,
+}
+
+/// The memory system of a machine: per-core private levels, shared levels, DRAM.
+#[derive(Clone, Debug)]
+pub struct Hierarchy {
+    cfg: Vec<CacheConfig>,
+    /// caches[core][level]; shared levels live in core 0's slot only.
+    caches: Vec<Vec<Option<Cache>>>,
+    line_shift: u32,
+    dram_latency: u64,
+    /// DRAM cycles per line transferred.
+    dram_xfer: f64,
+    dram_free: f64,
+    prefetch: Prefetch,
+    last_private: Option<usize>,
+    /// Counters per level.
+    pub stats: Vec<LevelStats>,
+    /// Bytes read from DRAM (demand and prefetch).
+    pub dram_read: u64,
+    /// Bytes written to DRAM (dirty evictions).
+    pub dram_written: u64,
+    /// DRAM bytes read per memory region (demand misses and their prefetches).
+    pub dram_read_by_region: Vec<u64>,
+}
+
+impl Hierarchy {
+    /// The hierarchy of `m` for `cores` simulated cores.
+    #[must_use]
+    pub fn new(m: &MachineConfig, cores: usize) -> Hierarchy {
+        let caches = (0..cores)
+            .map(|c| {
+                m.caches
+                    .iter()
+                    .map(|l| (!l.shared || c == 0).then(|| Cache::new(l)))
+                    .collect()
+            })
+            .collect();
+        let line = m.caches[0].line;
+        let bytes_per_cycle = m.dram.bandwidth_gbs / m.clock_ghz;
+        Hierarchy {
+            cfg: m.caches.clone(),
+            caches,
+            line_shift: line.trailing_zeros(),
+            dram_latency: u64::from(m.dram.latency),
+            dram_xfer: f64::from(line) / bytes_per_cycle,
+            dram_free: 0.0,
+            prefetch: m.prefetch,
+            last_private: m.caches.iter().rposition(|l| !l.shared),
+            stats: vec![LevelStats::default(); m.caches.len()],
+            dram_read: 0,
+            dram_written: 0,
+            dram_read_by_region: Vec::new(),
+        }
+    }
+
+    /// Line size in bytes.
+    #[must_use]
+    pub fn line_bytes(&self) -> u64 {
+        1 << self.line_shift
+    }
+
+    /// The line of a byte address.
+    #[must_use]
+    pub fn line_of(&self, addr: u64) -> LineAddr {
+        LineAddr(addr >> self.line_shift)
+    }
+
+    fn cache(&mut self, core: usize, level: usize) -> &mut Cache {
+        let c = if self.cfg[level].shared { 0 } else { core };
+        self.caches[c][level].as_mut().expect("cache present")
+    }
+
+    fn dram(&mut self, now: u64, region: MemId) -> u64 {
+        let bytes = self.line_bytes();
+        self.dram_read += bytes;
+        let i = region.0 as usize;
+        if self.dram_read_by_region.len() <= i {
+            self.dram_read_by_region.resize(i + 1, 0);
+        }
+        self.dram_read_by_region[i] += bytes;
+        let start = self.dram_free.max(now as f64);
+        self.dram_free = start + self.dram_xfer;
+        (start - now as f64) as u64 + self.dram_latency
+    }
+
+    /// Put a line into `level` (and write back its dirty victim below).
+    fn fill(&mut self, core: usize, level: usize, line: LineAddr, dirty: bool) {
+        if let Some(victim) = self.cache(core, level).insert(line, dirty) {
+            self.stats[level].writebacks += 1;
+            self.write_back(core, level + 1, victim);
+        }
+    }
+
+    fn write_back(&mut self, core: usize, level: usize, line: LineAddr) {
+        if level >= self.cfg.len() {
+            self.dram_written += self.line_bytes();
+            return;
+        }
+        if !self.cache(core, level).lookup(line, true) {
+            self.fill(core, level, line, true);
+        }
+    }
+
+    /// A demand access by `core` at cycle `now` to the line of `addr`.
+    pub fn access(
+        &mut self,
+        core: usize,
+        addr: u64,
+        write: bool,
+        region: MemId,
+        now: u64,
+    ) -> Served {
+        let line = self.line_of(addr);
+        let n = self.cfg.len();
+        let mut hit_level = n;
+        for l in 0..n {
+            if self.cache(core, l).lookup(line, write && l == 0) {
+                LevelStats::bump(&mut self.stats[l].hits, region);
+                hit_level = l;
+                break;
+            }
+            LevelStats::bump(&mut self.stats[l].misses, region);
+        }
+        let latency = if hit_level == n {
+            self.dram(now, region)
+        } else {
+            u64::from(self.cfg[hit_level].latency)
+        };
+        for l in (0..hit_level).rev() {
+            self.fill(core, l, line, write && l == 0);
+        }
+        if self.prefetch == Prefetch::NextLine {
+            if let Some(lp) = self.last_private {
+                if hit_level > lp {
+                    self.prefetch_line(core, lp, LineAddr(line.0 + 1), region, now);
+                }
+            }
+        }
+        Served {
+            level: hit_level,
+            latency,
+        }
+    }
+
+    fn prefetch_line(
+        &mut self,
+        core: usize,
+        level: usize,
+        line: LineAddr,
+        region: MemId,
+        now: u64,
+    ) {
+        if self.cache(core, level).contains(line) {
+            return;
+        }
+        self.stats[level].prefetches += 1;
+        let n = self.cfg.len();
+        let found = (level + 1..n).any(|l| self.cache(core, l).contains(line));
+        if !found {
+            self.dram(now, region);
+            for l in level + 1..n {
+                self.fill(core, l, line, false);
+            }
+        }
+        self.fill(core, level, line, false);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg(size_kib: u32, ways: u32) -> CacheConfig {
+        CacheConfig {
+            name: "t".into(),
+            size_kib,
+            ways,
+            line: 64,
+            latency: 4,
+            shared: false,
+        }
+    }
+
+    #[test]
+    fn lru_evicts_the_oldest_and_reports_dirty_victims() {
+        // 1 KiB, 2 ways, 64 B lines: 8 sets; lines 0, 8, 16 map to set 0.
+        let mut c = Cache::new(&cfg(1, 2));
+        assert!(!c.lookup(LineAddr(0), false));
+        assert_eq!(c.insert(LineAddr(0), true), None);
+        assert_eq!(c.insert(LineAddr(8), false), None);
+        assert!(c.lookup(LineAddr(0), false)); // 8 is now the LRU
+        assert_eq!(
+            c.insert(LineAddr(16), false),
+            None,
+            "clean 8 evicted silently"
+        );
+        assert!(!c.contains(LineAddr(8)));
+        assert!(c.lookup(LineAddr(16), false));
+        assert_eq!(
+            c.insert(LineAddr(24), false),
+            Some(LineAddr(0)),
+            "dirty 0 written back"
+        );
+    }
+}

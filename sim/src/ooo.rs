@@ -1,0 +1,444 @@
+//! The out-of-order core (Haswell class), timed one op at a time in program
+//! order, as ZSim's instruction-driven OoO model does:
+//!
+//! - dispatch: `width` fused uops per cycle, after fetch is redirected from a
+//!   mispredicted branch, with a free ROB entry (the entry `rob` back must have
+//!   retired) and a free scheduler entry (the uop `scheduler` back must have issued);
+//! - issue: a cycle after dispatch, once every source is ready, on the first free
+//!   cycle of any allowed port (ports keep a booking calendar, so a later op
+//!   can take an earlier free slot: out-of-order issue);
+//! - execute: the class latency, or the memory system's for loads (an L1 miss
+//!   also waits for one of `mshrs` miss slots), or store-to-load forwarding;
+//! - retire: in order, `retire_width` per cycle.
+//!
+//! Deviations: a macro-fused compare and branch take one dispatch slot but both
+//! uops still execute; memory ordering is not enforced beyond forwarding; the
+//! scheduler limit counts uops by program order, not by actual occupancy.
+
+use crate::config::MachineConfig;
+use crate::memory::Hierarchy;
+use crate::predictor::Gshare;
+use crate::stats::{Stall, Stats};
+use isa::{OpClass, Trace, ValId};
+
+/// Cycles the port calendars look ahead.
+const WINDOW: u64 = 1 << 16;
+const WORDS: usize = (WINDOW / 64) as usize;
+/// Value ready-time ring: values older than this many ids are long complete.
+const VALUES: usize = 1 << 16;
+/// Recent stores checked for forwarding.
+const STORES: usize = 16;
+
+/// A class's timing, prepared for the hot loop.
+#[derive(Clone, Debug)]
+pub(crate) struct ClassT {
+    pub lat: u64,
+    pub uops: Vec<u32>,
+    pub occ: u64,
+    pub fused: u32,
+    pub per_line: u64,
+}
+
+pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
+    OpClass::ALL
+        .iter()
+        .map(|c| {
+            let t = m.class(*c);
+            ClassT {
+                lat: u64::from(t.lat),
+                uops: t
+                    .uops
+                    .iter()
+                    .map(|ports| ports.iter().fold(0u32, |a, p| a | 1 << p))
+                    .collect(),
+                occ: u64::from(t.occ),
+                fused: t.fused,
+                per_line: u64::from(t.per_line),
+            }
+        })
+        .collect()
+}
+
+/// Per-port booking of future cycles.
+pub(crate) struct Calendar {
+    bits: Vec<[u64; WORDS]>,
+    base: u64,
+    uses: Vec<u64>,
+}
+
+impl Calendar {
+    pub fn new(ports: usize) -> Calendar {
+        Calendar {
+            bits: vec![[0u64; WORDS]; ports],
+            base: 0,
+            uses: vec![0; ports],
+        }
+    }
+
+    /// Forget cycles before `to` (their slots are reused for cycles + WINDOW).
+    pub fn advance(&mut self, to: u64) {
+        if to <= self.base {
+            return;
+        }
+        let from = self.base;
+        let end = to.min(from + WINDOW);
+        for p in &mut self.bits {
+            let mut c = from;
+            while c < end {
+                let w = ((c / 64) as usize) % WORDS;
+                let lo = c % 64;
+                let hi = (end - (c - lo)).min(64);
+                let mask = if hi - lo == 64 {
+                    u64::MAX
+                } else {
+                    ((1u64 << (hi - lo)) - 1) << lo
+                };
+                p[w] &= !mask;
+                c = c - lo + hi;
+            }
+        }
+        self.base = to;
+    }
+
+    #[inline]
+    fn free(&self, p: usize, c: u64) -> bool {
+        self.bits[p][((c / 64) as usize) % WORDS] >> (c % 64) & 1 == 0
+    }
+
+    /// First cycle >= `t` with `occ` free cycles on port `p`.
+    #[inline]
+    fn find(&self, p: usize, t: u64, occ: u64) -> u64 {
+        let mut c = t.max(self.base);
+        let limit = self.base + WINDOW - occ;
+        loop {
+            if c >= limit {
+                return c;
+            }
+            // Skip the run of busy cycles starting at c (within this word).
+            let busy = (self.bits[p][((c / 64) as usize) % WORDS] >> (c % 64)).trailing_ones();
+            if busy > 0 {
+                c += u64::from(busy);
+                continue;
+            }
+            if (1..occ).all(|k| self.free(p, c + k)) {
+                return c;
+            }
+            c += 1;
+        }
+    }
+
+    #[inline]
+    fn mark(&mut self, p: usize, c: u64, occ: u64) {
+        if c + occ > self.base + WINDOW {
+            return;
+        }
+        for k in c..c + occ {
+            self.bits[p][((k / 64) as usize) % WORDS] |= 1 << (k % 64);
+        }
+        self.uses[p] += 1;
+    }
+
+    /// Book the earliest slot >= `t` on any port in `mask`; returns the cycle.
+    #[inline]
+    pub fn book(&mut self, mask: u32, t: u64, occ: u64) -> u64 {
+        let mut best = (u64::MAX, u64::MAX, 0usize);
+        let mut m = mask;
+        while m != 0 {
+            let p = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let c = self.find(p, t, occ);
+            let key = (c, self.uses[p], p);
+            if (key.0, key.1) < (best.0, best.1) {
+                best = key;
+            }
+        }
+        self.mark(best.2, best.0, occ);
+        best.0
+    }
+}
+
+/// Ready times of values, by id modulo the ring size.
+pub(crate) struct Values {
+    ids: Vec<u32>,
+    at: Vec<u64>,
+}
+
+impl Values {
+    pub fn new() -> Values {
+        Values {
+            ids: vec![0; VALUES],
+            at: vec![0; VALUES],
+        }
+    }
+    #[inline]
+    pub fn get(&self, v: ValId) -> u64 {
+        let i = v.0 as usize % VALUES;
+        if self.ids[i] == v.0 {
+            self.at[i]
+        } else {
+            0
+        }
+    }
+    #[inline]
+    pub fn set(&mut self, v: ValId, t: u64) {
+        let i = v.0 as usize % VALUES;
+        self.ids[i] = v.0;
+        self.at[i] = t;
+    }
+}
+
+/// An out-of-order core's state between ops.
+pub struct OooCore {
+    core: usize,
+    classes: Vec<ClassT>,
+    width: u32,
+    retire_width: u32,
+    rob: usize,
+    sched: usize,
+    l1_latency: u64,
+    sf_latency: u64,
+    macro_fusion: bool,
+    penalty: u64,
+    cal: Calendar,
+    values: Values,
+    rob_ring: Vec<u64>,
+    rob_seq: usize,
+    rs_ring: Vec<u64>,
+    rs_seq: usize,
+    mshr: Vec<u64>,
+    stores: [(u64, u64, u64); STORES],
+    store_seq: usize,
+    pred: Gshare,
+    d: u64,
+    dcount: u32,
+    fetch_block: u64,
+    last_ret: u64,
+    ret_count: u32,
+    prev_cmp: Option<ValId>,
+    /// Cycle of the last retirement.
+    pub now: u64,
+}
+
+impl OooCore {
+    /// A core of machine `m` with index `core` (its private caches).
+    #[must_use]
+    pub fn new(m: &MachineConfig, core: usize) -> OooCore {
+        let c = &m.core;
+        OooCore {
+            core,
+            classes: class_table(m),
+            width: c.width,
+            retire_width: c.retire_width,
+            rob: c.rob as usize,
+            sched: c.scheduler as usize,
+            l1_latency: u64::from(m.caches[0].latency),
+            sf_latency: u64::from(c.store_forward_latency),
+            macro_fusion: c.macro_fusion,
+            penalty: u64::from(c.mispredict_penalty),
+            cal: Calendar::new(c.ports as usize),
+            values: Values::new(),
+            rob_ring: vec![0; c.rob as usize],
+            rob_seq: 0,
+            rs_ring: vec![0; c.scheduler as usize],
+            rs_seq: 0,
+            mshr: vec![0; m.mshrs as usize],
+            stores: [(u64::MAX, 0, 0); STORES],
+            store_seq: 0,
+            pred: Gshare::new(c.history_bits, c.predictor_bits),
+            d: 0,
+            dcount: 0,
+            fetch_block: 0,
+            last_ret: 0,
+            ret_count: 0,
+            prev_cmp: None,
+            now: 0,
+        }
+    }
+
+    /// Time ops `range` of `t`, counting into `s` (stats only for ops at or after `count_from`).
+    pub fn run(
+        &mut self,
+        t: &Trace,
+        range: std::ops::Range<usize>,
+        mem: &mut Hierarchy,
+        s: &mut Stats,
+        count_from: usize,
+    ) {
+        for i in range {
+            let op = &t.ops[i];
+            let ct = &self.classes[op.class as usize];
+            // ---- dispatch ----
+            let fused_away = self.macro_fusion
+                && op.class == OpClass::Branch
+                && op.nsrc == 1
+                && self.prev_cmp == Some(op.srcs[0]);
+            let f = if fused_away { 0 } else { ct.fused };
+            let mut d = self.d;
+            if self.dcount + f > self.width {
+                d += 1;
+            }
+            let mut why = Stall::Issue;
+            if self.fetch_block > d {
+                d = self.fetch_block;
+                why = Stall::Branch;
+            }
+            if f > 0 {
+                let need = self.rob_ring[(self.rob_seq + f as usize - 1) % self.rob];
+                if need > d {
+                    d = need;
+                    why = Stall::Resources;
+                }
+            }
+            let nuops = ct.uops.len();
+            if nuops > 0 {
+                let need = self.rs_ring[(self.rs_seq + nuops - 1) % self.sched];
+                if need > d {
+                    d = need;
+                    why = Stall::Resources;
+                }
+            }
+            if d > self.d {
+                self.dcount = 0;
+                self.cal.advance(d);
+            }
+            self.d = d;
+            self.dcount += f;
+            // ---- issue ----
+            let mut r = d + 1;
+            for &src in op.sources() {
+                r = r.max(self.values.get(src));
+            }
+            let mut first = u64::MAX;
+            let mut last = 0;
+            let mut extra_occ = 0;
+            let mut gather_lat = 0u64;
+            if op.class.is_per_lane_mem() {
+                // Distinct lines cost port cycles (per_line) and their latency.
+                let lanes = t.lanes_of(op);
+                let mut lines: Vec<u64> = lanes.iter().map(|a| mem.line_of(a.0).0).collect();
+                lines.sort_unstable();
+                lines.dedup();
+                extra_occ = ct.per_line * (lines.len() as u64).saturating_sub(1);
+                for l in lines {
+                    let sv = mem.access(
+                        self.core,
+                        l * mem.line_bytes(),
+                        op.class.is_store(),
+                        op.mem,
+                        r,
+                    );
+                    gather_lat = gather_lat.max(sv.latency.saturating_sub(self.l1_latency));
+                }
+            }
+            for (k, &mask) in ct.uops.iter().enumerate() {
+                let occ = ct.occ + if k == 0 { extra_occ } else { 0 };
+                let c = self.cal.book(mask, r, occ);
+                first = first.min(c);
+                last = last.max(c);
+                self.rs_ring[self.rs_seq % self.sched] = c;
+                self.rs_seq += 1;
+            }
+            if nuops == 0 {
+                first = r;
+                last = r;
+            }
+            // ---- execute ----
+            let mut done = (first + ct.lat).max(last + 1);
+            let is_load = op.class.is_load();
+            if op.class.is_per_lane_mem() {
+                done += gather_lat;
+                if gather_lat > 0 {
+                    why = Stall::Memory;
+                }
+            } else if is_load {
+                let lo = op.addr.0;
+                let hi = lo + u64::from(op.bytes);
+                let fwd = self
+                    .stores
+                    .iter()
+                    .filter(|st| st.0 < hi && lo < st.1)
+                    .map(|st| st.2)
+                    .max();
+                if let Some(data) = fwd {
+                    done = first.max(data) + self.sf_latency;
+                    s.forwarded += u64::from(i >= count_from);
+                } else {
+                    let sv = mem.access(self.core, lo, false, op.mem, first);
+                    let mut start = first;
+                    if sv.level > 0 {
+                        let (slot, free) = self
+                            .mshr
+                            .iter()
+                            .enumerate()
+                            .min_by_key(|(_, &v)| v)
+                            .map(|(j, &v)| (j, v))
+                            .expect("mshrs >= 1");
+                        start = start.max(free);
+                        self.mshr[slot] = start + sv.latency;
+                        why = Stall::Memory;
+                    }
+                    done = start + sv.latency;
+                }
+            } else if op.class.is_store() {
+                mem.access(self.core, op.addr.0, true, op.mem, first);
+                let data = op
+                    .sources()
+                    .iter()
+                    .map(|v| self.values.get(*v))
+                    .max()
+                    .unwrap_or(0);
+                self.stores[self.store_seq % STORES] =
+                    (op.addr.0, op.addr.0 + u64::from(op.bytes), data.max(d + 1));
+                self.store_seq += 1;
+            }
+            if why == Stall::Issue && done > d + 1 + ct.lat + 1 {
+                why = Stall::Core;
+            }
+            if op.dst.is_some() {
+                self.values.set(op.dst, done);
+            }
+            // ---- branch ----
+            if op.class == OpClass::Branch {
+                let taken = op.taken();
+                let ok = self.pred.predict_and_update(op.site().0, taken);
+                if i >= count_from {
+                    s.branches += 1;
+                    s.mispredicts += u64::from(!ok);
+                }
+                if !ok {
+                    self.fetch_block = done + self.penalty;
+                }
+            }
+            self.prev_cmp = (op.class == OpClass::Cmp).then_some(op.dst);
+            // ---- retire ----
+            let mut ret = done.max(self.last_ret);
+            if ret > self.last_ret {
+                self.ret_count = 0;
+            }
+            if self.ret_count + f > self.retire_width {
+                ret += 1;
+                self.ret_count = 0;
+            }
+            self.ret_count += f;
+            for k in 0..f as usize {
+                self.rob_ring[(self.rob_seq + k) % self.rob] = ret;
+            }
+            self.rob_seq += f as usize;
+            if i >= count_from {
+                let delta = ret - self.last_ret;
+                s.ops += 1;
+                s.uops += nuops as u64;
+                s.region_ops[op.region as usize] += 1;
+                s.region_cycles[op.region as usize] += delta;
+                s.stalls[why as usize] += delta;
+                s.class_ops[op.class as usize] += 1;
+                if op.class.is_vector() {
+                    s.vector_ops += 1;
+                    s.active_lanes += u64::from(op.mask.count());
+                }
+            }
+            self.last_ret = ret;
+            self.now = ret;
+        }
+    }
+}

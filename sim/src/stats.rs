@@ -1,0 +1,163 @@
+//! Statistics of a simulated run.
+
+use crate::memory::LevelStats;
+use isa::{OpClass, Region};
+
+/// Why retirement advanced: each cycle between two retirements is charged to
+/// the later op's reason.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(usize)]
+pub enum Stall {
+    /// Issue bandwidth: the op retired as fast as the front end delivered it.
+    Issue = 0,
+    /// Waiting for a mispredicted branch to redirect fetch.
+    Branch = 1,
+    /// A load missed L1.
+    Memory = 2,
+    /// Dependencies and port conflicts.
+    Core = 3,
+    /// ROB or scheduler full.
+    Resources = 4,
+}
+
+impl Stall {
+    /// All reasons.
+    pub const ALL: [Stall; 5] = [
+        Stall::Issue,
+        Stall::Branch,
+        Stall::Memory,
+        Stall::Core,
+        Stall::Resources,
+    ];
+    /// Stable name.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Stall::Issue => "issue",
+            Stall::Branch => "branch",
+            Stall::Memory => "memory",
+            Stall::Core => "core",
+            Stall::Resources => "resources",
+        }
+    }
+}
+
+/// Counters of one simulated run.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Stats {
+    /// Core cycles (for several cores or threads: of the slowest).
+    pub cycles: u64,
+    /// Instructions (ops).
+    pub ops: u64,
+    /// Unfused uops executed.
+    pub uops: u64,
+    /// Ops per code region.
+    pub region_ops: [u64; 8],
+    /// Cycles charged to each code region (retire-time deltas).
+    pub region_cycles: [u64; 8],
+    /// Ops per class.
+    pub class_ops: Vec<u64>,
+    /// Cycles charged to each stall reason.
+    pub stalls: [u64; 5],
+    /// Conditional branches.
+    pub branches: u64,
+    /// Of which mispredicted.
+    pub mispredicts: u64,
+    /// Vector ops.
+    pub vector_ops: u64,
+    /// Active lanes summed over vector ops.
+    pub active_lanes: u64,
+    /// Lanes of the flavour.
+    pub lanes: u64,
+    /// Loads served by store-to-load forwarding.
+    pub forwarded: u64,
+    /// Cache level counters.
+    pub levels: Vec<LevelStats>,
+    /// Cache level names.
+    pub level_names: Vec<String>,
+    /// DRAM bytes read.
+    pub dram_read: u64,
+    /// DRAM bytes written.
+    pub dram_written: u64,
+}
+
+impl Stats {
+    /// Empty counters.
+    #[must_use]
+    pub fn new(lanes: usize) -> Stats {
+        Stats {
+            class_ops: vec![0; OpClass::ALL.len()],
+            lanes: lanes as u64,
+            ..Stats::default()
+        }
+    }
+    /// Cycles per instruction.
+    #[must_use]
+    pub fn cpi(&self) -> f64 {
+        self.cycles as f64 / self.ops.max(1) as f64
+    }
+    /// CPI of one code region (its charged cycles over its ops).
+    #[must_use]
+    pub fn region_cpi(&self, r: Region) -> Option<f64> {
+        let i = r as usize;
+        (self.region_ops[i] > 0).then(|| self.region_cycles[i] as f64 / self.region_ops[i] as f64)
+    }
+    /// Mean active lanes / lanes over vector ops.
+    #[must_use]
+    pub fn lane_utilisation(&self) -> f64 {
+        if self.vector_ops == 0 {
+            0.0
+        } else {
+            self.active_lanes as f64 / (self.vector_ops * self.lanes) as f64
+        }
+    }
+    /// Add another run's counters (cycles: the maximum).
+    pub fn merge(&mut self, o: &Stats) {
+        self.cycles = self.cycles.max(o.cycles);
+        self.ops += o.ops;
+        self.uops += o.uops;
+        for i in 0..8 {
+            self.region_ops[i] += o.region_ops[i];
+            self.region_cycles[i] += o.region_cycles[i];
+        }
+        for (a, b) in self.class_ops.iter_mut().zip(&o.class_ops) {
+            *a += b;
+        }
+        for i in 0..5 {
+            self.stalls[i] += o.stalls[i];
+        }
+        self.branches += o.branches;
+        self.mispredicts += o.mispredicts;
+        self.vector_ops += o.vector_ops;
+        self.active_lanes += o.active_lanes;
+        self.forwarded += o.forwarded;
+    }
+}
+
+/// Per-ray figures from a run that traced `rays` rays.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PerRay {
+    /// Million rays per second on one core at the config's clock.
+    pub mray_per_s_core: f64,
+    /// Million rays per second on all the config's cores (per-core rate times cores).
+    pub mray_per_s: f64,
+    /// Seconds per 10^9 rays on one core.
+    pub s_per_gray: f64,
+    /// DRAM bytes (read + written) per ray.
+    pub bytes_per_ray: f64,
+}
+
+impl PerRay {
+    /// From a run's counters.
+    #[must_use]
+    pub fn new(s: &Stats, rays: u64, clock_ghz: f64, cores: u32) -> PerRay {
+        let secs = s.cycles as f64 / (clock_ghz * 1e9);
+        let per_core = rays as f64 / secs / 1e6;
+        PerRay {
+            mray_per_s_core: per_core,
+            mray_per_s: per_core * f64::from(cores),
+            s_per_gray: secs / rays as f64 * 1e9,
+            bytes_per_ray: (s.dram_read + s.dram_written) as f64 / rays as f64,
+        }
+    }
+}

@@ -1,0 +1,205 @@
+//! Exact-timing tests: a unit between mock neighbours, asserting the exact
+//! cycles the config implies. Traces are written by hand in the text form.
+//!
+//! Timing conventions of the out-of-order model: the first op dispatches in
+//! cycle 0, issues no earlier than the next cycle, completes `lat` cycles after
+//! issue and retires no earlier than it completes; a run's cycles are the last
+//! retirement's cycle.
+
+use isa::trace_text::parse;
+use isa::{Addr, LineAddr, MemId, Trace};
+use sim::{simulate, Fidelity, Hierarchy, MachineConfig, SimOptions};
+
+fn hsw() -> MachineConfig {
+    MachineConfig::load("haswell-i7-4750hq").unwrap()
+}
+
+fn trace(isa: &str, body: &str) -> Trace {
+    let t = parse(&format!(".trace 1\n.isa {isa}\n.mem 0 lut isa-lut 0x10000000 8192\n.mem 1 other d 0x20000000 16777216\n{body}")).unwrap();
+    t.validate().unwrap();
+    t
+}
+
+fn cycles(m: &MachineConfig, body: &str) -> u64 {
+    let t = trace(&m.isa, body);
+    simulate(m, &[&t], &SimOptions::default()).unwrap().cycles
+}
+
+#[test]
+fn dependent_and_independent_pairs() {
+    let m = hsw();
+    // issue 1, +5 latency
+    assert_eq!(cycles(&m, "%1 = vfma\n"), 6);
+    // the second waits for the first: 6 + 5
+    assert_eq!(cycles(&m, "%1 = vfma\n%2 = vfma %1\n"), 11);
+    // both issue in cycle 1 on p0 and p1
+    assert_eq!(cycles(&m, "%1 = vfma\n%2 = vfma\n"), 6);
+}
+
+#[test]
+fn a_port_conflict_serialises() {
+    let m = hsw();
+    // vaddps has only p1: the second issues a cycle later (done 4 and 5).
+    assert_eq!(cycles(&m, "%1 = vadd\n%2 = vadd\n"), 5);
+    // vmulps has p0 and p1: both in cycle 1.
+    assert_eq!(cycles(&m, "%1 = vmul\n%2 = vmul\n"), 6);
+    // A non-pipelined divide keeps p0 busy 14 cycles: the second starts at 15.
+    assert_eq!(cycles(&m, "%1 = vdiv\n%2 = vdiv\n"), 15 + 21);
+}
+
+#[test]
+fn every_cache_level_hit_latency() {
+    let m = hsw();
+    let mut h = Hierarchy::new(&m, 1);
+    let line = 1000u64;
+    let at = |l: u64| Addr(l * 64).0;
+    let r = MemId(1);
+    // Cold: every level misses, DRAM latency.
+    assert_eq!(h.access(0, at(line), false, r, 0).latency, 196);
+    assert_eq!(h.access(0, at(line), false, r, 0).latency, 4, "L1 hit");
+    // 8 more lines in the same L1 set (64 sets): the line falls to L2.
+    for k in 1..=8 {
+        h.access(0, at(line + 64 * k), false, r, 0);
+    }
+    assert_eq!(h.access(0, at(line), false, r, 0).latency, 12, "L2 hit");
+    // 12 more lines in its L2 set (512 sets; 8 ways): it falls to L3. (Some of
+    // them hit in L1 and do not refresh their L2 LRU position, hence more than 8.)
+    for k in 1..=12 {
+        h.access(0, at(line + 512 * k), false, r, 0);
+    }
+    assert_eq!(h.access(0, at(line), false, r, 0).latency, 36, "L3 hit");
+    // 12 more in its L3 set (8192 sets): it falls to the eDRAM L4.
+    for k in 1..=12 {
+        h.access(0, at(line + 8192 * k), false, r, 0);
+    }
+    assert_eq!(h.access(0, at(line), false, r, 0).latency, 110, "L4 hit");
+    let _ = LineAddr(0);
+}
+
+#[test]
+fn a_mispredicted_branch_costs_resolution_plus_penalty() {
+    let m = hsw();
+    // alu: issue 1, done 2; cmp: done 3; branch (fused with the cmp): done 4.
+    // Predicted not-taken (counters start weakly not-taken) but taken: fetch
+    // resumes at 4 + 15 = 19; the alu after it issues 20, done 21.
+    assert_eq!(
+        cycles(
+            &m,
+            "%1 = alu\n%2 = cmp %1\nbranch %2 site=1 taken\n%3 = alu\n"
+        ),
+        21
+    );
+    // Correctly predicted: the last alu finishes at 2, the branch retires at 4.
+    assert_eq!(
+        cycles(
+            &m,
+            "%1 = alu\n%2 = cmp %1\nbranch %2 site=1 not-taken\n%3 = alu\n"
+        ),
+        4
+    );
+}
+
+#[test]
+fn a_full_rob_stalls_dispatch() {
+    let mut body = String::from("%1 = vdiv\n");
+    // Fillers on p5 only, so they never take the imuls' port p1.
+    for i in 2..=8 {
+        body.push_str(&format!("%{i} = vshuf\n"));
+    }
+    body.push_str("%9 = imul\n");
+    for i in 10..=18 {
+        body.push_str(&format!("%{i} = imul %{}\n", i - 1));
+    }
+    // ROB 192: the imul chain dispatches in cycle 2, issues 3, ends 3 + 10 x 3 = 33.
+    assert_eq!(cycles(&hsw(), &body), 33);
+    // ROB 8: the chain's first op waits for the divide to retire (22), issues 23, ends 53.
+    let small = hsw()
+        .with_sets(&["core.rob=8".into(), "core.scheduler=8".into()])
+        .unwrap();
+    assert_eq!(cycles(&small, &body), 53);
+}
+
+#[test]
+fn the_outstanding_miss_limit_queues_misses() {
+    let fast = |mshrs: u32| {
+        hsw()
+            .with_sets(&[
+                format!("mshrs={mshrs}"),
+                "dram.bandwidth_gbs=1000000".into(),
+                "prefetch=\"None\"".into(),
+            ])
+            .unwrap()
+    };
+    let body = "%1 = load @d+0x0:8\n%2 = load @d+0x10000:8\n%3 = load @d+0x20000:8\n%4 = load @d+0x30000:8\n";
+    // Two load ports: loads issue in cycles 1, 1, 2, 2; each misses to DRAM (196).
+    assert_eq!(cycles(&fast(10), body), 2 + 196);
+    // Two miss slots: the last two wait for the first two (197), then 196 more.
+    assert_eq!(cycles(&fast(2), body), 197 + 196);
+}
+
+#[test]
+fn store_to_load_forwarding() {
+    let m = hsw();
+    // Store issues 1 (data ready at dispatch + 1); the load of the same bytes
+    // gets the data after the forwarding latency (5) instead of the cache.
+    assert_eq!(
+        cycles(&m, "%1 = alu\nstore %1 @d+0x40:8\n%2 = load @d+0x40:8\n"),
+        2 + 5
+    );
+}
+
+fn larrabee() -> MachineConfig {
+    MachineConfig::load("larrabee").unwrap()
+}
+
+fn threads(m: &MachineConfig, bodies: &[&str]) -> u64 {
+    let ts: Vec<Trace> = bodies.iter().map(|b| trace(&m.isa, b)).collect();
+    let refs: Vec<&Trace> = ts.iter().collect();
+    simulate(m, &refs, &SimOptions::default()).unwrap().cycles
+}
+
+#[test]
+fn in_order_threads_hide_latency() {
+    let m = larrabee();
+    let chain = "%1 = vfma\n%2 = vfma %1\n%3 = vfma %2\n%4 = vfma %3\n";
+    // One thread: issues at 0, 4, 8, 12 (stall on use), done 16.
+    assert_eq!(threads(&m, &[chain]), 16);
+    // Two threads: the second fills the first's stalls (1, 5, 9, 13): done 17, not 32.
+    assert_eq!(threads(&m, &[chain, chain]), 17);
+}
+
+#[test]
+fn in_order_thread_cannot_issue_back_to_back() {
+    let m = larrabee();
+    let indep = "%1 = vfma\n%2 = vfma\n%3 = vfma\n%4 = vfma\n";
+    // Vector ops use the U pipe only, one per cycle, and one thread issues every
+    // other cycle: 0, 2, 4, 6, done 10.
+    assert_eq!(threads(&m, &[indep]), 10);
+    // Two threads alternate: 0..7, done 11.
+    assert_eq!(threads(&m, &[indep, indep]), 11);
+    // Without the rule, one thread issues every cycle: 0..3, done 7.
+    let free = m.with_sets(&["core.no_back_to_back=false".into()]).unwrap();
+    assert_eq!(threads(&free, &[indep]), 7);
+    // Scalar ops pair in U and V: two per issue cycle.
+    assert_eq!(
+        threads(&free, &["%1 = alu\n%2 = alu\n%3 = alu\n%4 = alu\n"]),
+        2
+    );
+}
+
+#[test]
+fn wrong_flavour_and_too_many_traces_are_errors() {
+    let m = hsw();
+    let t = trace("lrb16", "%1 = vfma\n");
+    assert!(simulate(&m, &[&t], &SimOptions::default())
+        .unwrap_err()
+        .contains("lrb16"));
+    let t = trace("avx2", "%1 = vfma\n");
+    let five = vec![&t; 5];
+    assert!(simulate(&m, &five, &SimOptions::default()).is_err());
+    let opt = SimOptions {
+        fidelity: Fidelity::Counts,
+        warmup_ops: 0,
+    };
+    assert_eq!(simulate(&m, &[&t], &opt).unwrap().ops, 1);
+}

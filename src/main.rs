@@ -1,6 +1,7 @@
 //! `rtsim`: the command-line app. Thin glue over the `isa`, `sim` and
 //! `kernels` crates.
 
+mod machine_cmd;
 mod report;
 mod trace_cmd;
 
@@ -42,6 +43,12 @@ enum Cmd {
     /// Record, inspect and convert op traces.
     #[command(subcommand)]
     Trace(trace_cmd::TraceCmd),
+    /// Time a recorded or hand-written trace on a machine.
+    Sim(machine_cmd::SimArgs),
+    /// Run the microkernels through a machine model next to what its config implies.
+    Calibrate(machine_cmd::CalibrateArgs),
+    /// Time one workload in every fidelity mode: host time and error against full.
+    Fidelity(machine_cmd::FidelityArgs),
     /// List what is built in.
     List {
         /// What to list.
@@ -61,6 +68,8 @@ enum ListWhat {
     Isa,
     /// Op classes.
     Classes,
+    /// Machine configs.
+    Machines,
 }
 
 /// Parse an ISA flavour name for clap.
@@ -95,6 +104,7 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
                     .key("vector", if c.is_vector() { "yes" } else { "no" })
             })
             .collect(),
+        ListWhat::Machines => machine_cmd::machine_rows(),
     };
     let rep = Report {
         report: format!(
@@ -103,6 +113,7 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
                 ListWhat::Micro => "micro",
                 ListWhat::Isa => "isa",
                 ListWhat::Classes => "classes",
+                ListWhat::Machines => "machines",
             }
         ),
         machine: None,
@@ -123,6 +134,9 @@ fn main() -> ExitCode {
     let r = match cli.cmd {
         Cmd::Run(a) => trace_cmd::run(&a),
         Cmd::Trace(t) => trace_cmd::trace(t),
+        Cmd::Sim(a) => machine_cmd::sim_cmd(&a),
+        Cmd::Calibrate(a) => machine_cmd::calibrate_cmd(&a),
+        Cmd::Fidelity(a) => machine_cmd::fidelity_cmd(&a),
         Cmd::List { what, format } => list(what, format),
     };
     match r {

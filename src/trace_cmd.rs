@@ -11,9 +11,13 @@ use std::time::Instant;
 /// `rtsim run` arguments.
 #[derive(Args)]
 pub struct RunArgs {
-    /// ISA flavour: lrb16, avx512, avx2, sse4.
-    #[arg(long, value_parser = parse_isa, default_value = "avx2")]
-    pub isa: FlavourId,
+    /// Machine to time it on (its ISA is the kernel's).
+    #[command(flatten)]
+    pub machine: crate::machine_cmd::MachineArgs,
+    /// Record on this ISA instead and do not time it (e.g. avx512, which no
+    /// shipped machine runs).
+    #[arg(long, value_parser = parse_isa)]
+    pub isa: Option<FlavourId>,
     /// Rays in the stream (a multiple of 4).
     #[arg(long, default_value_t = 4096)]
     pub rays: usize,
@@ -69,6 +73,12 @@ pub enum TraceCmd {
 
 /// Read a binary or text trace; errors name the file and byte or line.
 pub fn load_trace(path: &Path) -> AppResult<Trace> {
+    load_trace_loop(path, false)
+}
+
+/// Read a trace; with `as_loop`, a source may be defined later in the body
+/// (a loop-carried value), as for `rtsim sim --iterations`.
+pub fn load_trace_loop(path: &Path, as_loop: bool) -> AppResult<Trace> {
     let bytes = std::fs::read(path).map_err(|e| AppError(format!("{}: {e}", path.display())))?;
     if bytes.starts_with(trace_file::MAGIC) {
         return trace_file::decode(&bytes)
@@ -82,8 +92,12 @@ pub fn load_trace(path: &Path) -> AppResult<Trace> {
         ))
     })?;
     let t = trace_text::parse(text).map_err(|e| AppError(format!("{}: {e}", path.display())))?;
-    t.validate()
-        .map_err(|e| AppError(format!("{}: {e}", path.display())))?;
+    let checked = if as_loop {
+        t.validate_loop()
+    } else {
+        t.validate()
+    };
+    checked.map_err(|e| AppError(format!("{}: {e}", path.display())))?;
     Ok(t)
 }
 
@@ -179,7 +193,7 @@ fn base_report(name: &str, t: &Trace, input: String, secs: f64, rows: Vec<Row>) 
     }
 }
 
-fn boxstream(rays: usize, seed: u64) -> AppResult<BoxStream> {
+pub fn boxstream(rays: usize, seed: u64) -> AppResult<BoxStream> {
     if rays == 0 || !rays.is_multiple_of(4) {
         return Err(AppError(format!(
             "rays: {rays} is not a positive multiple of 4 (every ISA tests LANES/4 rays per step)"
@@ -192,9 +206,11 @@ fn boxstream(rays: usize, seed: u64) -> AppResult<BoxStream> {
 pub fn run(a: &RunArgs) -> AppResult<()> {
     let start = Instant::now();
     let w = boxstream(a.rays, a.seed)?;
-    let (t, got) = isa::record(&w, a.isa, "kernel:boxtest");
-    let native = isa::run_native(&w, a.isa);
-    let fused = a.isa != FlavourId::Sse4;
+    let m = a.machine.load()?;
+    let fl = a.isa.unwrap_or_else(|| m.flavour());
+    let (t, got) = isa::record(&w, fl, "kernel:boxtest");
+    let native = isa::run_native(&w, fl);
+    let fused = fl != FlavourId::Sse4;
     let want: Vec<u8> = w.rays.iter().map(|r| box4_ref(&w.node, r, fused)).collect();
     let traced_bad = got.iter().zip(&want).filter(|(g, w)| g != w).count();
     let native_bad = native.iter().zip(&want).filter(|(g, w)| g != w).count();
@@ -210,14 +226,24 @@ pub fn run(a: &RunArgs) -> AppResult<()> {
         rows.push(Row::new("trace_bytes", n as f64).unit("B"));
         rows.push(Row::new("trace_bytes_per_op", n as f64 / t.ops.len() as f64).unit("B"));
     }
-    rows.extend(info_rows(&t));
-    let rep = base_report(
+    let timed = fl == m.flavour();
+    if timed {
+        let s = sim::simulate(&m, &[&t], &sim::SimOptions::default()).map_err(AppError)?;
+        rows.extend(crate::machine_cmd::stats_rows(&s, &m, Some(a.rays as u64)));
+    } else {
+        rows.extend(info_rows(&t));
+    }
+    let mut rep = base_report(
         "run-boxtest",
         &t,
         format!("{} rays vs 4 boxes, seed {}", a.rays, a.seed),
         start.elapsed().as_secs_f64(),
         rows,
     );
+    if timed {
+        rep.machine = Some(m.name.clone());
+        rep.fidelity = "full".into();
+    }
     print!("{}", rep.render(a.format));
     if traced_bad + native_bad > 0 {
         return Err(AppError(format!(

@@ -137,17 +137,36 @@ impl Trace {
             .into_iter()
             .chain(self.lanes_of(op).iter().map(move |&a| (a, op.bytes)))
     }
+    /// As [`Trace::validate`], but a source may be defined anywhere in the
+    /// trace (a loop body whose later values are carried to the next iteration).
+    pub fn validate_loop(&self) -> Result<(), String> {
+        self.check(true)
+    }
+
     /// Check internal consistency: sources defined before use, lane address
     /// ranges in bounds, memory ops inside their region, ids in range.
     pub fn validate(&self) -> Result<(), String> {
+        self.check(false)
+    }
+
+    fn check(&self, as_loop: bool) -> Result<(), String> {
         let lanes = self.flavour.lanes();
         let full = LaneMask::full(lanes).0;
         let mut defined = std::collections::HashSet::new();
+        let all: std::collections::HashSet<ValId> = if as_loop {
+            self.ops
+                .iter()
+                .map(|o| o.dst)
+                .filter(|d| d.is_some())
+                .collect()
+        } else {
+            Default::default()
+        };
         let mut lane_next = 0usize;
         for (i, op) in self.ops.iter().enumerate() {
             let at = |m: String| format!("op {i} ({}): {m}", op.class);
             for s in op.sources() {
-                if !defined.contains(s) {
+                if !defined.contains(s) && !all.contains(s) {
                     return Err(at(format!("source %{} is not defined before use", s.0)));
                 }
             }

@@ -126,18 +126,22 @@ pub fn run(
                     done += extra;
                     missed = extra > 0;
                 } else if op.class.is_load() {
-                    let sv = mem.access(0, op.addr.0, false, op.mem, cycle);
                     let mut start = cycle;
-                    if sv.level > 0 {
-                        let (slot, free) = mshr
+                    let mut slot = None;
+                    if !mem.in_l1(0, op.addr.0) {
+                        let (j, free) = mshr
                             .iter()
                             .enumerate()
                             .min_by_key(|(_, &v)| v)
                             .map(|(j, &v)| (j, v))
                             .expect("mshrs");
                         start = start.max(free);
-                        mshr[slot] = start + sv.latency;
+                        slot = Some(j);
                         missed = true;
+                    }
+                    let sv = mem.access(0, op.addr.0, false, op.mem, start);
+                    if let Some(j) = slot {
+                        mshr[j] = start + sv.latency;
                     }
                     done = start + sv.latency;
                 } else if op.class.is_store() {

@@ -235,6 +235,16 @@ impl Hierarchy {
         }
     }
 
+    /// Whether the line of `addr` is in `core`'s L1 (no side effects).
+    #[must_use]
+    pub fn in_l1(&self, core: usize, addr: u64) -> bool {
+        let c = if self.cfg[0].shared { 0 } else { core };
+        self.caches[c][0]
+            .as_ref()
+            .expect("cache present")
+            .contains(self.line_of(addr))
+    }
+
     /// A demand access by `core` at cycle `now` to the line of `addr`.
     pub fn access(
         &mut self,

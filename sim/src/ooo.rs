@@ -363,10 +363,11 @@ impl OooCore {
                     done = first.max(data) + self.sf_latency;
                     s.forwarded += u64::from(i >= count_from);
                 } else {
-                    let sv = mem.access(self.core, lo, false, op.mem, first);
+                    // An L1 miss first waits for a miss slot; the access starts then.
                     let mut start = first;
-                    if sv.level > 0 {
-                        let (slot, free) = self
+                    let mut slot = None;
+                    if !mem.in_l1(self.core, lo) {
+                        let (j, free) = self
                             .mshr
                             .iter()
                             .enumerate()
@@ -374,8 +375,12 @@ impl OooCore {
                             .map(|(j, &v)| (j, v))
                             .expect("mshrs >= 1");
                         start = start.max(free);
-                        self.mshr[slot] = start + sv.latency;
+                        slot = Some(j);
                         why = Stall::Memory;
+                    }
+                    let sv = mem.access(self.core, lo, false, op.mem, start);
+                    if let Some(j) = slot {
+                        self.mshr[j] = start + sv.latency;
                     }
                     done = start + sv.latency;
                 }

@@ -319,7 +319,9 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
         };
         prev = size;
         let nodes = ws / micro::CHASE_STRIDE;
-        let passes = |n: usize| (n * nodes).div_ceil(256) * 256;
+        // A pass: at least one full cycle of the chase, in whole unrolls.
+        let per = nodes.div_ceil(256) * 256;
+        let passes = |n: usize| n * per;
         let (a, _) = run_micro(m, &chase(ws, passes(1)), 1)?;
         let (b, _) = run_micro(m, &chase(ws, passes(2)), 1)?;
         out.push(Cal {
@@ -425,6 +427,12 @@ pub struct CalibrateArgs {
 pub fn calibrate_report(m: &MachineConfig) -> AppResult<Report> {
     let start = Instant::now();
     let cal = calibrate_rows(m)?;
+    if let Some(c) = cal.iter().find(|c| !c.value.is_finite()) {
+        return Err(AppError(format!(
+            "calibrate {}: measured {} (a microkernel ran no ops)",
+            c.name, c.value
+        )));
+    }
     let rows = cal
         .into_iter()
         .map(|c| {

@@ -92,6 +92,40 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
     rows
 }
 
+/// Hits and misses per cache level and data structure, DRAM bytes read per
+/// data structure (names from the trace's memory regions).
+#[must_use]
+pub fn region_rows(s: &Stats, t: &Trace) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for (r, reg) in t.regions.iter().enumerate() {
+        for (l, name) in s.levels.iter().zip(&s.level_names) {
+            let h = l.hits.get(r).copied().unwrap_or(0);
+            let m = l.misses.get(r).copied().unwrap_or(0);
+            if h + m > 0 {
+                rows.push(
+                    Row::new("hits", h as f64)
+                        .key("level", name)
+                        .key("mem", &reg.name),
+                );
+                rows.push(
+                    Row::new("misses", m as f64)
+                        .key("level", name)
+                        .key("mem", &reg.name),
+                );
+            }
+        }
+        let d = s.dram_read_by_region.get(r).copied().unwrap_or(0);
+        if d > 0 {
+            rows.push(
+                Row::new("dram_bytes_read", d as f64)
+                    .key("mem", &reg.name)
+                    .unit("B"),
+            );
+        }
+    }
+    rows
+}
+
 /// `rtsim sim` arguments.
 #[derive(Args)]
 pub struct SimArgs {
@@ -173,6 +207,7 @@ pub fn sim_cmd(a: &SimArgs) -> AppResult<()> {
         }
     }
     rows.extend(stats_rows(&s, &m, None));
+    rows.extend(region_rows(&s, &t));
     let rep = report(
         "sim",
         &m,

@@ -230,6 +230,7 @@ pub fn run(a: &RunArgs) -> AppResult<()> {
     if timed {
         let s = sim::simulate(&m, &[&t], &sim::SimOptions::default()).map_err(AppError)?;
         rows.extend(crate::machine_cmd::stats_rows(&s, &m, Some(a.rays as u64)));
+        rows.extend(crate::machine_cmd::region_rows(&s, &t));
     } else {
         rows.extend(info_rows(&t));
     }

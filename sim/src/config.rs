@@ -115,6 +115,10 @@ pub enum Prefetch {
     None,
     /// On a miss in the last private level, also fetch the next line into it.
     NextLine,
+    /// A stream prefetcher on the last private level: two misses to adjacent
+    /// lines start a stream; every demand access in it keeps prefetches this
+    /// many lines ahead.
+    Stream(u32),
 }
 
 /// A whole machine.
@@ -425,6 +429,11 @@ impl MachineConfig {
         }
         if self.mshrs == 0 {
             return e("mshrs", "must be at least 1");
+        }
+        if let Prefetch::Stream(d) = self.prefetch {
+            if d == 0 || d > 64 {
+                return e("prefetch", "Stream degree must be 1 to 64");
+            }
         }
         Ok(())
     }

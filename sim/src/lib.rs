@@ -128,6 +128,7 @@ pub fn simulate(m: &MachineConfig, traces: &[&Trace], opt: &SimOptions) -> Resul
     s.level_names = m.caches.iter().map(|c| c.name.clone()).collect();
     s.dram_read = mem.dram_read;
     s.dram_written = mem.dram_written;
+    s.dram_read_by_region = mem.dram_read_by_region.clone();
     Ok(s)
 }
 

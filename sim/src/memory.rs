@@ -17,7 +17,8 @@ pub struct Cache {
     clock: u64,
 }
 
-const EMPTY: u64 = u64::MAX;
+/// Tags hold `line + 1`, so an all-zero (lazily allocated) array is empty.
+const EMPTY: u64 = 0;
 
 impl Cache {
     /// An empty cache of `cfg`'s geometry.
@@ -51,8 +52,9 @@ impl Cache {
     pub fn lookup(&mut self, line: LineAddr, write: bool) -> bool {
         let s = self.set_of(line);
         self.clock += 1;
+        let tag = line.0 + 1;
         for w in s..s + self.ways {
-            if self.tags[w] == line.0 {
+            if self.tags[w] == tag {
                 self.stamp[w] = self.clock;
                 self.dirty[w] |= write;
                 return true;
@@ -65,7 +67,7 @@ impl Cache {
     #[must_use]
     pub fn contains(&self, line: LineAddr) -> bool {
         let s = self.set_of(line);
-        self.tags[s..s + self.ways].contains(&line.0)
+        self.tags[s..s + self.ways].contains(&(line.0 + 1))
     }
 
     /// Insert a line (not present); returns the evicted line if it was dirty.
@@ -84,8 +86,8 @@ impl Cache {
             }
         }
         let evicted = (self.tags[victim] != EMPTY && self.dirty[victim])
-            .then_some(LineAddr(self.tags[victim]));
-        self.tags[victim] = line.0;
+            .then(|| LineAddr(self.tags[victim] - 1));
+        self.tags[victim] = line.0 + 1;
         self.stamp[victim] = self.clock;
         self.dirty[victim] = dirty;
         evicted
@@ -155,6 +157,8 @@ pub struct Hierarchy {
     pub dram_written: u64,
     /// DRAM bytes read per memory region (demand misses and their prefetches).
     pub dram_read_by_region: Vec<u64>,
+    /// Per core: (last missed line, stream head: last line prefetched) of the stream prefetcher.
+    streams: Vec<(u64, u64)>,
 }
 
 impl Hierarchy {
@@ -184,6 +188,7 @@ impl Hierarchy {
             dram_read: 0,
             dram_written: 0,
             dram_read_by_region: Vec::new(),
+            streams: vec![(u64::MAX - 1, 0); cores],
         }
     }
 
@@ -273,10 +278,29 @@ impl Hierarchy {
         for l in (0..hit_level).rev() {
             self.fill(core, l, line, write && l == 0);
         }
-        if self.prefetch == Prefetch::NextLine {
-            if let Some(lp) = self.last_private {
-                if hit_level > lp {
-                    self.prefetch_line(core, lp, LineAddr(line.0 + 1), region, now);
+        if let Some(lp) = self.last_private {
+            match self.prefetch {
+                Prefetch::None => {}
+                Prefetch::NextLine => {
+                    if hit_level > lp {
+                        self.prefetch_line(core, lp, LineAddr(line.0 + 1), region, now);
+                    }
+                }
+                Prefetch::Stream(degree) => {
+                    let (last_miss, head) = self.streams[core];
+                    let d = u64::from(degree);
+                    let in_stream = line.0 <= head && line.0 + d > head;
+                    let starts = hit_level > lp && line.0 == last_miss.wrapping_add(1);
+                    if hit_level > lp {
+                        self.streams[core].0 = line.0;
+                    }
+                    if in_stream || starts {
+                        let from = if in_stream { head + 1 } else { line.0 + 1 };
+                        for l in from..=line.0 + d {
+                            self.prefetch_line(core, lp, LineAddr(l), region, now);
+                        }
+                        self.streams[core].1 = line.0 + d;
+                    }
                 }
             }
         }

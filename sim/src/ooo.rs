@@ -37,6 +37,10 @@ pub(crate) struct ClassT {
     pub occ: u64,
     pub fused: u32,
     pub per_line: u64,
+    pub load: bool,
+    pub store: bool,
+    pub per_lane: bool,
+    pub vector: bool,
 }
 
 pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
@@ -54,14 +58,21 @@ pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
                 occ: u64::from(t.occ),
                 fused: t.fused,
                 per_line: u64::from(t.per_line),
+                load: c.is_load(),
+                store: c.is_store(),
+                per_lane: c.is_per_lane_mem(),
+                vector: c.is_vector(),
             }
         })
         .collect()
 }
 
-/// Per-port booking of future cycles.
+/// Per-port booking of future cycles: a ring of 64-cycle words per port, each
+/// tagged with the absolute block it holds, so stale words read as free
+/// without ever being cleared.
 pub(crate) struct Calendar {
     bits: Vec<[u64; WORDS]>,
+    tags: Vec<[u64; WORDS]>,
     base: u64,
     uses: Vec<u64>,
 }
@@ -70,39 +81,33 @@ impl Calendar {
     pub fn new(ports: usize) -> Calendar {
         Calendar {
             bits: vec![[0u64; WORDS]; ports],
+            tags: vec![[u64::MAX; WORDS]; ports],
             base: 0,
             uses: vec![0; ports],
         }
     }
 
-    /// Forget cycles before `to` (their slots are reused for cycles + WINDOW).
+    /// Cycles before `to` will not be booked again.
+    #[inline]
     pub fn advance(&mut self, to: u64) {
-        if to <= self.base {
-            return;
+        self.base = self.base.max(to);
+    }
+
+    /// The busy bits of the 64-cycle block holding cycle `c` on port `p`.
+    #[inline]
+    fn word(&self, p: usize, c: u64) -> u64 {
+        let blk = c / 64;
+        let w = (blk as usize) % WORDS;
+        if self.tags[p][w] == blk {
+            self.bits[p][w]
+        } else {
+            0
         }
-        let from = self.base;
-        let end = to.min(from + WINDOW);
-        for p in &mut self.bits {
-            let mut c = from;
-            while c < end {
-                let w = ((c / 64) as usize) % WORDS;
-                let lo = c % 64;
-                let hi = (end - (c - lo)).min(64);
-                let mask = if hi - lo == 64 {
-                    u64::MAX
-                } else {
-                    ((1u64 << (hi - lo)) - 1) << lo
-                };
-                p[w] &= !mask;
-                c = c - lo + hi;
-            }
-        }
-        self.base = to;
     }
 
     #[inline]
     fn free(&self, p: usize, c: u64) -> bool {
-        self.bits[p][((c / 64) as usize) % WORDS] >> (c % 64) & 1 == 0
+        self.word(p, c) >> (c % 64) & 1 == 0
     }
 
     /// First cycle >= `t` with `occ` free cycles on port `p`.
@@ -115,7 +120,7 @@ impl Calendar {
                 return c;
             }
             // Skip the run of busy cycles starting at c (within this word).
-            let busy = (self.bits[p][((c / 64) as usize) % WORDS] >> (c % 64)).trailing_ones();
+            let busy = (self.word(p, c) >> (c % 64)).trailing_ones();
             if busy > 0 {
                 c += u64::from(busy);
                 continue;
@@ -133,7 +138,13 @@ impl Calendar {
             return;
         }
         for k in c..c + occ {
-            self.bits[p][((k / 64) as usize) % WORDS] |= 1 << (k % 64);
+            let blk = k / 64;
+            let w = (blk as usize) % WORDS;
+            if self.tags[p][w] != blk {
+                self.tags[p][w] = blk;
+                self.bits[p][w] = 0;
+            }
+            self.bits[p][w] |= 1 << (k % 64);
         }
         self.uses[p] += 1;
     }
@@ -147,9 +158,8 @@ impl Calendar {
             let p = m.trailing_zeros() as usize;
             m &= m - 1;
             let c = self.find(p, t, occ);
-            let key = (c, self.uses[p], p);
-            if (key.0, key.1) < (best.0, best.1) {
-                best = key;
+            if (c, self.uses[p]) < (best.0, best.1) {
+                best = (c, self.uses[p], p);
             }
         }
         self.mark(best.2, best.0, occ);
@@ -184,6 +194,17 @@ impl Values {
         let i = v.0 as usize % VALUES;
         self.ids[i] = v.0;
         self.at[i] = t;
+    }
+}
+
+/// `(a + b) mod n` for `a < n`, `b <= n`, without a divide.
+#[inline(always)]
+fn wrap(a: usize, b: usize, n: usize) -> usize {
+    let x = a + b;
+    if x >= n {
+        x - n
+    } else {
+        x
     }
 }
 
@@ -283,7 +304,7 @@ impl OooCore {
                 why = Stall::Branch;
             }
             if f > 0 {
-                let need = self.rob_ring[(self.rob_seq + f as usize - 1) % self.rob];
+                let need = self.rob_ring[wrap(self.rob_seq, f as usize - 1, self.rob)];
                 if need > d {
                     d = need;
                     why = Stall::Resources;
@@ -291,7 +312,7 @@ impl OooCore {
             }
             let nuops = ct.uops.len();
             if nuops > 0 {
-                let need = self.rs_ring[(self.rs_seq + nuops - 1) % self.sched];
+                let need = self.rs_ring[wrap(self.rs_seq, nuops - 1, self.sched)];
                 if need > d {
                     d = need;
                     why = Stall::Resources;
@@ -312,7 +333,7 @@ impl OooCore {
             let mut last = 0;
             let mut extra_occ = 0;
             let mut gather_lat = 0u64;
-            if op.class.is_per_lane_mem() {
+            if ct.per_lane {
                 // Distinct lines cost port cycles (per_line) and their latency.
                 let lanes = t.lanes_of(op);
                 let mut lines: Vec<u64> = lanes.iter().map(|a| mem.line_of(a.0).0).collect();
@@ -335,8 +356,8 @@ impl OooCore {
                 let c = self.cal.book(mask, r, occ);
                 first = first.min(c);
                 last = last.max(c);
-                self.rs_ring[self.rs_seq % self.sched] = c;
-                self.rs_seq += 1;
+                self.rs_ring[self.rs_seq] = c;
+                self.rs_seq = wrap(self.rs_seq, 1, self.sched);
             }
             if nuops == 0 {
                 first = r;
@@ -344,13 +365,12 @@ impl OooCore {
             }
             // ---- execute ----
             let mut done = (first + ct.lat).max(last + 1);
-            let is_load = op.class.is_load();
-            if op.class.is_per_lane_mem() {
+            if ct.per_lane {
                 done += gather_lat;
                 if gather_lat > 0 {
                     why = Stall::Memory;
                 }
-            } else if is_load {
+            } else if ct.load {
                 let lo = op.addr.0;
                 let hi = lo + u64::from(op.bytes);
                 let fwd = self
@@ -384,7 +404,7 @@ impl OooCore {
                     }
                     done = start + sv.latency;
                 }
-            } else if op.class.is_store() {
+            } else if ct.store {
                 mem.access(self.core, op.addr.0, true, op.mem, first);
                 let data = op
                     .sources()
@@ -425,10 +445,10 @@ impl OooCore {
                 self.ret_count = 0;
             }
             self.ret_count += f;
-            for k in 0..f as usize {
-                self.rob_ring[(self.rob_seq + k) % self.rob] = ret;
+            for _ in 0..f {
+                self.rob_ring[self.rob_seq] = ret;
+                self.rob_seq = wrap(self.rob_seq, 1, self.rob);
             }
-            self.rob_seq += f as usize;
             if i >= count_from {
                 let delta = ret - self.last_ret;
                 s.ops += 1;
@@ -437,7 +457,7 @@ impl OooCore {
                 s.region_cycles[op.region as usize] += delta;
                 s.stalls[why as usize] += delta;
                 s.class_ops[op.class as usize] += 1;
-                if op.class.is_vector() {
+                if ct.vector {
                     s.vector_ops += 1;
                     s.active_lanes += u64::from(op.mask.count());
                 }

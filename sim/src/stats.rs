@@ -79,6 +79,8 @@ pub struct Stats {
     pub dram_read: u64,
     /// DRAM bytes written.
     pub dram_written: u64,
+    /// DRAM bytes read per memory region.
+    pub dram_read_by_region: Vec<u64>,
 }
 
 impl Stats {

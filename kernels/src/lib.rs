@@ -4,4 +4,5 @@
 //! model. Each has a scalar reference beside it, used by the tests.
 
 pub mod boxtest;
+pub mod mesh;
 pub mod micro;

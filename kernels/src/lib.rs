@@ -3,6 +3,11 @@
 //! Kernels written against [`isa::Machine`] only: they never see the timing
 //! model. Each has a scalar reference beside it, used by the tests.
 
+// Component loops over x, y, z index several arrays in step.
+#![allow(clippy::needless_range_loop)]
+
 pub mod boxtest;
+pub mod bvh;
 pub mod mesh;
 pub mod micro;
+pub mod reference;

@@ -409,7 +409,7 @@ pub fn parse_ply(bytes: &[u8], file: &str) -> Result<Mesh, MeshError> {
         for k in 0..el.count {
             let mut vals: Vec<f64> = Vec::with_capacity(el.props.len());
             let mut list: Vec<f64> = Vec::new();
-            let mut where_ = String::new();
+            let where_;
             if let Some(lines) = ascii_lines.as_mut() {
                 let (ln, text) = lines.find(|(_, l)| !l.trim().is_empty()).ok_or_else(|| {
                     e_line(

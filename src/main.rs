@@ -2,7 +2,9 @@
 //! `kernels` crates.
 
 mod machine_cmd;
+mod png;
 mod report;
+mod scene_cmd;
 mod trace_cmd;
 
 use clap::{Parser, Subcommand};
@@ -49,6 +51,8 @@ enum Cmd {
     Calibrate(machine_cmd::CalibrateArgs),
     /// Time one workload in every fidelity mode: host time and error against full.
     Fidelity(machine_cmd::FidelityArgs),
+    /// Render primary hits of a scene with the reference intersector (PNG).
+    Render(scene_cmd::RenderArgs),
     /// List what is built in.
     List {
         /// What to list.
@@ -70,6 +74,8 @@ enum ListWhat {
     Classes,
     /// Machine configs.
     Machines,
+    /// Scenes, with triangle counts, BVH build times and SAH costs.
+    Scenes,
 }
 
 /// Parse an ISA flavour name for clap.
@@ -105,6 +111,7 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
             })
             .collect(),
         ListWhat::Machines => machine_cmd::machine_rows(),
+        ListWhat::Scenes => return scene_cmd::list_scenes(format),
     };
     let rep = Report {
         report: format!(
@@ -114,6 +121,7 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
                 ListWhat::Isa => "isa",
                 ListWhat::Classes => "classes",
                 ListWhat::Machines => "machines",
+                ListWhat::Scenes => "scenes",
             }
         ),
         machine: None,
@@ -137,6 +145,7 @@ fn main() -> ExitCode {
         Cmd::Sim(a) => machine_cmd::sim_cmd(&a),
         Cmd::Calibrate(a) => machine_cmd::calibrate_cmd(&a),
         Cmd::Fidelity(a) => machine_cmd::fidelity_cmd(&a),
+        Cmd::Render(a) => scene_cmd::render(&a),
         Cmd::List { what, format } => list(what, format),
     };
     match r {

@@ -11,3 +11,4 @@ pub mod bvh;
 pub mod mesh;
 pub mod micro;
 pub mod reference;
+pub mod scene;

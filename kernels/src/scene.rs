@@ -1,0 +1,625 @@
+//! Scenes: RON descriptions in `configs/scenes/` (meshes with transforms and
+//! materials, a camera, lights), procedural generators for the papers' scenes
+//! no one can redistribute, and a plain mesh file as a scene (camera framing
+//! its bounds, a light above it).
+//!
+//! Mesh files named `data:PATH` are read from the shared data folder: the
+//! `RTSIM_DATA` environment variable, else `../shared/data` beside the
+//! working directory, else beside the source tree.
+
+use crate::bvh::Aabb;
+use crate::mesh::{self, Mesh, MeshError};
+use isa::rng::Rng;
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+
+/// Surface behaviour the workloads need.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Default)]
+pub enum Material {
+    /// Lambertian.
+    #[default]
+    Diffuse,
+    /// Glossy reflection.
+    Glossy,
+    /// Perfect mirror.
+    Mirror,
+}
+
+/// Where a mesh comes from.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Source {
+    /// An OBJ or PLY file (optionally .gz); `data:` for the shared data folder.
+    File(String),
+    /// A ground quad of half-size `size` at y = 0.
+    Ground(f32),
+    /// An axis-aligned box.
+    Cuboid([f32; 3], [f32; 3]),
+    /// A closed icosphere, subdivided `level` times.
+    Sphere(u32),
+    /// A room with furniture-like boxes (Conference, Saloon): seed, items.
+    Room(u64, u32),
+    /// A forest of instanced leaves on trunks (Fern, Fairy Forest): seed, trees, leaves per tree.
+    Forest(u64, u32, u32),
+    /// Parallel layers for depth complexity (multi-hit): layers, cells per side.
+    Layers(u32, u32),
+}
+
+/// A mesh placed in the scene.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Placed {
+    /// The mesh.
+    pub source: Source,
+    /// Uniform scale (applied first).
+    #[serde(default = "one")]
+    pub scale: f32,
+    /// Rotation about +y in degrees (second).
+    #[serde(default)]
+    pub rotate_y: f32,
+    /// Translation (last).
+    #[serde(default)]
+    pub translate: [f32; 3],
+    /// Material of its triangles.
+    #[serde(default)]
+    pub material: Material,
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+/// A pinhole camera.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    /// Eye position.
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub target: [f32; 3],
+    /// Up direction.
+    #[serde(default = "up")]
+    pub up: [f32; 3],
+    /// Vertical field of view in degrees.
+    pub fov: f32,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+}
+
+fn up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+impl Camera {
+    /// The primary ray through image point (`x`, `y`) in pixels (0,0 is the
+    /// top-left corner; pixel centres are at +0.5): origin and unnormalised
+    /// direction, in f64.
+    #[must_use]
+    pub fn ray(&self, x: f64, y: f64) -> ([f64; 3], [f64; 3]) {
+        let e = self.eye.map(f64::from);
+        let t = self.target.map(f64::from);
+        let u = self.up.map(f64::from);
+        let norm = |v: [f64; 3]| {
+            let l = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            v.map(|c| c / l)
+        };
+        let cross = |a: [f64; 3], b: [f64; 3]| {
+            [
+                a[1] * b[2] - a[2] * b[1],
+                a[2] * b[0] - a[0] * b[2],
+                a[0] * b[1] - a[1] * b[0],
+            ]
+        };
+        let f = norm([t[0] - e[0], t[1] - e[1], t[2] - e[2]]);
+        let r = norm(cross(f, u));
+        let v = cross(r, f);
+        let h = (f64::from(self.fov).to_radians() / 2.0).tan();
+        let aspect = f64::from(self.width) / f64::from(self.height);
+        let px = (2.0 * x / f64::from(self.width) - 1.0) * h * aspect;
+        let py = (1.0 - 2.0 * y / f64::from(self.height)) * h;
+        (
+            e,
+            [
+                f[0] + px * r[0] + py * v[0],
+                f[1] + px * r[1] + py * v[1],
+                f[2] + px * r[2] + py * v[2],
+            ],
+        )
+    }
+}
+
+/// A light.
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum Light {
+    /// A quad area light: corner, two edge vectors, emitted radiance.
+    Quad([f32; 3], [f32; 3], [f32; 3], f32),
+    /// A point light: position, intensity.
+    Point([f32; 3], f32),
+}
+
+/// A scene description (`configs/scenes/*.ron`).
+#[derive(Clone, Debug, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneConfig {
+    /// Name.
+    pub name: String,
+    /// Which paper scene it stands for.
+    pub stands_for: String,
+    /// What property it matches, and how it differs.
+    pub about: String,
+    /// Meshes.
+    pub meshes: Vec<Placed>,
+    /// Camera.
+    pub camera: Camera,
+    /// Lights.
+    pub lights: Vec<Light>,
+}
+
+/// A loaded scene.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Its description.
+    pub config: SceneConfig,
+    /// All triangles, in world space.
+    pub mesh: Mesh,
+    /// Material per triangle.
+    pub materials: Vec<Material>,
+}
+
+/// The scenes shipped in `configs/scenes/`.
+pub const BUILTIN: &[(&str, &str)] = &[
+    ("crown", include_str!("../../configs/scenes/crown.ron")),
+    ("bentley", include_str!("../../configs/scenes/bentley.ron")),
+    ("dragon", include_str!("../../configs/scenes/dragon.ron")),
+    (
+        "sanmiguel",
+        include_str!("../../configs/scenes/sanmiguel.ron"),
+    ),
+    ("bmw", include_str!("../../configs/scenes/bmw.ron")),
+    (
+        "conference",
+        include_str!("../../configs/scenes/conference.ron"),
+    ),
+    ("trex", include_str!("../../configs/scenes/trex.ron")),
+    ("fern", include_str!("../../configs/scenes/fern.ron")),
+    ("saloon", include_str!("../../configs/scenes/saloon.ron")),
+    ("fairy", include_str!("../../configs/scenes/fairy.ron")),
+    ("layers", include_str!("../../configs/scenes/layers.ron")),
+    ("sphere", include_str!("../../configs/scenes/sphere.ron")),
+];
+
+/// The shared data folder.
+#[must_use]
+pub fn data_root() -> PathBuf {
+    if let Some(p) = std::env::var_os("RTSIM_DATA") {
+        return PathBuf::from(p);
+    }
+    let here = PathBuf::from("../shared/data");
+    if here.exists() {
+        return here;
+    }
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+}
+
+fn resolve(file: &str) -> PathBuf {
+    match file.strip_prefix("data:") {
+        Some(rest) => data_root().join(rest),
+        None => PathBuf::from(file),
+    }
+}
+
+/// A scene error.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SceneError(pub String);
+
+impl std::fmt::Display for SceneError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl From<MeshError> for SceneError {
+    fn from(e: MeshError) -> Self {
+        SceneError(e.to_string())
+    }
+}
+
+impl Scene {
+    /// A built-in scene by name, a scene RON file, or a mesh file.
+    pub fn load(name_or_path: &str) -> Result<Scene, SceneError> {
+        if let Some((n, text)) = BUILTIN.iter().find(|(n, _)| *n == name_or_path) {
+            return Scene::from_ron(text, &format!("configs/scenes/{n}.ron"));
+        }
+        let p = Path::new(name_or_path);
+        let lower = name_or_path.to_lowercase();
+        if lower.ends_with(".ron") {
+            let text = std::fs::read_to_string(p)
+                .map_err(|e| SceneError(format!("{name_or_path}: {e}")))?;
+            return Scene::from_ron(&text, name_or_path);
+        }
+        if [".obj", ".ply", ".obj.gz", ".ply.gz"]
+            .iter()
+            .any(|e| lower.ends_with(e))
+        {
+            return Scene::from_mesh_file(p);
+        }
+        let names: Vec<&str> = BUILTIN.iter().map(|(n, _)| *n).collect();
+        Err(SceneError(format!(
+            "{name_or_path}: no such scene (built in: {}; or a .ron, .obj or .ply file)",
+            names.join(", ")
+        )))
+    }
+
+    /// Parse a scene description.
+    pub fn from_ron(text: &str, file: &str) -> Result<Scene, SceneError> {
+        let config: SceneConfig = ron::from_str(text)
+            .map_err(|e| SceneError(format!("{file}: line {}: {}", e.position.line, e.code)))?;
+        let c = &config.camera;
+        if c.width == 0 || c.height == 0 || c.width > 16384 || c.height > 16384 {
+            return Err(SceneError(format!(
+                "{file}: camera.width/height must be 1 to 16384"
+            )));
+        }
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(SceneError(format!(
+                "{file}: camera.fov must be between 0 and 180 degrees"
+            )));
+        }
+        let mut mesh = Mesh::default();
+        let mut materials = Vec::new();
+        for (i, p) in config.meshes.iter().enumerate() {
+            let m = build_source(&p.source)
+                .map_err(|e| SceneError(format!("{file}: meshes[{i}]: {e}")))?;
+            let (s, ang) = (p.scale, p.rotate_y.to_radians());
+            let (sn, cs) = ang.sin_cos();
+            let t = p.translate;
+            mesh.append(&m, |v| {
+                let (x, y, z) = (v[0] * s, v[1] * s, v[2] * s);
+                [cs * x + sn * z + t[0], y + t[1], -sn * x + cs * z + t[2]]
+            });
+            materials.extend(std::iter::repeat_n(p.material, m.len()));
+        }
+        mesh.check(file)?;
+        if mesh.is_empty() {
+            return Err(SceneError(format!("{file}: empty scene: no triangles")));
+        }
+        Ok(Scene {
+            config,
+            mesh,
+            materials,
+        })
+    }
+
+    /// A mesh file as a scene: the camera frames its bounds from the front-right,
+    /// a quad light above it.
+    pub fn from_mesh_file(path: &Path) -> Result<Scene, SceneError> {
+        let mesh = mesh::load(path)?;
+        if mesh.is_empty() {
+            return Err(SceneError(format!(
+                "{}: empty scene: no triangles",
+                path.display()
+            )));
+        }
+        let (lo, hi) = mesh.bounds();
+        let c = [
+            (lo[0] + hi[0]) / 2.0,
+            (lo[1] + hi[1]) / 2.0,
+            (lo[2] + hi[2]) / 2.0,
+        ];
+        let r = ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2) + (hi[2] - lo[2]).powi(2))
+            .sqrt()
+            / 2.0;
+        let eye = [c[0] + 1.2 * r, c[1] + 0.8 * r, c[2] + 2.2 * r];
+        let name = path
+            .file_name()
+            .map(|n| n.to_string_lossy().to_string())
+            .unwrap_or_default();
+        let config = SceneConfig {
+            name: name.clone(),
+            stands_for: "-".into(),
+            about: format!("mesh file {}", path.display()),
+            meshes: vec![Placed {
+                source: Source::File(path.display().to_string()),
+                scale: 1.0,
+                rotate_y: 0.0,
+                translate: [0.0; 3],
+                material: Material::Diffuse,
+            }],
+            camera: Camera {
+                eye,
+                target: c,
+                up: [0.0, 1.0, 0.0],
+                fov: 40.0,
+                width: 512,
+                height: 512,
+            },
+            lights: vec![Light::Quad(
+                [c[0] - r / 2.0, hi[1] + r, c[2] - r / 2.0],
+                [r, 0.0, 0.0],
+                [0.0, 0.0, r],
+                10.0,
+            )],
+        };
+        let materials = vec![Material::Diffuse; mesh.len()];
+        Ok(Scene {
+            config,
+            mesh,
+            materials,
+        })
+    }
+
+    /// Bounds of all triangles.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        let (lo, hi) = self.mesh.bounds();
+        Aabb { lo, hi }
+    }
+}
+
+fn quad(m: &mut Mesh, p: [f32; 3], u: [f32; 3], v: [f32; 3]) {
+    let b = m.positions.len() as u32;
+    let add = |a: [f32; 3], b: [f32; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+    m.positions
+        .extend([p, add(p, u), add(add(p, u), v), add(p, v)]);
+    m.tris.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+}
+
+/// A closed box of 12 triangles with shared corners.
+fn cuboid(m: &mut Mesh, lo: [f32; 3], hi: [f32; 3]) {
+    let b = m.positions.len() as u32;
+    for i in 0..8u32 {
+        m.positions.push([
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ]);
+    }
+    for f in [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ] {
+        m.tris.push([b + f[0], b + f[1], b + f[2]]);
+        m.tris.push([b + f[0], b + f[2], b + f[3]]);
+    }
+}
+
+/// A closed icosphere of radius 1.
+#[must_use]
+pub fn icosphere(level: u32) -> Mesh {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let mut v: Vec<[f64; 3]> = vec![
+        [-1.0, t, 0.0],
+        [1.0, t, 0.0],
+        [-1.0, -t, 0.0],
+        [1.0, -t, 0.0],
+        [0.0, -1.0, t],
+        [0.0, 1.0, t],
+        [0.0, -1.0, -t],
+        [0.0, 1.0, -t],
+        [t, 0.0, -1.0],
+        [t, 0.0, 1.0],
+        [-t, 0.0, -1.0],
+        [-t, 0.0, 1.0],
+    ];
+    let mut f: Vec<[u32; 3]> = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    for _ in 0..level {
+        let mut mid = std::collections::HashMap::new();
+        let mut nf = Vec::with_capacity(f.len() * 4);
+        for tri in &f {
+            let mut m = [0u32; 3];
+            for k in 0..3 {
+                let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
+                m[k] = *mid.entry((a, b)).or_insert_with(|| {
+                    let (p, q) = (v[a as usize], v[b as usize]);
+                    v.push([
+                        (p[0] + q[0]) / 2.0,
+                        (p[1] + q[1]) / 2.0,
+                        (p[2] + q[2]) / 2.0,
+                    ]);
+                    v.len() as u32 - 1
+                });
+            }
+            nf.extend([
+                [tri[0], m[0], m[2]],
+                [tri[1], m[1], m[0]],
+                [tri[2], m[2], m[1]],
+                [m[0], m[1], m[2]],
+            ]);
+        }
+        f = nf;
+    }
+    let positions = v
+        .iter()
+        .map(|p| {
+            let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+            [(p[0] / l) as f32, (p[1] / l) as f32, (p[2] / l) as f32]
+        })
+        .collect();
+    Mesh { positions, tris: f }
+}
+
+/// Build a source's mesh (in its own space).
+pub fn build_source(s: &Source) -> Result<Mesh, String> {
+    let mut m = Mesh::default();
+    match *s {
+        Source::File(ref f) => return mesh::load(&resolve(f)).map_err(|e| e.to_string()),
+        Source::Ground(size) => quad(
+            &mut m,
+            [-size, 0.0, -size],
+            [0.0, 0.0, 2.0 * size],
+            [2.0 * size, 0.0, 0.0],
+        ),
+        Source::Cuboid(lo, hi) => cuboid(&mut m, lo, hi),
+        Source::Sphere(level) => {
+            if level > 8 {
+                return Err(format!("Sphere({level}): at most 8 subdivisions"));
+            }
+            m = icosphere(level);
+        }
+        Source::Room(seed, items) => {
+            // A 20 x 6 x 14 room, open toward +z, with tables (top + 4 legs) and chairs.
+            let mut r = Rng::new(seed);
+            quad(
+                &mut m,
+                [-10.0, 0.0, -7.0],
+                [0.0, 0.0, 14.0],
+                [20.0, 0.0, 0.0],
+            ); // floor
+            quad(
+                &mut m,
+                [-10.0, 6.0, -7.0],
+                [20.0, 0.0, 0.0],
+                [0.0, 0.0, 14.0],
+            ); // ceiling
+            quad(
+                &mut m,
+                [-10.0, 0.0, -7.0],
+                [20.0, 0.0, 0.0],
+                [0.0, 6.0, 0.0],
+            ); // back wall
+            quad(
+                &mut m,
+                [-10.0, 0.0, -7.0],
+                [0.0, 6.0, 0.0],
+                [0.0, 0.0, 14.0],
+            ); // left
+            quad(&mut m, [10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [0.0, 6.0, 0.0]); // right
+            for _ in 0..items {
+                let (x, z) = (r.range(-8.5, 8.5), r.range(-6.0, 5.0));
+                let (w, d, h) = (r.range(0.6, 1.6), r.range(0.5, 1.0), r.range(0.7, 1.1));
+                cuboid(&mut m, [x - w, h - 0.06, z - d], [x + w, h, z + d]);
+                for (lx, lz) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+                    let (cx, cz) = (x + lx * (w - 0.08), z + lz * (d - 0.08));
+                    cuboid(
+                        &mut m,
+                        [cx - 0.04, 0.0, cz - 0.04],
+                        [cx + 0.04, h - 0.06, cz + 0.04],
+                    );
+                }
+            }
+        }
+        Source::Forest(seed, trees, leaves) => {
+            let mut r = Rng::new(seed);
+            quad(
+                &mut m,
+                [-20.0, 0.0, -20.0],
+                [0.0, 0.0, 40.0],
+                [40.0, 0.0, 0.0],
+            );
+            for _ in 0..trees {
+                let (x, z) = (r.range(-15.0, 15.0), r.range(-15.0, 15.0));
+                let h = r.range(2.0, 5.0);
+                cuboid(&mut m, [x - 0.1, 0.0, z - 0.1], [x + 0.1, h, z + 0.1]);
+                for _ in 0..leaves {
+                    // A leaf: one small triangle at a random spot of the crown, random orientation.
+                    let c = [
+                        x + r.range(-1.5, 1.5),
+                        h + r.range(-1.0, 1.5),
+                        z + r.range(-1.5, 1.5),
+                    ];
+                    let b = m.positions.len() as u32;
+                    for _ in 0..3 {
+                        m.positions.push([
+                            c[0] + r.range(-0.15, 0.15),
+                            c[1] + r.range(-0.15, 0.15),
+                            c[2] + r.range(-0.15, 0.15),
+                        ]);
+                    }
+                    m.tris.push([b, b + 1, b + 2]);
+                }
+            }
+        }
+        Source::Layers(layers, cells) => {
+            if cells == 0 {
+                return Err("Layers: cells must be at least 1".into());
+            }
+            let s = 2.0 / cells as f32;
+            for l in 0..layers {
+                let z = l as f32 * 0.1;
+                for i in 0..cells {
+                    for j in 0..cells {
+                        quad(
+                            &mut m,
+                            [-1.0 + i as f32 * s, -1.0 + j as f32 * s, z],
+                            [s, 0.0, 0.0],
+                            [0.0, s, 0.0],
+                        );
+                    }
+                }
+            }
+        }
+    }
+    Ok(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn procedural_sources_are_valid() {
+        for s in [
+            Source::Ground(1.0),
+            Source::Cuboid([0.0; 3], [1.0; 3]),
+            Source::Sphere(2),
+            Source::Room(1, 20),
+            Source::Forest(2, 10, 50),
+            Source::Layers(8, 4),
+        ] {
+            let m = build_source(&s).unwrap();
+            m.check("test").unwrap();
+            assert!(!m.is_empty(), "{s:?}");
+        }
+        assert_eq!(build_source(&Source::Sphere(3)).unwrap().len(), 1280);
+        assert_eq!(
+            build_source(&Source::Layers(10, 4)).unwrap().len(),
+            10 * 16 * 2
+        );
+        assert_eq!(
+            build_source(&Source::Room(5, 3)).unwrap(),
+            build_source(&Source::Room(5, 3)).unwrap(),
+            "seeded"
+        );
+    }
+
+    #[test]
+    fn bad_scene_files_name_the_problem() {
+        let e = Scene::from_ron("(name: \"x\", stands_for: \"-\", about: \"-\", meshes: [], camera: (eye: (0,0,0), target: (0,0,1), fov: 40, width: 8, height: 8), lights: [], bogus: 1)", "x.ron").unwrap_err();
+        assert!(
+            e.0.contains("x.ron: line 1") && e.0.contains("bogus"),
+            "{e}"
+        );
+        let e = Scene::from_ron("(name: \"x\", stands_for: \"-\", about: \"-\", meshes: [], camera: (eye: (0,0,0), target: (0,0,1), fov: 40, width: 8, height: 8), lights: [])", "x.ron").unwrap_err();
+        assert!(e.0.contains("empty scene"), "{e}");
+        let e = Scene::load("no-such-scene").unwrap_err();
+        assert!(e.0.contains("built in"), "{e}");
+    }
+}

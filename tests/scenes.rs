@@ -1,0 +1,193 @@
+//! End-to-end tests of scenes: every shipped scene loads and its BVHs
+//! validate, renders are real PNGs, malformed meshes give one-line errors.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn rtsim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rtsim"))
+        .args(args)
+        .output()
+        .expect("rtsim runs")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rtsim-scenes-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d.join(name)
+}
+
+fn shared() -> bool {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../shared/data/meshes"
+    ))
+    .exists()
+}
+
+#[test]
+fn every_scene_loads_and_its_bvhs_validate() {
+    let o = rtsim(&["list", "scenes", "--format", "json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    let tris = |n: &str| {
+        rows.iter()
+            .find(|r| r["name"] == n && r["metric"] == "triangles")
+            .map(|r| r["value"].as_f64().unwrap())
+    };
+    for n in [
+        "conference",
+        "fern",
+        "saloon",
+        "fairy",
+        "layers",
+        "sphere",
+        "sanmiguel",
+    ] {
+        assert!(tris(n).unwrap() > 1000.0, "{n}");
+    }
+    if shared() {
+        assert_eq!(tris("dragon"), Some(871_416.0));
+        assert_eq!(tris("bentley"), Some(792_746.0));
+        assert_eq!(tris("trex"), Some(69_453.0));
+        for n in ["crown", "bmw"] {
+            assert!(tris(n).is_some(), "{n}");
+        }
+        assert!(rows
+            .iter()
+            .any(|r| r["metric"] == "bvh2_sah_cost" && r["value"].as_f64().unwrap() > 1.0));
+    }
+}
+
+fn png_size(p: &PathBuf) -> (u32, u32) {
+    let b = std::fs::read(p).unwrap();
+    assert_eq!(&b[..8], &[0x89, b'P', b'N', b'G', 0x0d, 0x0a, 0x1a, 0x0a]);
+    (
+        u32::from_be_bytes(b[16..20].try_into().unwrap()),
+        u32::from_be_bytes(b[20..24].try_into().unwrap()),
+    )
+}
+
+#[test]
+fn render_writes_png_in_every_shading() {
+    for shade in ["normals", "depth", "hits"] {
+        let out = tmp(&format!("sphere-{shade}.png"));
+        let o = rtsim(&[
+            "render",
+            "--scene",
+            "sphere",
+            "--shade",
+            shade,
+            "--width",
+            "64",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(png_size(&out), (64, 64));
+    }
+    if shared() {
+        for scene in ["dragon", "bentley"] {
+            let out = tmp(&format!("{scene}.png"));
+            let o = rtsim(&[
+                "render",
+                "--scene",
+                scene,
+                "--width",
+                "48",
+                "--out",
+                out.to_str().unwrap(),
+            ]);
+            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+            assert_eq!(png_size(&out).0, 48);
+        }
+    }
+}
+
+#[test]
+fn a_mesh_file_is_a_scene() {
+    let f = tmp("tri.obj");
+    std::fs::write(&f, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let out = tmp("tri.png");
+    let o = rtsim(&[
+        "render",
+        "--scene",
+        f.to_str().unwrap(),
+        "--width",
+        "32",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+fn one_line_error(o: &Output) -> String {
+    assert_eq!(o.status.code(), Some(2));
+    let e = String::from_utf8(o.stderr.clone()).unwrap();
+    assert_eq!(e.trim_end().lines().count(), 1, "one line: {e}");
+    assert!(!e.contains("panicked"));
+    e
+}
+
+#[test]
+fn malformed_obj_and_ply_are_one_line_errors() {
+    let out = tmp("never.png");
+    let f = tmp("bad.obj");
+    std::fs::write(&f, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n").unwrap();
+    let e = one_line_error(&rtsim(&[
+        "render",
+        "--scene",
+        f.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(
+        e.contains("bad.obj: line 4") && e.contains("out of range"),
+        "{e}"
+    );
+    let f = tmp("nan.obj");
+    std::fs::write(&f, "v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let e = one_line_error(&rtsim(&[
+        "render",
+        "--scene",
+        f.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(e.contains("nan.obj: line 2"), "{e}");
+    let f = tmp("bad.ply");
+    let mut b = b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n".to_vec();
+    b.extend(std::iter::repeat_n(0u8, 20)); // truncated: 36 bytes of vertices expected
+    std::fs::write(&f, &b).unwrap();
+    let e = one_line_error(&rtsim(&[
+        "render",
+        "--scene",
+        f.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(
+        e.contains("bad.ply: byte") && e.contains("truncated"),
+        "{e}"
+    );
+    let f = tmp("empty.obj");
+    std::fs::write(&f, "# nothing\n").unwrap();
+    let e = one_line_error(&rtsim(&[
+        "render",
+        "--scene",
+        f.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(e.contains("empty scene"), "{e}");
+    let e = one_line_error(&rtsim(&[
+        "render",
+        "--scene",
+        "atlantis",
+        "--out",
+        out.to_str().unwrap(),
+    ]));
+    assert!(e.contains("atlantis"), "{e}");
+    assert!(!out.exists(), "nothing half-written");
+}

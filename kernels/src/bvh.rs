@@ -479,7 +479,7 @@ pub struct Node4 {
 /// An unused BVH4 child slot.
 pub const EMPTY_SLOT: u32 = u32::MAX;
 
-/// BVH4 made by collapsing a BVH2: a node's children are its BVH2 child's
+/// BVH4 (also the MBVH ray-stream paper's node: 4 child boxes in SoA) made by collapsing a BVH2: a node's children are its BVH2 child's
 /// children (c0, c1 from the left, c2, c3 from the right), so siblings that
 /// are near each other stay grouped as the DRS paper's 2-level order needs.
 /// Memory layout per node (128 bytes, two lines):
@@ -501,6 +501,8 @@ pub struct Bvh4 {
 
 /// Bytes of a laid-out BVH4 node.
 pub const NODE4_BYTES: usize = 128;
+
+const _: () = assert!(std::mem::size_of::<[u32; 32]>() == NODE4_BYTES);
 
 impl Bvh4 {
     /// Collapse a BVH2.

@@ -12,3 +12,4 @@ pub mod mesh;
 pub mod micro;
 pub mod reference;
 pub mod scene;
+pub mod workload;

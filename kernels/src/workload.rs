@@ -1,0 +1,630 @@
+//! Ray workloads, seeded and deterministic: the same rays whatever kernel
+//! traces them. Paths are advanced with the f64 reference intersector.
+//!
+//! - [`primary_tile`]: a tile of T x T pixels x S samples per pixel as one
+//!   ray stream (the DRS paper: 16 x 16 x 16 = 4096 rays).
+//! - [`path_trace_tile`]: the DRS render loop: the primary stream, then per
+//!   bounce the surviving paths as a new stream, with one shadow ray per hit
+//!   toward a random point of the scene's first quad light, batched into
+//!   shadow streams of at most the primary stream's size. Diffuse surfaces
+//!   bounce cosine-weighted, mirrors reflect, glossy surfaces reflect with a
+//!   Phong-lobe perturbation.
+//! - [`soft_shadow_frusta`]: the MFT inputs: per 4 x 4 pixel group, the 16
+//!   primary hit points and 16 light samples each, pixel k of the group using
+//!   interleaved Hammersley set k (every 16th point of a 256-point sequence).
+//! - [`distribution_tile`]: distribution ray tracing as the MBVH ray-stream
+//!   paper: 16 paths per pixel through a thin lens (depth of field), soft
+//!   shadow rays to random points of the area light, one glossy reflection.
+//! - [`visibility_rays`]: primary rays over the whole image for multi-hit
+//!   (all hits along each ray).
+
+use crate::bvh::Bvh2;
+use crate::mesh::Mesh;
+use crate::reference::{Ray, Reference};
+use crate::scene::{Camera, Light, Material, Scene};
+use isa::rng::Rng;
+
+/// What a stream's rays are for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum StreamKind {
+    /// Camera rays.
+    Primary,
+    /// Continuation rays of bounce n (1 = the first bounce off a primary hit).
+    Bounce(u32),
+    /// Shadow rays toward the light from the hits of bounce n (0 = primary hits).
+    Shadow(u32),
+}
+
+/// A stream of rays in f32, as the kernels read them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RayStream {
+    /// What the rays are.
+    pub kind: StreamKind,
+    /// Origins.
+    pub org: Vec<[f32; 3]>,
+    /// Directions (unnormalised for shadow rays: t = 1 reaches the light sample).
+    pub dir: Vec<[f32; 3]>,
+    /// Far limits (1 - epsilon for shadow rays, infinity otherwise).
+    pub tmax: Vec<f32>,
+}
+
+impl RayStream {
+    fn new(kind: StreamKind) -> RayStream {
+        RayStream {
+            kind,
+            org: Vec::new(),
+            dir: Vec::new(),
+            tmax: Vec::new(),
+        }
+    }
+    /// Number of rays.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.org.len()
+    }
+    /// Whether empty.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.org.is_empty()
+    }
+    fn push(&mut self, o: [f64; 3], d: [f64; 3], tmax: f32) {
+        self.org.push(o.map(|x| x as f32));
+        self.dir.push(d.map(|x| x as f32));
+        self.tmax.push(tmax);
+    }
+    /// Ray `i` in f64 for the reference.
+    #[must_use]
+    pub fn ray(&self, i: usize) -> Ray {
+        Ray {
+            org: self.org[i].map(f64::from),
+            dir: self.dir[i].map(f64::from),
+            tmin: 0.0,
+            tmax: f64::from(self.tmax[i]),
+        }
+    }
+}
+
+/// A square tile of the image: its column and row in tiles, and its size in pixels.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Tile {
+    /// Column, in tiles.
+    pub x: u32,
+    /// Row, in tiles.
+    pub y: u32,
+    /// Side in pixels.
+    pub size: u32,
+}
+
+/// A seed for (scene seed, tile, pixel, sample) so every path is reproducible alone.
+fn path_seed(seed: u64, tile: (u32, u32), pixel: u32, sample: u32) -> u64 {
+    let mut r =
+        Rng::new(seed ^ (u64::from(tile.0) << 40) ^ (u64::from(tile.1) << 20) ^ u64::from(pixel));
+    r.next_u64() ^ u64::from(sample).wrapping_mul(0x9e37_79b9_7f4a_7c15)
+}
+
+/// Primary rays of tile (`tx`, `ty`) of size `t` x `t` pixels, `spp` jittered samples each.
+#[must_use]
+pub fn primary_tile(cam: &Camera, tx: u32, ty: u32, t: u32, spp: u32, seed: u64) -> RayStream {
+    let mut s = RayStream::new(StreamKind::Primary);
+    for py in 0..t {
+        for px in 0..t {
+            let (x, y) = (tx * t + px, ty * t + py);
+            if x >= cam.width || y >= cam.height {
+                continue;
+            }
+            for k in 0..spp {
+                let mut r = Rng::new(path_seed(seed, (tx, ty), py * t + px, k));
+                let (o, d) = cam.ray(
+                    f64::from(x) + f64::from(r.f32()),
+                    f64::from(y) + f64::from(r.f32()),
+                );
+                s.push(o, d, f32::INFINITY);
+            }
+        }
+    }
+    s
+}
+
+type V3 = [f64; 3];
+fn add(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+fn sub(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn scale(a: V3, s: f64) -> V3 {
+    a.map(|c| c * s)
+}
+fn dot(a: V3, b: V3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+fn cross(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+fn norm(a: V3) -> V3 {
+    scale(a, 1.0 / dot(a, a).sqrt().max(1e-300))
+}
+
+/// Geometric normal of triangle `prim`, facing against `dir`.
+fn facing_normal(mesh: &Mesh, prim: u32, dir: V3) -> V3 {
+    let [p, q, r] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
+    let n = norm(cross(sub(q, p), sub(r, p)));
+    if dot(n, dir) > 0.0 {
+        scale(n, -1.0)
+    } else {
+        n
+    }
+}
+
+/// A direction around `n` with cosine-power lobe `exp` (1 = cosine-weighted hemisphere).
+fn lobe(n: V3, exp: f64, r: &mut Rng) -> V3 {
+    let (u1, u2) = (f64::from(r.f32()), f64::from(r.f32()));
+    let cos_t = u1.powf(1.0 / (exp + 1.0));
+    let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+    let phi = 2.0 * std::f64::consts::PI * u2;
+    let a = if n[0].abs() > 0.9 {
+        [0.0, 1.0, 0.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let t = norm(cross(a, n));
+    let b = cross(n, t);
+    norm(add(
+        add(scale(t, sin_t * phi.cos()), scale(b, sin_t * phi.sin())),
+        scale(n, cos_t),
+    ))
+}
+
+/// A point on the scene's first quad light (or its point light).
+fn light_point(scene: &Scene, u: f64, v: f64) -> Option<V3> {
+    scene
+        .config
+        .lights
+        .iter()
+        .map(|l| match *l {
+            Light::Quad(c, e1, e2, _) => {
+                let (c, e1, e2) = (c.map(f64::from), e1.map(f64::from), e2.map(f64::from));
+                Some(add(c, add(scale(e1, u), scale(e2, v))))
+            }
+            Light::Point(p, _) => Some(p.map(f64::from)),
+        })
+        .next()
+        .flatten()
+}
+
+/// Offset a hit point along the normal so continuation rays do not re-hit it.
+fn offset(p: V3, n: V3, scene_size: f64) -> V3 {
+    add(p, scale(n, 1e-5 * scene_size.max(1e-3)))
+}
+
+/// The DRS render loop over one tile: the streams in the order they are traced.
+#[must_use]
+pub fn path_trace_tile(
+    scene: &Scene,
+    bvh: &Bvh2,
+    tile: Tile,
+    spp: u32,
+    max_bounces: u32,
+    seed: u64,
+) -> Vec<RayStream> {
+    let (tx, ty, t) = (tile.x, tile.y, tile.size);
+    let refi = Reference::with_bvh(&scene.mesh, bvh);
+    let b = scene.bounds();
+    let size = (0..3)
+        .map(|a| f64::from(b.hi[a] - b.lo[a]))
+        .fold(0.0, f64::max);
+    let primary = primary_tile(&scene.config.camera, tx, ty, t, spp, seed);
+    let stream_size = primary.len().max(1);
+    let mut out = vec![primary.clone()];
+    let mut current = primary;
+    // Every path keeps its own generator, seeded by its identity.
+    let mut rngs: Vec<Rng> = (0..current.len() as u64)
+        .map(|i| {
+            Rng::new(seed.wrapping_mul(31) ^ (u64::from(tx) << 48) ^ (u64::from(ty) << 32) ^ i)
+        })
+        .collect();
+    for bounce in 0..=max_bounces {
+        let mut next = RayStream::new(StreamKind::Bounce(bounce + 1));
+        let mut next_rngs = Vec::new();
+        let mut shadows = RayStream::new(StreamKind::Shadow(bounce));
+        for i in 0..current.len() {
+            let ray = current.ray(i);
+            let Some(hit) = refi.closest(&ray) else {
+                continue;
+            };
+            let p = add(ray.org, scale(ray.dir, hit.t));
+            let n = facing_normal(&scene.mesh, hit.prim, ray.dir);
+            let o = offset(p, n, size);
+            let r = &mut rngs[i];
+            if let Some(l) = light_point(scene, f64::from(r.f32()), f64::from(r.f32())) {
+                shadows.push(o, sub(l, o), 1.0 - 1e-4);
+                if shadows.len() == stream_size {
+                    out.push(std::mem::replace(
+                        &mut shadows,
+                        RayStream::new(StreamKind::Shadow(bounce)),
+                    ));
+                }
+            }
+            if bounce == max_bounces {
+                continue;
+            }
+            let d = norm(ray.dir);
+            let refl = sub(d, scale(n, 2.0 * dot(d, n)));
+            let nd = match scene.materials[hit.prim as usize] {
+                Material::Diffuse => lobe(n, 1.0, r),
+                Material::Mirror => refl,
+                Material::Glossy => {
+                    let g = lobe(refl, 50.0, r);
+                    if dot(g, n) > 0.0 {
+                        g
+                    } else {
+                        refl
+                    }
+                }
+            };
+            next.push(o, nd, f32::INFINITY);
+            next_rngs.push(r.clone());
+        }
+        if !shadows.is_empty() {
+            out.push(shadows);
+        }
+        if next.is_empty() {
+            break;
+        }
+        if bounce < max_bounces {
+            out.push(next.clone());
+        }
+        current = next;
+        rngs = next_rngs;
+    }
+    out
+}
+
+/// Thin-lens parameters for depth of field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lens {
+    /// Aperture radius, in scene units.
+    pub aperture: f64,
+    /// Distance of the plane in focus from the eye, along the view direction.
+    pub focus: f64,
+}
+
+/// Distribution ray tracing of one tile, `paths` per pixel: streams of primary
+/// rays (thin lens), shadow rays from their hits, glossy reflection rays, and
+/// shadow rays from the reflections' hits.
+#[must_use]
+pub fn distribution_tile(
+    scene: &Scene,
+    bvh: &Bvh2,
+    tile: Tile,
+    paths: u32,
+    lens: Lens,
+    seed: u64,
+) -> Vec<RayStream> {
+    let (tx, ty, t) = (tile.x, tile.y, tile.size);
+    let refi = Reference::with_bvh(&scene.mesh, bvh);
+    let cam = &scene.config.camera;
+    let b = scene.bounds();
+    let size = (0..3)
+        .map(|a| f64::from(b.hi[a] - b.lo[a]))
+        .fold(0.0, f64::max);
+    let mut primary = RayStream::new(StreamKind::Primary);
+    let mut rngs = Vec::new();
+    let eye = cam.eye.map(f64::from);
+    let (_, centre) = cam.ray(f64::from(cam.width) / 2.0, f64::from(cam.height) / 2.0);
+    let fwd = norm(centre);
+    let right = norm(cross(fwd, cam.up.map(f64::from)));
+    let up = cross(right, fwd);
+    for py in 0..t {
+        for px in 0..t {
+            let (x, y) = (tx * t + px, ty * t + py);
+            if x >= cam.width || y >= cam.height {
+                continue;
+            }
+            for k in 0..paths {
+                let mut r = Rng::new(path_seed(seed, (tx, ty), py * t + px, k));
+                let (o, d) = cam.ray(
+                    f64::from(x) + f64::from(r.f32()),
+                    f64::from(y) + f64::from(r.f32()),
+                );
+                // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
+                let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
+                let (a, phi) = (
+                    lens.aperture * f64::from(r.f32()).sqrt(),
+                    2.0 * std::f64::consts::PI * f64::from(r.f32()),
+                );
+                let lo = add(
+                    eye,
+                    add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
+                );
+                primary.push(lo, sub(focal, lo), f32::INFINITY);
+                rngs.push(r);
+            }
+        }
+    }
+    let mut out = vec![primary.clone()];
+    let mut current = primary;
+    for bounce in 0..2 {
+        let mut shadows = RayStream::new(StreamKind::Shadow(bounce));
+        let mut glossy = RayStream::new(StreamKind::Bounce(bounce + 1));
+        let mut next_rngs = Vec::new();
+        for i in 0..current.len() {
+            let ray = current.ray(i);
+            let Some(hit) = refi.closest(&ray) else {
+                continue;
+            };
+            let n = facing_normal(&scene.mesh, hit.prim, ray.dir);
+            let o = offset(add(ray.org, scale(ray.dir, hit.t)), n, size);
+            let r = &mut rngs[i];
+            if let Some(l) = light_point(scene, f64::from(r.f32()), f64::from(r.f32())) {
+                shadows.push(o, sub(l, o), 1.0 - 1e-4);
+            }
+            if bounce == 0 {
+                let d = norm(ray.dir);
+                let refl = sub(d, scale(n, 2.0 * dot(d, n)));
+                let g = lobe(refl, 20.0, r);
+                glossy.push(o, if dot(g, n) > 0.0 { g } else { refl }, f32::INFINITY);
+                next_rngs.push(r.clone());
+            }
+        }
+        out.push(shadows);
+        if bounce == 0 {
+            out.push(glossy.clone());
+        }
+        current = glossy;
+        rngs = next_rngs;
+    }
+    out
+}
+
+/// Radical inverse in base 2 (van der Corput).
+#[must_use]
+pub fn radical_inverse2(mut i: u32) -> f64 {
+    i = i.reverse_bits();
+    f64::from(i) / 4_294_967_296.0
+}
+
+/// Interleaved Hammersley set `k` of 16 (k in 0..16): points 16j + k of the
+/// 256-point Hammersley sequence, j = 0..16.
+#[must_use]
+pub fn hammersley_set(k: u32) -> [[f64; 2]; 16] {
+    std::array::from_fn(|j| {
+        let i = 16 * j as u32 + k;
+        [f64::from(i) / 256.0, radical_inverse2(i)]
+    })
+}
+
+/// MFT soft-shadow inputs of one 4 x 4 pixel group.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrustumInput {
+    /// Top-left pixel of the group.
+    pub pixel: (u32, u32),
+    /// Primary hit point of each of the 16 pixels (row-major), if any.
+    pub hits: [Option<[f32; 3]>; 16],
+    /// 16 light sample points per pixel (pixel k uses Hammersley set k).
+    pub samples: [[[f32; 3]; 16]; 16],
+}
+
+/// MFT inputs over the camera's image, 4 x 4 pixel groups.
+#[must_use]
+pub fn soft_shadow_frusta(scene: &Scene, bvh: &Bvh2) -> Vec<FrustumInput> {
+    let refi = Reference::with_bvh(&scene.mesh, bvh);
+    let cam = &scene.config.camera;
+    let b = scene.bounds();
+    let size = (0..3)
+        .map(|a| f64::from(b.hi[a] - b.lo[a]))
+        .fold(0.0, f64::max);
+    let sets: Vec<[[f64; 2]; 16]> = (0..16).map(hammersley_set).collect();
+    let mut out = Vec::new();
+    for gy in (0..cam.height).step_by(4) {
+        for gx in (0..cam.width).step_by(4) {
+            let mut f = FrustumInput {
+                pixel: (gx, gy),
+                hits: [None; 16],
+                samples: [[[0.0; 3]; 16]; 16],
+            };
+            for k in 0..16u32 {
+                let (x, y) = (gx + k % 4, gy + k / 4);
+                if x < cam.width && y < cam.height {
+                    let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    if let Some(h) = refi.closest(&Ray::new(o, d)) {
+                        let p = add(o, scale(d, h.t));
+                        let n = facing_normal(&scene.mesh, h.prim, d);
+                        f.hits[k as usize] = Some(offset(p, n, size).map(|c| c as f32));
+                    }
+                }
+                for (j, uv) in sets[k as usize].iter().enumerate() {
+                    if let Some(l) = light_point(scene, uv[0], uv[1]) {
+                        f.samples[k as usize][j] = l.map(|c| c as f32);
+                    }
+                }
+            }
+            out.push(f);
+        }
+    }
+    out
+}
+
+/// One primary ray per pixel center over the camera's image (multi-hit visibility).
+#[must_use]
+pub fn visibility_rays(cam: &Camera) -> RayStream {
+    let mut s = RayStream::new(StreamKind::Primary);
+    for y in 0..cam.height {
+        for x in 0..cam.width {
+            let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            s.push(o, d, f32::INFINITY);
+        }
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::BuildConfig;
+
+    fn sphere_scene() -> (Scene, Bvh2) {
+        let s = Scene::load("sphere").unwrap();
+        let b = Bvh2::build(&s.mesh, &BuildConfig::default()).unwrap();
+        (s, b)
+    }
+
+    #[test]
+    fn primary_tile_is_4096_rays_and_deterministic() {
+        let (s, _) = sphere_scene();
+        let a = primary_tile(&s.config.camera, 3, 2, 16, 16, 1);
+        assert_eq!(a.len(), 4096);
+        assert_eq!(a, primary_tile(&s.config.camera, 3, 2, 16, 16, 1));
+        assert_ne!(a, primary_tile(&s.config.camera, 3, 2, 16, 16, 2));
+    }
+
+    #[test]
+    fn path_tracing_streams_shrink_and_shadow_rays_reach_the_light() {
+        let (s, b) = sphere_scene();
+        let streams = path_trace_tile(
+            &s,
+            &b,
+            Tile {
+                x: 6,
+                y: 6,
+                size: 16,
+            },
+            4,
+            3,
+            7,
+        );
+        assert_eq!(streams[0].kind, StreamKind::Primary);
+        assert_eq!(
+            streams,
+            path_trace_tile(
+                &s,
+                &b,
+                Tile {
+                    x: 6,
+                    y: 6,
+                    size: 16
+                },
+                4,
+                3,
+                7
+            ),
+            "deterministic"
+        );
+        let bounces: Vec<usize> = streams
+            .iter()
+            .filter(|x| matches!(x.kind, StreamKind::Bounce(_)))
+            .map(RayStream::len)
+            .collect();
+        assert!(!bounces.is_empty());
+        assert!(
+            bounces.windows(2).all(|w| w[1] <= w[0]),
+            "paths only terminate: {bounces:?}"
+        );
+        for st in streams
+            .iter()
+            .filter(|x| matches!(x.kind, StreamKind::Shadow(_)))
+        {
+            assert!(
+                st.len() <= streams[0].len(),
+                "shadow batches at most the stream size"
+            );
+            for i in 0..st.len() {
+                let end: Vec<f32> = (0..3).map(|a| st.org[i][a] + st.dir[i][a]).collect();
+                assert!(
+                    (end[1] - 4.0).abs() < 1e-3,
+                    "shadow ray ends on the light plane y = 4: {end:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn distribution_tracing_has_16_paths_per_pixel_and_focuses() {
+        let (s, b) = sphere_scene();
+        let lens = Lens {
+            aperture: 0.05,
+            focus: 4.0,
+        };
+        let st = distribution_tile(
+            &s,
+            &b,
+            Tile {
+                x: 7,
+                y: 7,
+                size: 8,
+            },
+            16,
+            lens,
+            3,
+        );
+        assert_eq!(st[0].len(), 8 * 8 * 16);
+        assert_eq!(
+            st,
+            distribution_tile(
+                &s,
+                &b,
+                Tile {
+                    x: 7,
+                    y: 7,
+                    size: 8
+                },
+                16,
+                lens,
+                3
+            ),
+            "deterministic"
+        );
+        let kinds: Vec<StreamKind> = st.iter().map(|x| x.kind).collect();
+        assert_eq!(
+            kinds,
+            [
+                StreamKind::Primary,
+                StreamKind::Shadow(0),
+                StreamKind::Bounce(1),
+                StreamKind::Shadow(1)
+            ]
+        );
+        // Lens origins spread within the aperture around the eye.
+        let eye = s.config.camera.eye;
+        let spread = st[0]
+            .org
+            .iter()
+            .map(|o| (0..3).map(|a| (o[a] - eye[a]).powi(2)).sum::<f32>().sqrt())
+            .fold(0.0, f32::max);
+        assert!(spread > 0.0 && spread <= 0.05 + 1e-6, "{spread}");
+    }
+
+    #[test]
+    fn hammersley_sets_partition_256_points() {
+        let mut all: Vec<u64> = (0..16)
+            .flat_map(|k| hammersley_set(k).map(|p| (p[0] * 256.0) as u64))
+            .collect();
+        all.sort_unstable();
+        assert_eq!(all, (0..256).collect::<Vec<u64>>());
+        assert_eq!(radical_inverse2(1), 0.5);
+        assert_eq!(radical_inverse2(3), 0.75);
+    }
+
+    #[test]
+    fn frusta_cover_the_image_in_4x4_groups() {
+        let mut s = Scene::load("sphere").unwrap();
+        s.config.camera.width = 32;
+        s.config.camera.height = 16;
+        let b = Bvh2::build(&s.mesh, &BuildConfig::default()).unwrap();
+        let f = soft_shadow_frusta(&s, &b);
+        assert_eq!(f.len(), 8 * 4);
+        assert!(f.iter().any(|g| g.hits.iter().any(Option::is_some)));
+        assert!(
+            f[0].samples
+                .iter()
+                .flatten()
+                .all(|p| (p[1] - 4.0).abs() < 1e-6),
+            "samples on the light"
+        );
+        assert_eq!(visibility_rays(&s.config.camera).len(), 32 * 16);
+    }
+}

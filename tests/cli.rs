@@ -1,44 +1,10 @@
 //! End-to-end tests of the `rtsim` app: the acceptance commands, bad
 //! input, and golden op streams (one op per line; `RTSIM_BLESS=1` rewrites them).
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
+use common::*;
 
-fn rtsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rtsim"))
-        .args(args)
-        .output()
-        .expect("rtsim runs")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rtsim-cli-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
-
-fn ok(o: &Output) -> String {
-    assert!(
-        o.status.success(),
-        "exit {:?}\nstdout: {}\nstderr: {}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8(o.stdout.clone()).unwrap()
-}
-
-fn err(o: &Output) -> String {
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "stdout: {}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    let e = String::from_utf8(o.stderr.clone()).unwrap();
-    assert!(!e.contains("panicked"), "no panic: {e}");
-    e
-}
+use std::path::Path;
 
 fn p(path: &Path) -> &str {
     path.to_str().unwrap()

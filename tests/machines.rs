@@ -1,47 +1,10 @@
 //! End-to-end tests of the timing model through the app: calibration within
 //! 3% on every shipped machine, loop replay, determinism, config errors.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
+mod common;
+use common::*;
 
-fn rtsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rtsim"))
-        .args(args)
-        .output()
-        .expect("rtsim runs")
-}
-
-fn ok(o: &Output) -> String {
-    assert!(
-        o.status.success(),
-        "exit {:?}: {}",
-        o.status.code(),
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8(o.stdout.clone()).unwrap()
-}
-
-fn err(o: &Output) -> String {
-    assert_eq!(
-        o.status.code(),
-        Some(2),
-        "stdout: {}",
-        String::from_utf8_lossy(&o.stdout)
-    );
-    let e = String::from_utf8(o.stderr.clone()).unwrap();
-    assert!(!e.contains("panicked"), "{e}");
-    e
-}
-
-fn json(o: &Output) -> serde_json::Value {
-    serde_json::from_str(&ok(o)).unwrap()
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rtsim-machines-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
+use std::process::Output;
 
 const MACHINES: [&str; 6] = [
     "haswell-i7-4750hq",

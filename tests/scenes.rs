@@ -1,21 +1,11 @@
 //! End-to-end tests of scenes: every shipped scene loads and its BVHs
 //! validate, renders are real PNGs, malformed meshes give one-line errors.
 
+mod common;
+use common::*;
+
 use std::path::PathBuf;
-use std::process::{Command, Output};
-
-fn rtsim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rtsim"))
-        .args(args)
-        .output()
-        .expect("rtsim runs")
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rtsim-scenes-{}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d.join(name)
-}
+use std::process::Output;
 
 fn shared() -> bool {
     PathBuf::from(concat!(

@@ -102,10 +102,17 @@ fn path_seed(seed: u64, tile: (u32, u32), pixel: u32, sample: u32) -> u64 {
     r.next_u64() ^ u64::from(sample).wrapping_mul(0x9e37_79b9_7f4a_7c15)
 }
 
-/// Primary rays of tile (`tx`, `ty`) of size `t` x `t` pixels, `spp` jittered samples each.
-#[must_use]
-pub fn primary_tile(cam: &Camera, tx: u32, ty: u32, t: u32, spp: u32, seed: u64) -> RayStream {
-    let mut s = RayStream::new(StreamKind::Primary);
+/// Call `f` with the pinhole ray and the path's own generator for every
+/// jittered sample of every pixel of tile (`tx`, `ty`) (`t` x `t` pixels).
+fn for_each_sample(
+    cam: &Camera,
+    tx: u32,
+    ty: u32,
+    t: u32,
+    spp: u32,
+    seed: u64,
+    mut f: impl FnMut([f64; 3], [f64; 3], Rng),
+) {
     for py in 0..t {
         for px in 0..t {
             let (x, y) = (tx * t + px, ty * t + py);
@@ -118,11 +125,28 @@ pub fn primary_tile(cam: &Camera, tx: u32, ty: u32, t: u32, spp: u32, seed: u64)
                     f64::from(x) + f64::from(r.f32()),
                     f64::from(y) + f64::from(r.f32()),
                 );
-                s.push(o, d, f32::INFINITY);
+                f(o, d, r);
             }
         }
     }
+}
+
+/// Primary rays of tile (`tx`, `ty`) of size `t` x `t` pixels, `spp` jittered samples each.
+#[must_use]
+pub fn primary_tile(cam: &Camera, tx: u32, ty: u32, t: u32, spp: u32, seed: u64) -> RayStream {
+    let mut s = RayStream::new(StreamKind::Primary);
+    for_each_sample(cam, tx, ty, t, spp, seed, |o, d, _| {
+        s.push(o, d, f32::INFINITY)
+    });
     s
+}
+
+/// The scene's largest extent (scales hit-point offsets).
+fn scene_size(scene: &Scene) -> f64 {
+    let b = scene.bounds();
+    (0..3)
+        .map(|a| f64::from(b.hi[a] - b.lo[a]))
+        .fold(0.0, f64::max)
 }
 
 type V3 = [f64; 3];
@@ -213,10 +237,7 @@ pub fn path_trace_tile(
 ) -> Vec<RayStream> {
     let (tx, ty, t) = (tile.x, tile.y, tile.size);
     let refi = Reference::with_bvh(&scene.mesh, bvh);
-    let b = scene.bounds();
-    let size = (0..3)
-        .map(|a| f64::from(b.hi[a] - b.lo[a]))
-        .fold(0.0, f64::max);
+    let size = scene_size(scene);
     let primary = primary_tile(&scene.config.camera, tx, ty, t, spp, seed);
     let stream_size = primary.len().max(1);
     let mut out = vec![primary.clone()];
@@ -308,10 +329,7 @@ pub fn distribution_tile(
     let (tx, ty, t) = (tile.x, tile.y, tile.size);
     let refi = Reference::with_bvh(&scene.mesh, bvh);
     let cam = &scene.config.camera;
-    let b = scene.bounds();
-    let size = (0..3)
-        .map(|a| f64::from(b.hi[a] - b.lo[a]))
-        .fold(0.0, f64::max);
+    let size = scene_size(scene);
     let mut primary = RayStream::new(StreamKind::Primary);
     let mut rngs = Vec::new();
     let eye = cam.eye.map(f64::from);
@@ -319,33 +337,20 @@ pub fn distribution_tile(
     let fwd = norm(centre);
     let right = norm(cross(fwd, cam.up.map(f64::from)));
     let up = cross(right, fwd);
-    for py in 0..t {
-        for px in 0..t {
-            let (x, y) = (tx * t + px, ty * t + py);
-            if x >= cam.width || y >= cam.height {
-                continue;
-            }
-            for k in 0..paths {
-                let mut r = Rng::new(path_seed(seed, (tx, ty), py * t + px, k));
-                let (o, d) = cam.ray(
-                    f64::from(x) + f64::from(r.f32()),
-                    f64::from(y) + f64::from(r.f32()),
-                );
-                // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
-                let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
-                let (a, phi) = (
-                    lens.aperture * f64::from(r.f32()).sqrt(),
-                    2.0 * std::f64::consts::PI * f64::from(r.f32()),
-                );
-                let lo = add(
-                    eye,
-                    add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
-                );
-                primary.push(lo, sub(focal, lo), f32::INFINITY);
-                rngs.push(r);
-            }
-        }
-    }
+    for_each_sample(cam, tx, ty, t, paths, seed, |o, d, mut r| {
+        // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
+        let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
+        let (a, phi) = (
+            lens.aperture * f64::from(r.f32()).sqrt(),
+            2.0 * std::f64::consts::PI * f64::from(r.f32()),
+        );
+        let lo = add(
+            eye,
+            add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
+        );
+        primary.push(lo, sub(focal, lo), f32::INFINITY);
+        rngs.push(r);
+    });
     let mut out = vec![primary.clone()];
     let mut current = primary;
     for bounce in 0..2 {
@@ -414,10 +419,7 @@ pub struct FrustumInput {
 pub fn soft_shadow_frusta(scene: &Scene, bvh: &Bvh2) -> Vec<FrustumInput> {
     let refi = Reference::with_bvh(&scene.mesh, bvh);
     let cam = &scene.config.camera;
-    let b = scene.bounds();
-    let size = (0..3)
-        .map(|a| f64::from(b.hi[a] - b.lo[a]))
-        .fold(0.0, f64::max);
+    let size = scene_size(scene);
     let sets: Vec<[[f64; 2]; 16]> = (0..16).map(hammersley_set).collect();
     let mut out = Vec::new();
     for gy in (0..cam.height).step_by(4) {

@@ -7,79 +7,8 @@ use kernels::bvh::{Aabb, BuildConfig, Bvh2};
 use kernels::mesh::Mesh;
 use kernels::reference::{moller_trumbore, Ray, Reference, Slab, Watertight};
 
-/// A closed icosphere of radius 1 (20 * 4^level triangles), shared vertices.
-fn icosphere(level: usize) -> Mesh {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut v: Vec<[f64; 3]> = vec![
-        [-1.0, t, 0.0],
-        [1.0, t, 0.0],
-        [-1.0, -t, 0.0],
-        [1.0, -t, 0.0],
-        [0.0, -1.0, t],
-        [0.0, 1.0, t],
-        [0.0, -1.0, -t],
-        [0.0, 1.0, -t],
-        [t, 0.0, -1.0],
-        [t, 0.0, 1.0],
-        [-t, 0.0, -1.0],
-        [-t, 0.0, 1.0],
-    ];
-    let mut f: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..level {
-        let mut mid = std::collections::HashMap::new();
-        let mut nf = Vec::new();
-        for tri in &f {
-            let mut m = [0u32; 3];
-            for k in 0..3 {
-                let (a, b) = (tri[k].min(tri[(k + 1) % 3]), tri[k].max(tri[(k + 1) % 3]));
-                m[k] = *mid.entry((a, b)).or_insert_with(|| {
-                    let (p, q) = (v[a as usize], v[b as usize]);
-                    v.push([
-                        (p[0] + q[0]) / 2.0,
-                        (p[1] + q[1]) / 2.0,
-                        (p[2] + q[2]) / 2.0,
-                    ]);
-                    v.len() as u32 - 1
-                });
-            }
-            nf.extend([
-                [tri[0], m[0], m[2]],
-                [tri[1], m[1], m[0]],
-                [tri[2], m[2], m[1]],
-                [m[0], m[1], m[2]],
-            ]);
-        }
-        f = nf;
-    }
-    let positions = v
-        .iter()
-        .map(|p| {
-            let l = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-            [(p[0] / l) as f32, (p[1] / l) as f32, (p[2] / l) as f32]
-        })
-        .collect();
-    Mesh { positions, tris: f }
+fn icosphere(level: u32) -> Mesh {
+    kernels::scene::icosphere(level)
 }
 
 fn f64v(p: [f32; 3]) -> [f64; 3] {

@@ -39,7 +39,7 @@ pub fn run(
     let penalty = u64::from(c.mispredict_penalty);
     let width = c.width as usize;
     let mut pipe_free = vec![0u64; c.ports as usize];
-    let mut mshr = vec![0u64; m.mshrs as usize];
+    let mut mshr = crate::memory::Mshrs::new(m.mshrs as usize);
     let mut th: Vec<Thread> = traces
         .iter()
         .map(|t| Thread {
@@ -129,19 +129,14 @@ pub fn run(
                     let mut start = cycle;
                     let mut slot = None;
                     if !mem.in_l1(0, op.addr.0) {
-                        let (j, free) = mshr
-                            .iter()
-                            .enumerate()
-                            .min_by_key(|(_, &v)| v)
-                            .map(|(j, &v)| (j, v))
-                            .expect("mshrs");
+                        let (j, free) = mshr.earliest();
                         start = start.max(free);
                         slot = Some(j);
                         missed = true;
                     }
                     let sv = mem.access(0, op.addr.0, false, op.mem, start);
                     if let Some(j) = slot {
-                        mshr[j] = start + sv.latency;
+                        mshr.hold(j, start + sv.latency);
                     }
                     done = start + sv.latency;
                 } else if op.class.is_store() {

@@ -94,6 +94,32 @@ impl Cache {
     }
 }
 
+/// The L1 miss slots (MSHRs) of a core: when each frees.
+#[derive(Clone, Debug)]
+pub struct Mshrs(Vec<u64>);
+
+impl Mshrs {
+    /// `n` free slots.
+    #[must_use]
+    pub fn new(n: usize) -> Mshrs {
+        Mshrs(vec![0; n])
+    }
+    /// The earliest slot: its index and the cycle it frees.
+    #[must_use]
+    pub fn earliest(&self) -> (usize, u64) {
+        self.0
+            .iter()
+            .enumerate()
+            .min_by_key(|(_, &v)| v)
+            .map(|(j, &v)| (j, v))
+            .expect("at least one slot")
+    }
+    /// Hold slot `j` until cycle `until`.
+    pub fn hold(&mut self, j: usize, until: u64) {
+        self.0[j] = until;
+    }
+}
+
 /// Counters of one level.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LevelStats {

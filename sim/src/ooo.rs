@@ -226,7 +226,7 @@ pub struct OooCore {
     rob_seq: usize,
     rs_ring: Vec<u64>,
     rs_seq: usize,
-    mshr: Vec<u64>,
+    mshr: crate::memory::Mshrs,
     stores: [(u64, u64, u64); STORES],
     store_seq: usize,
     pred: Gshare,
@@ -262,7 +262,7 @@ impl OooCore {
             rob_seq: 0,
             rs_ring: vec![0; c.scheduler as usize],
             rs_seq: 0,
-            mshr: vec![0; m.mshrs as usize],
+            mshr: crate::memory::Mshrs::new(m.mshrs as usize),
             stores: [(u64::MAX, 0, 0); STORES],
             store_seq: 0,
             pred: Gshare::new(c.history_bits, c.predictor_bits),
@@ -387,20 +387,14 @@ impl OooCore {
                     let mut start = first;
                     let mut slot = None;
                     if !mem.in_l1(self.core, lo) {
-                        let (j, free) = self
-                            .mshr
-                            .iter()
-                            .enumerate()
-                            .min_by_key(|(_, &v)| v)
-                            .map(|(j, &v)| (j, v))
-                            .expect("mshrs >= 1");
+                        let (j, free) = self.mshr.earliest();
                         start = start.max(free);
                         slot = Some(j);
                         why = Stall::Memory;
                     }
                     let sv = mem.access(self.core, lo, false, op.mem, start);
                     if let Some(j) = slot {
-                        self.mshr[j] = start + sv.latency;
+                        self.mshr.hold(j, start + sv.latency);
                     }
                     done = start + sv.latency;
                 }

@@ -571,15 +571,22 @@ impl Bvh4 {
         me as u32
     }
 
-    /// The 128-byte record of node `i` as u32 words.
+    /// The 128-byte record of node `i` as u32 words. An unused slot's box is
+    /// the point (+inf, +inf, +inf), which no finite ray reaches: an inverted
+    /// box would become an infinite slab under a min/max slab test.
     #[must_use]
     pub fn record(&self, i: usize) -> [u32; 32] {
         let n = &self.nodes[i];
         let mut r = [0u32; 32];
         for c in 0..4 {
+            let (lo, hi) = if n.child[c] == EMPTY_SLOT {
+                ([f32::INFINITY; 3], [f32::INFINITY; 3])
+            } else {
+                (n.bounds[c].lo, n.bounds[c].hi)
+            };
             for a in 0..3 {
-                r[8 * a + c] = n.bounds[c].lo[a].to_bits();
-                r[8 * a + 4 + c] = n.bounds[c].hi[a].to_bits();
+                r[8 * a + c] = lo[a].to_bits();
+                r[8 * a + 4 + c] = hi[a].to_bits();
             }
             r[24 + c] = n.child[c];
         }

@@ -8,8 +8,10 @@
 
 pub mod boxtest;
 pub mod bvh;
+pub mod layout;
 pub mod mesh;
 pub mod micro;
 pub mod reference;
 pub mod scene;
+pub mod single;
 pub mod workload;

@@ -1,0 +1,107 @@
+//! A scene laid out in a machine's simulated memory, as the DRS kernels
+//! read it: BVH4 nodes, 8-wide triangle blocks, rays and hits.
+//!
+//! | structure | record | bytes | fields |
+//! |---|---|---|---|
+//! | BVH4 node | 128 | `min_x[4] max_x[4] min_y[4] max_y[4] min_z[4] max_z[4]` f32, `child[4]` u32, pad | child: node index, `LEAF \| block`, or `EMPTY_SLOT` |
+//! | triangle block | 320 | `v0x[8] v0y[8] v0z[8] e1x[8] e1y[8] e1z[8] e2x[8] e2y[8] e2z[8]` f32, `prim[8]` i32 | e1 = v1 - v0, e2 = v2 - v0; unused slots: prim = -1, zero edges |
+//! | traversal ray | 32 | `idir.xyz, t_near, org.xyz * idir.xyz, t_far` | as the DRS paper |
+//! | intersection ray | 32 | `org.xyz, 0, dir.xyz, 0` | |
+//! | hit | 16 | `t` f32, `u` f32, `v` f32, `prim` i32 | prim = -1: no hit |
+//!
+//! Deviation: leaves hold at most 8 triangles (one block), so a BVH4 leaf ref
+//! names one block; the paper's Embree leaves are triangle4 lists.
+
+use crate::bvh::{Bvh2, Bvh4, EMPTY_SLOT, LEAF};
+use crate::mesh::Mesh;
+use isa::{Buf, Machine, MemKind};
+
+/// Bytes of a triangle block.
+pub const BLOCK_BYTES: usize = 320;
+/// Triangles per block.
+pub const BLOCK: usize = 8;
+/// Bytes of a BVH4 node record.
+pub const NODE_BYTES: usize = 128;
+/// Bytes of a hit record.
+pub const HIT_BYTES: usize = 16;
+
+/// The scene's buffers in a machine's address space.
+pub struct SceneBufs {
+    /// BVH4 nodes.
+    pub nodes: Buf,
+    /// Triangle blocks.
+    pub tris: Buf,
+    /// Bounds of the root.
+    pub root_bounds: crate::bvh::Aabb,
+}
+
+/// Lay a BVH4 (built over `mesh` with leaves of at most 8 triangles) into `m`'s memory.
+pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> SceneBufs {
+    let mut node_words: Vec<u32> = Vec::with_capacity(b4.nodes.len() * 32);
+    for i in 0..b4.nodes.len() {
+        node_words.extend_from_slice(&b4.record(i));
+    }
+    let mut block_words: Vec<u32> = Vec::with_capacity(b4.leaves.len() * 80);
+    for &[first, count] in &b4.leaves {
+        assert!(
+            count as usize <= BLOCK,
+            "leaf of {count} triangles: build with max_leaf <= 8"
+        );
+        let mut w = [0u32; 80];
+        for k in 0..BLOCK {
+            if (k as u32) < count {
+                let p = b2.prims[(first + k as u32) as usize];
+                let [v0, v1, v2] = mesh.tri(p as usize);
+                for a in 0..3 {
+                    w[a * 8 + k] = v0[a].to_bits();
+                    w[(3 + a) * 8 + k] = (v1[a] - v0[a]).to_bits();
+                    w[(6 + a) * 8 + k] = (v2[a] - v0[a]).to_bits();
+                }
+                w[72 + k] = p;
+            } else {
+                w[72 + k] = u32::MAX; // -1: no triangle
+            }
+        }
+        block_words.extend_from_slice(&w);
+    }
+    let nodes = m
+        .space()
+        .alloc_u32(MemKind::Nodes, "bvh4-nodes", &node_words, 64);
+    let tris = m
+        .space()
+        .alloc_u32(MemKind::Triangles, "tri-blocks", &block_words, 64);
+    SceneBufs {
+        nodes,
+        tris,
+        root_bounds: b4.root_bounds,
+    }
+}
+
+/// Whether a BVH4 child ref names a leaf block.
+#[must_use]
+pub fn is_leaf(r: u32) -> bool {
+    r != EMPTY_SLOT && r & LEAF != 0
+}
+
+/// Traversal and intersection ray records for rays (org, dir, t_far).
+#[must_use]
+pub fn ray_records(org: &[[f32; 3]], dir: &[[f32; 3]], tfar: &[f32]) -> (Vec<f32>, Vec<f32>) {
+    let mut trav = Vec::with_capacity(org.len() * 8);
+    let mut isect = Vec::with_capacity(org.len() * 8);
+    for i in 0..org.len() {
+        let (o, d) = (org[i], dir[i]);
+        let id = d.map(|c| 1.0 / c);
+        trav.extend_from_slice(&[
+            id[0],
+            id[1],
+            id[2],
+            0.0,
+            o[0] * id[0],
+            o[1] * id[1],
+            o[2] * id[2],
+            tfar[i],
+        ]);
+        isect.extend_from_slice(&[o[0], o[1], o[2], 0.0, d[0], d[1], d[2], 0.0]);
+    }
+    (trav, isect)
+}

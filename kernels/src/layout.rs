@@ -105,3 +105,16 @@ pub fn ray_records(org: &[[f32; 3]], dir: &[[f32; 3]], tfar: &[f32]) -> (Vec<f32
     }
     (trav, isect)
 }
+
+/// Initial hit records of `n` rays: t = infinity, u = v = 0, prim = -1.
+#[must_use]
+pub fn hit_records(n: usize) -> Vec<u8> {
+    let mut b = Vec::with_capacity(n * 16);
+    for _ in 0..n {
+        b.extend(f32::INFINITY.to_le_bytes());
+        b.extend(0f32.to_le_bytes());
+        b.extend(0f32.to_le_bytes());
+        b.extend((-1i32).to_le_bytes());
+    }
+    b
+}

@@ -38,16 +38,42 @@ pub mod site {
 pub const STACK_ENTRIES: usize = 256;
 
 /// Trace rays `[0, nrays)`: `trav`/`isect` are the ray records of
-/// [`crate::layout::ray_records`]; `hits` gets one 16-byte record per ray;
-/// `stack` needs `STACK_ENTRIES * 8` bytes.
+/// [`crate::layout::ray_records`]; `hits` holds one 16-byte record per ray
+/// ([`crate::layout::hit_records`]); `stack` needs `STACK_ENTRIES * 8` bytes.
 pub fn trace<M: Machine>(
     m: &mut M,
     s: &SceneBufs,
-    trav: &Buf,
+    trav: &mut Buf,
     isect: &Buf,
     hits: &mut Buf,
     stack: &mut Buf,
     nrays: usize,
+) {
+    let mut ray = m.int(0);
+    let nr = m.int(nrays as i64);
+    let root = m.int(0);
+    loop {
+        trace_ray(m, s, trav, isect, hits, stack, ray, root);
+        ray = m.s_addi(ray, 1);
+        if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
+            break;
+        }
+    }
+}
+
+/// Trace one ray from node `start` (a BVH4 node index or leaf ref), keeping the
+/// best hit already in its hit record and its current `t_far`; writes back
+/// the hit record and `t_far` (so ray-stream kernels can fall back to this).
+#[allow(clippy::too_many_arguments)]
+pub fn trace_ray<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    ray: M::S,
+    start: M::S,
 ) {
     let n = M::LANES;
     let width = n.min(8);
@@ -55,207 +81,200 @@ pub fn trace<M: Machine>(
     let inf = m.splat(f32::INFINITY);
     let zero_v = m.splat(0.0);
     let one_v = m.splat(1.0);
-    let neg1 = m.int(-1);
-    let mut ray = m.int(0);
-    let nr = m.int(nrays as i64);
+    m.region(Region::SingleRay);
+    let ro = m.s_shift(isa::Shift::Shl, ray, 5);
+    // Ray data, broadcast per component (vbroadcastss m32).
+    let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
+    let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
+    let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
+    let tnear_ray = bc(m, trav, 3);
+    let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
+    let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
+    let mut tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
+    let mut tfar = m.broadcast(tfar_x);
+    let ho = m.s_shift(isa::Shift::Shl, ray, 4);
+    let mut best_u = m.x_load(hits, At::idx(ho, 1, 4));
+    let mut best_v = m.x_load(hits, At::idx(ho, 1, 8));
+    let mut best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
+    // Push the start node.
+    let mut sp = m.int(0);
+    m.s_store(stack, At::off(0), 4, start);
+    let z = m.float(0.0);
+    m.x_store(stack, At::off(4), z);
+    sp = m.s_addi(sp, 1);
     loop {
-        m.region(Region::SingleRay);
-        let ro = m.s_shift(isa::Shift::Shl, ray, 5);
-        // Ray data, broadcast per component (vbroadcastss m32).
-        let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
-        let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
-        let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
-        let tnear_ray = bc(m, trav, 3);
-        let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
-        let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
-        let mut tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
-        let mut tfar = m.broadcast(tfar_x);
-        let (mut best_prim, mut best_u, mut best_v) = (neg1, m.float(0.0), m.float(0.0));
-        // Push the root.
-        let mut sp = m.int(0);
-        let root = m.int(0);
-        m.s_store(stack, At::off(0), 4, root);
-        let z = m.float(0.0);
-        m.x_store(stack, At::off(4), z);
-        sp = m.s_addi(sp, 1);
-        loop {
-            m.region(Region::Traversal);
-            let zero = m.int(0);
-            if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
-                break;
-            }
-            sp = m.s_addi(sp, -1);
-            let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
-            let tn = m.x_load(stack, At::idx(sp, 8, 4));
-            let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
-            if m.branch(site::CULL, cull) {
-                continue;
-            }
-            // Descend through inner nodes.
-            loop {
-                let leaf_flag = m.int(i64::from(crate::bvh::LEAF));
-                let lf = m.s_and(node, leaf_flag);
-                if m.branch(site::LEAF, lf) {
-                    break;
-                }
-                // node * 128: a shift.
-                let base = m.s_shift(isa::Shift::Shl, node, NODE_BYTES.trailing_zeros());
-                let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
-                let mut tn_v = tnear_ray;
-                let mut tf_v = tfar;
-                for a in 0..3 {
-                    let lo = b(m, 2 * a);
-                    let hi = b(m, 2 * a + 1);
-                    let t0 = m.fmsub(lo, idir[a], oid[a]);
-                    let t1 = m.fmsub(hi, idir[a], oid[a]);
-                    let mn = m.min(t0, t1);
-                    let mx = m.max(t0, t1);
-                    tn_v = m.max(tn_v, mn);
-                    tf_v = m.min(tf_v, mx);
-                }
-                let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
-                let bits = m.movemask(hitk);
-                let four = m.int(0xF);
-                let mut bits = m.s_and(bits, four);
-                let none = m.s_cmp(Cmp::Eq, bits, zero);
-                if m.branch(site::ANY_CHILD, none) {
-                    node = m.int(i64::from(EMPTY_SLOT));
-                    break;
-                }
-                // Closest hit child: scalar compares over the hit lanes; the rest are pushed.
-                let mut best_c: Option<(M::S, M::X)> = None;
-                loop {
-                    let lane = m.s_tzcnt(bits);
-                    let l = lane.get() as usize;
-                    let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
-                    let d = m.extract(tn_v, l);
-                    match best_c {
-                        None => best_c = Some((child, d)),
-                        Some((bc_, bd)) => {
-                            let closer = m.x_cmp(Cmp::Lt, d, bd);
-                            let (push_c, push_d, keep) = if m.branch(site::CLOSER, closer) {
-                                (bc_, bd, (child, d))
-                            } else {
-                                (child, d, (bc_, bd))
-                            };
-                            m.s_store(stack, At::idx(sp, 8, 0), 4, push_c);
-                            m.x_store(stack, At::idx(sp, 8, 4), push_d);
-                            sp = m.s_addi(sp, 1);
-                            best_c = Some(keep);
-                        }
-                    }
-                    let lm1 = m.s_addi(bits, -1);
-                    bits = m.s_and(bits, lm1);
-                    let more = m.s_cmp(Cmp::Ne, bits, zero);
-                    if !m.branch(site::CHILD, more) {
-                        break;
-                    }
-                }
-                node = best_c.expect("a hit child").0;
-            }
-            if !is_leaf(node.get() as u32) {
-                continue;
-            }
-            // Leaf: one block of 8 triangles, in passes of the lanes there are.
-            m.region(Region::Leaf);
-            let mask_idx = m.int(i64::from(!crate::bvh::LEAF));
-            let blk = m.s_and(node, mask_idx);
-            let bytes = m.int(BLOCK_BYTES as i64);
-            let bb = m.s_op(isa::SOp::Mul, blk, bytes);
-            for p in 0..passes {
-                let row = |m: &mut M, r: usize| {
-                    let at = At::idx(bb, 1, 32 * r + 4 * width * p);
-                    if n > 8 {
-                        m.load_repeat(&s.tris, at, 8)
-                    } else {
-                        m.load(&s.tris, at)
-                    }
-                };
-                let v0 = [row(m, 0), row(m, 1), row(m, 2)];
-                let e1 = [row(m, 3), row(m, 4), row(m, 5)];
-                let e2 = [row(m, 6), row(m, 7), row(m, 8)];
-                let prim_f = row(m, 9);
-                let prim = m.bits_to_i(prim_f);
-                // p = d x e2
-                let cross = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
-                    let x0 = m.mul(a[2], b[1]);
-                    let x = m.fmsub(a[1], b[2], x0);
-                    let y0 = m.mul(a[0], b[2]);
-                    let y = m.fmsub(a[2], b[0], y0);
-                    let z0 = m.mul(a[1], b[0]);
-                    let zz = m.fmsub(a[0], b[1], z0);
-                    [x, y, zz]
-                };
-                let dot = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
-                    let d0 = m.mul(a[0], b[0]);
-                    let d1 = m.fmadd(a[1], b[1], d0);
-                    m.fmadd(a[2], b[2], d1)
-                };
-                let pv = cross(m, dir, e2);
-                let det = dot(m, e1, pv);
-                let inv = m.rcp(det);
-                let sv = [
-                    m.sub(org[0], v0[0]),
-                    m.sub(org[1], v0[1]),
-                    m.sub(org[2], v0[2]),
-                ];
-                let u0 = dot(m, sv, pv);
-                let u = m.mul(u0, inv);
-                let qv = cross(m, sv, e1);
-                let v0_ = dot(m, dir, qv);
-                let v = m.mul(v0_, inv);
-                let t0 = dot(m, e2, qv);
-                let t = m.mul(t0, inv);
-                let uv = m.add(u, v);
-                let ok_det = m.cmp(Cmp::Ne, det, zero_v);
-                let ok_u = m.cmp(Cmp::Ge, u, zero_v);
-                let ok_v = m.cmp(Cmp::Ge, v, zero_v);
-                let ok_uv = m.cmp(Cmp::Le, uv, one_v);
-                let ok_t0 = m.cmp(Cmp::Gt, t, zero_v);
-                let ok_t1 = m.cmp(Cmp::Lt, t, tfar);
-                let zi = m.splat_i(0);
-                let ok_p = m.icmp(Cmp::Ge, prim, zi);
-                let mut valid = m.klogic(Logic::And, ok_det, ok_u);
-                for k in [ok_v, ok_uv, ok_t0, ok_t1, ok_p] {
-                    valid = m.klogic(Logic::And, valid, k);
-                }
-                if n > 8 {
-                    let low = m.mask(0xFF);
-                    valid = m.klogic(Logic::And, valid, low);
-                }
-                let any = m.any(valid);
-                if !m.branch(site::TRI, any) {
-                    continue;
-                }
-                let tv = m.select(valid, t, inf);
-                let tmin = m.reduce(BinOp::Min, tv);
-                let tb = m.broadcast(tmin);
-                let eq = m.cmp(Cmp::Eq, tv, tb);
-                let at_min = m.klogic(Logic::And, eq, valid);
-                let lane = m.bitscan(at_min);
-                let l = lane.get() as usize;
-                tfar_x = tmin;
-                tfar = tb;
-                best_u = m.extract(u, l);
-                best_v = m.extract(v, l);
-                best_prim = m.s_load(
-                    &s.tris,
-                    At::idx(bb, 1, 32 * 9 + 4 * (width * p + l)),
-                    4,
-                    true,
-                );
-            }
-        }
-        // Write the hit record.
-        m.region(Region::SingleRay);
-        let ho = m.s_shift(isa::Shift::Shl, ray, 4);
-        m.x_store(hits, At::idx(ho, 1, 0), tfar_x);
-        m.x_store(hits, At::idx(ho, 1, 4), best_u);
-        m.x_store(hits, At::idx(ho, 1, 8), best_v);
-        m.s_store(hits, At::idx(ho, 1, 12), 4, best_prim);
-        ray = m.s_addi(ray, 1);
-        if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
+        m.region(Region::Traversal);
+        let zero = m.int(0);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
             break;
         }
+        sp = m.s_addi(sp, -1);
+        let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
+        let tn = m.x_load(stack, At::idx(sp, 8, 4));
+        let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
+        if m.branch(site::CULL, cull) {
+            continue;
+        }
+        // Descend through inner nodes.
+        loop {
+            let leaf_flag = m.int(i64::from(crate::bvh::LEAF));
+            let lf = m.s_and(node, leaf_flag);
+            if m.branch(site::LEAF, lf) {
+                break;
+            }
+            // node * 128: a shift.
+            let base = m.s_shift(isa::Shift::Shl, node, NODE_BYTES.trailing_zeros());
+            let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
+            let mut tn_v = tnear_ray;
+            let mut tf_v = tfar;
+            for a in 0..3 {
+                let lo = b(m, 2 * a);
+                let hi = b(m, 2 * a + 1);
+                let t0 = m.fmsub(lo, idir[a], oid[a]);
+                let t1 = m.fmsub(hi, idir[a], oid[a]);
+                let mn = m.min(t0, t1);
+                let mx = m.max(t0, t1);
+                tn_v = m.max(tn_v, mn);
+                tf_v = m.min(tf_v, mx);
+            }
+            let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
+            let bits = m.movemask(hitk);
+            let four = m.int(0xF);
+            let mut bits = m.s_and(bits, four);
+            let none = m.s_cmp(Cmp::Eq, bits, zero);
+            if m.branch(site::ANY_CHILD, none) {
+                node = m.int(i64::from(EMPTY_SLOT));
+                break;
+            }
+            // Closest hit child: scalar compares over the hit lanes; the rest are pushed.
+            let mut best_c: Option<(M::S, M::X)> = None;
+            loop {
+                let lane = m.s_tzcnt(bits);
+                let l = lane.get() as usize;
+                let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
+                let d = m.extract(tn_v, l);
+                match best_c {
+                    None => best_c = Some((child, d)),
+                    Some((bc_, bd)) => {
+                        let closer = m.x_cmp(Cmp::Lt, d, bd);
+                        let (push_c, push_d, keep) = if m.branch(site::CLOSER, closer) {
+                            (bc_, bd, (child, d))
+                        } else {
+                            (child, d, (bc_, bd))
+                        };
+                        m.s_store(stack, At::idx(sp, 8, 0), 4, push_c);
+                        m.x_store(stack, At::idx(sp, 8, 4), push_d);
+                        sp = m.s_addi(sp, 1);
+                        best_c = Some(keep);
+                    }
+                }
+                let lm1 = m.s_addi(bits, -1);
+                bits = m.s_and(bits, lm1);
+                let more = m.s_cmp(Cmp::Ne, bits, zero);
+                if !m.branch(site::CHILD, more) {
+                    break;
+                }
+            }
+            node = best_c.expect("a hit child").0;
+        }
+        if !is_leaf(node.get() as u32) {
+            continue;
+        }
+        // Leaf: one block of 8 triangles, in passes of the lanes there are.
+        m.region(Region::Leaf);
+        let mask_idx = m.int(i64::from(!crate::bvh::LEAF));
+        let blk = m.s_and(node, mask_idx);
+        let bytes = m.int(BLOCK_BYTES as i64);
+        let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+        for p in 0..passes {
+            let row = |m: &mut M, r: usize| {
+                let at = At::idx(bb, 1, 32 * r + 4 * width * p);
+                if n > 8 {
+                    m.load_repeat(&s.tris, at, 8)
+                } else {
+                    m.load(&s.tris, at)
+                }
+            };
+            let v0 = [row(m, 0), row(m, 1), row(m, 2)];
+            let e1 = [row(m, 3), row(m, 4), row(m, 5)];
+            let e2 = [row(m, 6), row(m, 7), row(m, 8)];
+            let prim_f = row(m, 9);
+            let prim = m.bits_to_i(prim_f);
+            // p = d x e2
+            let cross = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
+                let x0 = m.mul(a[2], b[1]);
+                let x = m.fmsub(a[1], b[2], x0);
+                let y0 = m.mul(a[0], b[2]);
+                let y = m.fmsub(a[2], b[0], y0);
+                let z0 = m.mul(a[1], b[0]);
+                let zz = m.fmsub(a[0], b[1], z0);
+                [x, y, zz]
+            };
+            let dot = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
+                let d0 = m.mul(a[0], b[0]);
+                let d1 = m.fmadd(a[1], b[1], d0);
+                m.fmadd(a[2], b[2], d1)
+            };
+            let pv = cross(m, dir, e2);
+            let det = dot(m, e1, pv);
+            let inv = m.rcp(det);
+            let sv = [
+                m.sub(org[0], v0[0]),
+                m.sub(org[1], v0[1]),
+                m.sub(org[2], v0[2]),
+            ];
+            let u0 = dot(m, sv, pv);
+            let u = m.mul(u0, inv);
+            let qv = cross(m, sv, e1);
+            let v0_ = dot(m, dir, qv);
+            let v = m.mul(v0_, inv);
+            let t0 = dot(m, e2, qv);
+            let t = m.mul(t0, inv);
+            let uv = m.add(u, v);
+            let ok_det = m.cmp(Cmp::Ne, det, zero_v);
+            let ok_u = m.cmp(Cmp::Ge, u, zero_v);
+            let ok_v = m.cmp(Cmp::Ge, v, zero_v);
+            let ok_uv = m.cmp(Cmp::Le, uv, one_v);
+            let ok_t0 = m.cmp(Cmp::Gt, t, zero_v);
+            let ok_t1 = m.cmp(Cmp::Lt, t, tfar);
+            let zi = m.splat_i(0);
+            let ok_p = m.icmp(Cmp::Ge, prim, zi);
+            let mut valid = m.klogic(Logic::And, ok_det, ok_u);
+            for k in [ok_v, ok_uv, ok_t0, ok_t1, ok_p] {
+                valid = m.klogic(Logic::And, valid, k);
+            }
+            if n > 8 {
+                let low = m.mask(0xFF);
+                valid = m.klogic(Logic::And, valid, low);
+            }
+            let any = m.any(valid);
+            if !m.branch(site::TRI, any) {
+                continue;
+            }
+            let tv = m.select(valid, t, inf);
+            let tmin = m.reduce(BinOp::Min, tv);
+            let tb = m.broadcast(tmin);
+            let eq = m.cmp(Cmp::Eq, tv, tb);
+            let at_min = m.klogic(Logic::And, eq, valid);
+            let lane = m.bitscan(at_min);
+            let l = lane.get() as usize;
+            tfar_x = tmin;
+            tfar = tb;
+            best_u = m.extract(u, l);
+            best_v = m.extract(v, l);
+            best_prim = m.s_load(
+                &s.tris,
+                At::idx(bb, 1, 32 * 9 + 4 * (width * p + l)),
+                4,
+                true,
+            );
+        }
     }
+    // Write the hit record and the new t_far.
+    m.region(Region::SingleRay);
+    m.x_store(hits, At::idx(ho, 1, 0), tfar_x);
+    m.x_store(trav, At::idx(ro, 1, 28), tfar_x);
+    m.x_store(hits, At::idx(ho, 1, 4), best_u);
+    m.x_store(hits, At::idx(ho, 1, 8), best_v);
+    m.s_store(hits, At::idx(ho, 1, 12), 4, best_prim);
 }

@@ -4,7 +4,7 @@
 
 use isa::{FlavourId, Machine, MemKind, Program};
 use kernels::bvh::{BuildConfig, Bvh2, Bvh4};
-use kernels::layout::{lay_out, ray_records, HIT_BYTES};
+use kernels::layout::{hit_records, lay_out, ray_records};
 use kernels::reference::{Ray, Reference};
 use kernels::scene::Scene;
 use kernels::single::{trace, STACK_ENTRIES};
@@ -24,15 +24,23 @@ impl Program for Run<'_> {
         let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
         let tfar = vec![f32::INFINITY; self.org.len()];
         let (tr, is) = ray_records(&self.org, &self.dir, &tfar);
-        let trav = m.space().alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
+        let mut trav = m.space().alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
         let isect = m.space().alloc_f32(MemKind::Rays, "rays-isect", &is, 64);
-        let mut hits = m
-            .space()
-            .alloc(MemKind::Hits, "hits", self.org.len() * HIT_BYTES, 64);
+        let mut hits =
+            m.space()
+                .alloc_bytes(MemKind::Hits, "hits", hit_records(self.org.len()), 64);
         let mut stack = m
             .space()
             .alloc(MemKind::Stack, "stack", STACK_ENTRIES * 8, 64);
-        trace(m, &s, &trav, &isect, &mut hits, &mut stack, self.org.len());
+        trace(
+            m,
+            &s,
+            &mut trav,
+            &isect,
+            &mut hits,
+            &mut stack,
+            self.org.len(),
+        );
         (0..self.org.len())
             .map(|i| (hits.f32_at(16 * i), hits.u32_at(16 * i + 12) as i32))
             .collect()

@@ -93,24 +93,39 @@ pub fn box4_ref(node: &Node4, ray: &Ray32, fused: bool) -> u8 {
 
 /// Lane patterns, as constants so the native backend folds every permute
 /// into one shuffle instruction (runtime patterns cost a lookup per lane).
-struct Pat<const N: usize>;
+pub(crate) struct Pat<const N: usize>;
 
 impl<const N: usize> Pat<N> {
     /// dirNear of ray i/4 into block i/4 (permute2f128 0x20 on AVX2).
-    const DIR_NEAR: [u8; N] = half_pattern::<N>(0);
+    pub(crate) const DIR_NEAR: [u8; N] = half_pattern::<N>(0);
     /// orgFar of ray i/4 into block i/4 (permute2f128 0x31 on AVX2).
-    const ORG_FAR: [u8; N] = half_pattern::<N>(4);
+    pub(crate) const ORG_FAR: [u8; N] = half_pattern::<N>(4);
     /// Whether DIR_NEAR is the first load itself (one ray per vector).
-    const DN_ID: bool = is_identity(&Self::DIR_NEAR, 0);
+    pub(crate) const DN_ID: bool = is_identity(&Self::DIR_NEAR, 0);
     /// Whether ORG_FAR is the second load itself.
-    const OF_ID: bool = is_identity(&Self::ORG_FAR, N);
+    pub(crate) const OF_ID: bool = is_identity(&Self::ORG_FAR, N);
+    /// Swap siblings within each block: lanes 1,0,3,2 (c0 <-> c1, c2 <-> c3).
+    pub(crate) const SWAP_PAIRS: [u8; N] = xor_pattern::<N>(1);
+    /// Swap child pairs within each block: lanes 2,3,0,1 ({c0,c1} <-> {c2,c3}).
+    pub(crate) const SWAP_GROUPS: [u8; N] = xor_pattern::<N>(2);
     /// Broadcast element k within each 128-bit block (vpermilps).
-    const SPLAT: [[u8; N]; 4] = [
+    pub(crate) const SPLAT: [[u8; N]; 4] = [
         splat_pattern::<N>(0),
         splat_pattern::<N>(1),
         splat_pattern::<N>(2),
         splat_pattern::<N>(3),
     ];
+}
+
+/// Lane i takes lane i ^ d.
+const fn xor_pattern<const N: usize>(d: usize) -> [u8; N] {
+    let mut p = [0u8; N];
+    let mut i = 0;
+    while i < N {
+        p[i] = (i ^ d) as u8;
+        i += 1;
+    }
+    p
 }
 
 /// Lane i of the result takes element `8 * (i / 4) + base + i % 4` of the

@@ -488,7 +488,8 @@ pub const EMPTY_SLOT: u32 = u32::MAX;
 /// |---|---|
 /// | 0..96 | SoA boxes: min_x[4] max_x[4] min_y[4] max_y[4] min_z[4] max_z[4] (f32) |
 /// | 96..112 | child refs[4] (u32) |
-/// | 112..128 | padding |
+/// | 112..116 | valid-children mask (bit c: child c exists) |
+/// | 116..128 | padding |
 #[derive(Clone, Debug)]
 pub struct Bvh4 {
     /// Nodes; node 0 is the root.
@@ -572,8 +573,9 @@ impl Bvh4 {
     }
 
     /// The 128-byte record of node `i` as u32 words. An unused slot's box is
-    /// the point (+inf, +inf, +inf), which no finite ray reaches: an inverted
-    /// box would become an infinite slab under a min/max slab test.
+    /// the point (+inf, +inf, +inf) (an inverted box would become an infinite
+    /// slab under a min/max slab test), and kernels mask their hit bits with
+    /// the valid-children word: a ray with t_far = inf still "reaches" +inf.
     #[must_use]
     pub fn record(&self, i: usize) -> [u32; 32] {
         let n = &self.nodes[i];
@@ -589,6 +591,9 @@ impl Bvh4 {
                 r[8 * a + 4 + c] = hi[a].to_bits();
             }
             r[24 + c] = n.child[c];
+            if n.child[c] != EMPTY_SLOT {
+                r[28] |= 1 << c;
+            }
         }
         r
     }

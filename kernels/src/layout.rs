@@ -3,7 +3,7 @@
 //!
 //! | structure | record | bytes | fields |
 //! |---|---|---|---|
-//! | BVH4 node | 128 | `min_x[4] max_x[4] min_y[4] max_y[4] min_z[4] max_z[4]` f32, `child[4]` u32, pad | child: node index, `LEAF \| block`, or `EMPTY_SLOT` |
+//! | BVH4 node | 128 | `min_x[4] max_x[4] min_y[4] max_y[4] min_z[4] max_z[4]` f32, `child[4]` u32, `valid` u32, pad | child: node index, `LEAF \| block`, or `EMPTY_SLOT`; valid: bit c if child c exists |
 //! | triangle block | 320 | `v0x[8] v0y[8] v0z[8] e1x[8] e1y[8] e1z[8] e2x[8] e2y[8] e2z[8]` f32, `prim[8]` i32 | e1 = v1 - v0, e2 = v2 - v0; unused slots: prim = -1, zero edges |
 //! | traversal ray | 32 | `idir.xyz, t_near, org.xyz * idir.xyz, t_far` | as the DRS paper |
 //! | intersection ray | 32 | `org.xyz, 0, dir.xyz, 0` | |

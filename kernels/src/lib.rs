@@ -8,6 +8,7 @@
 
 pub mod boxtest;
 pub mod bvh;
+pub mod drs;
 pub mod layout;
 pub mod mesh;
 pub mod micro;

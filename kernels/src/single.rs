@@ -78,9 +78,6 @@ pub fn trace_ray<M: Machine>(
     let n = M::LANES;
     let width = n.min(8);
     let passes = 8 / width;
-    let inf = m.splat(f32::INFINITY);
-    let zero_v = m.splat(0.0);
-    let one_v = m.splat(1.0);
     m.region(Region::SingleRay);
     let ro = m.s_shift(isa::Shift::Shl, ray, 5);
     // Ray data, broadcast per component (vbroadcastss m32).
@@ -139,8 +136,8 @@ pub fn trace_ray<M: Machine>(
             }
             let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
             let bits = m.movemask(hitk);
-            let four = m.int(0xF);
-            let mut bits = m.s_and(bits, four);
+            let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
+            let mut bits = m.s_and(bits, valid);
             let none = m.s_cmp(Cmp::Eq, bits, zero);
             if m.branch(site::ANY_CHILD, none) {
                 node = m.int(i64::from(EMPTY_SLOT));
@@ -187,87 +184,15 @@ pub fn trace_ray<M: Machine>(
         let bytes = m.int(BLOCK_BYTES as i64);
         let bb = m.s_op(isa::SOp::Mul, blk, bytes);
         for p in 0..passes {
-            let row = |m: &mut M, r: usize| {
-                let at = At::idx(bb, 1, 32 * r + 4 * width * p);
-                if n > 8 {
-                    m.load_repeat(&s.tris, at, 8)
-                } else {
-                    m.load(&s.tris, at)
-                }
-            };
-            let v0 = [row(m, 0), row(m, 1), row(m, 2)];
-            let e1 = [row(m, 3), row(m, 4), row(m, 5)];
-            let e2 = [row(m, 6), row(m, 7), row(m, 8)];
-            let prim_f = row(m, 9);
-            let prim = m.bits_to_i(prim_f);
-            // p = d x e2
-            let cross = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
-                let x0 = m.mul(a[2], b[1]);
-                let x = m.fmsub(a[1], b[2], x0);
-                let y0 = m.mul(a[0], b[2]);
-                let y = m.fmsub(a[2], b[0], y0);
-                let z0 = m.mul(a[1], b[0]);
-                let zz = m.fmsub(a[0], b[1], z0);
-                [x, y, zz]
-            };
-            let dot = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
-                let d0 = m.mul(a[0], b[0]);
-                let d1 = m.fmadd(a[1], b[1], d0);
-                m.fmadd(a[2], b[2], d1)
-            };
-            let pv = cross(m, dir, e2);
-            let det = dot(m, e1, pv);
-            let inv = m.rcp(det);
-            let sv = [
-                m.sub(org[0], v0[0]),
-                m.sub(org[1], v0[1]),
-                m.sub(org[2], v0[2]),
-            ];
-            let u0 = dot(m, sv, pv);
-            let u = m.mul(u0, inv);
-            let qv = cross(m, sv, e1);
-            let v0_ = dot(m, dir, qv);
-            let v = m.mul(v0_, inv);
-            let t0 = dot(m, e2, qv);
-            let t = m.mul(t0, inv);
-            let uv = m.add(u, v);
-            let ok_det = m.cmp(Cmp::Ne, det, zero_v);
-            let ok_u = m.cmp(Cmp::Ge, u, zero_v);
-            let ok_v = m.cmp(Cmp::Ge, v, zero_v);
-            let ok_uv = m.cmp(Cmp::Le, uv, one_v);
-            let ok_t0 = m.cmp(Cmp::Gt, t, zero_v);
-            let ok_t1 = m.cmp(Cmp::Lt, t, tfar);
-            let zi = m.splat_i(0);
-            let ok_p = m.icmp(Cmp::Ge, prim, zi);
-            let mut valid = m.klogic(Logic::And, ok_det, ok_u);
-            for k in [ok_v, ok_uv, ok_t0, ok_t1, ok_p] {
-                valid = m.klogic(Logic::And, valid, k);
+            let blk = load_block(m, &s.tris, bb, p);
+            if let Some(h) = intersect(m, &blk, &org, &dir, tfar) {
+                tfar_x = h.t;
+                tfar = h.tb;
+                best_u = h.u;
+                best_v = h.v;
+                let off = 32 * 9 + 4 * (width * p + h.lane);
+                best_prim = m.s_load(&s.tris, At::idx(bb, 1, off), 4, true);
             }
-            if n > 8 {
-                let low = m.mask(0xFF);
-                valid = m.klogic(Logic::And, valid, low);
-            }
-            let any = m.any(valid);
-            if !m.branch(site::TRI, any) {
-                continue;
-            }
-            let tv = m.select(valid, t, inf);
-            let tmin = m.reduce(BinOp::Min, tv);
-            let tb = m.broadcast(tmin);
-            let eq = m.cmp(Cmp::Eq, tv, tb);
-            let at_min = m.klogic(Logic::And, eq, valid);
-            let lane = m.bitscan(at_min);
-            let l = lane.get() as usize;
-            tfar_x = tmin;
-            tfar = tb;
-            best_u = m.extract(u, l);
-            best_v = m.extract(v, l);
-            best_prim = m.s_load(
-                &s.tris,
-                At::idx(bb, 1, 32 * 9 + 4 * (width * p + l)),
-                4,
-                true,
-            );
         }
     }
     // Write the hit record and the new t_far.
@@ -277,4 +202,130 @@ pub fn trace_ray<M: Machine>(
     m.x_store(hits, At::idx(ho, 1, 4), best_u);
     m.x_store(hits, At::idx(ho, 1, 8), best_v);
     m.s_store(hits, At::idx(ho, 1, 12), 4, best_prim);
+}
+
+/// The rows of one 8-wide triangle block (one pass of `min(LANES, 8)` lanes).
+pub struct Block<M: Machine> {
+    /// First vertex.
+    pub v0: [M::F; 3],
+    /// First edge.
+    pub e1: [M::F; 3],
+    /// Second edge.
+    pub e2: [M::F; 3],
+    /// Triangle ids as i32 (-1: empty slot).
+    pub prim: M::I,
+}
+
+/// Load pass `p` of the block at byte `bb` of `tris`.
+pub fn load_block<M: Machine>(m: &mut M, tris: &Buf, bb: M::S, p: usize) -> Block<M> {
+    let n = M::LANES;
+    let width = n.min(8);
+    let mut row = |r: usize| {
+        let at = At::idx(bb, 1, 32 * r + 4 * width * p);
+        if n > 8 {
+            m.load_repeat(tris, at, 8)
+        } else {
+            m.load(tris, at)
+        }
+    };
+    let v0 = [row(0), row(1), row(2)];
+    let e1 = [row(3), row(4), row(5)];
+    let e2 = [row(6), row(7), row(8)];
+    let pf = row(9);
+    let prim = m.bits_to_i(pf);
+    Block { v0, e1, e2, prim }
+}
+
+/// The closest hit in a block pass.
+pub struct BlockHit<M: Machine> {
+    /// Its t.
+    pub t: M::X,
+    /// Its t in every lane.
+    pub tb: M::F,
+    /// Its lane.
+    pub lane: usize,
+    /// Barycentric u.
+    pub u: M::X,
+    /// Barycentric v.
+    pub v: M::X,
+}
+
+/// 8-wide Moller-Trumbore of one ray (`org`, `dir` broadcast) against a
+/// block, hits with 0 < t < `tfar`; the closest, if any (a recorded branch).
+pub fn intersect<M: Machine>(
+    m: &mut M,
+    b: &Block<M>,
+    org: &[M::F; 3],
+    dir: &[M::F; 3],
+    tfar: M::F,
+) -> Option<BlockHit<M>> {
+    let n = M::LANES;
+    let inf = m.splat(f32::INFINITY);
+    let zero_v = m.splat(0.0);
+    let one_v = m.splat(1.0);
+    let cross = |m: &mut M, a: [M::F; 3], c: [M::F; 3]| {
+        let x0 = m.mul(a[2], c[1]);
+        let x = m.fmsub(a[1], c[2], x0);
+        let y0 = m.mul(a[0], c[2]);
+        let y = m.fmsub(a[2], c[0], y0);
+        let z0 = m.mul(a[1], c[0]);
+        let zz = m.fmsub(a[0], c[1], z0);
+        [x, y, zz]
+    };
+    let dot = |m: &mut M, a: [M::F; 3], c: [M::F; 3]| {
+        let d0 = m.mul(a[0], c[0]);
+        let d1 = m.fmadd(a[1], c[1], d0);
+        m.fmadd(a[2], c[2], d1)
+    };
+    let pv = cross(m, *dir, b.e2);
+    let det = dot(m, b.e1, pv);
+    let inv = m.rcp(det);
+    let sv = [
+        m.sub(org[0], b.v0[0]),
+        m.sub(org[1], b.v0[1]),
+        m.sub(org[2], b.v0[2]),
+    ];
+    let u0 = dot(m, sv, pv);
+    let u = m.mul(u0, inv);
+    let qv = cross(m, sv, b.e1);
+    let v0_ = dot(m, *dir, qv);
+    let v = m.mul(v0_, inv);
+    let t0 = dot(m, b.e2, qv);
+    let t = m.mul(t0, inv);
+    let uv = m.add(u, v);
+    let ok_det = m.cmp(Cmp::Ne, det, zero_v);
+    let ok_u = m.cmp(Cmp::Ge, u, zero_v);
+    let ok_v = m.cmp(Cmp::Ge, v, zero_v);
+    let ok_uv = m.cmp(Cmp::Le, uv, one_v);
+    let ok_t0 = m.cmp(Cmp::Gt, t, zero_v);
+    let ok_t1 = m.cmp(Cmp::Lt, t, tfar);
+    let zi = m.splat_i(0);
+    let ok_p = m.icmp(Cmp::Ge, b.prim, zi);
+    let mut valid = m.klogic(Logic::And, ok_det, ok_u);
+    for k in [ok_v, ok_uv, ok_t0, ok_t1, ok_p] {
+        valid = m.klogic(Logic::And, valid, k);
+    }
+    if n > 8 {
+        let low = m.mask(0xFF);
+        valid = m.klogic(Logic::And, valid, low);
+    }
+    let any = m.any(valid);
+    if !m.branch(site::TRI, any) {
+        return None;
+    }
+    let tv = m.select(valid, t, inf);
+    let tmin = m.reduce(BinOp::Min, tv);
+    let tb = m.broadcast(tmin);
+    let eq = m.cmp(Cmp::Eq, tv, tb);
+    let at_min = m.klogic(Logic::And, eq, valid);
+    let lane = m.bitscan(at_min).get() as usize;
+    let uu = m.extract(u, lane);
+    let vv = m.extract(v, lane);
+    Some(BlockHit {
+        t: tmin,
+        tb,
+        lane,
+        u: uu,
+        v: vv,
+    })
 }

@@ -18,7 +18,22 @@ pub struct RunArgs {
     /// shipped machine runs).
     #[arg(long, value_parser = parse_isa)]
     pub isa: Option<FlavourId>,
-    /// Rays in the stream (a multiple of 4).
+    /// Kernel: boxtest (ray stream vs 4 boxes), single-bvh4, drs-bvh4.
+    #[arg(long, default_value = "boxtest")]
+    pub kernel: String,
+    /// Scene for the traversal kernels (`rtsim list scenes`, a .ron or a mesh file).
+    #[arg(long, default_value = "sphere")]
+    pub scene: String,
+    /// Ray stream for the traversal kernels: primary or bounce (the first bounce of the path tracer).
+    #[arg(long, default_value = "primary")]
+    pub stream: String,
+    /// Tile side in pixels (traversal kernels): the stream is one tile at the image centre.
+    #[arg(long, default_value_t = 16)]
+    pub tile: u32,
+    /// Samples per pixel (traversal kernels).
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// Rays in the stream (boxtest; a multiple of 4).
     #[arg(long, default_value_t = 4096)]
     pub rays: usize,
     /// Seed of the generated node and rays.
@@ -204,6 +219,128 @@ pub fn boxstream(rays: usize, seed: u64) -> AppResult<BoxStream> {
 
 /// `rtsim run`.
 pub fn run(a: &RunArgs) -> AppResult<()> {
+    match a.kernel.as_str() {
+        "boxtest" => run_boxtest(a),
+        "single-bvh4" => run_traversal(a, kernels::harness::Kernel::Single),
+        "drs-bvh4" => run_traversal(a, kernels::harness::Kernel::Drs),
+        k => Err(AppError(format!(
+            "--kernel: unknown kernel '{k}' (boxtest, single-bvh4, drs-bvh4)"
+        ))),
+    }
+}
+
+/// A traversal kernel over one tile's ray stream of a scene.
+fn run_traversal(a: &RunArgs, kernel: kernels::harness::Kernel) -> AppResult<()> {
+    use kernels::bvh::{BuildConfig, Bvh2, Bvh4};
+    use kernels::workload::{path_trace_tile, primary_tile, StreamKind, Tile};
+    let start = Instant::now();
+    let m = a.machine.load()?;
+    let fl = a.isa.unwrap_or_else(|| m.flavour());
+    if !kernel.supports(fl.lanes()) {
+        return Err(AppError(format!(
+            "--kernel {}: runs on 4- and 8-lane ISAs, {fl} has {} lanes",
+            kernel.name(),
+            fl.lanes()
+        )));
+    }
+    if a.tile == 0 || a.tile > 256 || a.spp == 0 || a.spp > 256 {
+        return Err(AppError("--tile and --spp: must be 1 to 256".into()));
+    }
+    let scene = kernels::scene::Scene::load(&a.scene).map_err(|e| AppError(e.0))?;
+    let b2 = Bvh2::build(
+        &scene.mesh,
+        &BuildConfig {
+            max_leaf: 8,
+            ..BuildConfig::default()
+        },
+    )
+    .map_err(AppError)?;
+    let b4 = Bvh4::collapse(&b2);
+    let cam = &scene.config.camera;
+    let tile = Tile {
+        x: cam.width / 2 / a.tile,
+        y: cam.height / 2 / a.tile,
+        size: a.tile,
+    };
+    let stream = match a.stream.as_str() {
+        "primary" => primary_tile(cam, tile.x, tile.y, tile.size, a.spp, a.seed),
+        "bounce" => path_trace_tile(&scene, &b2, tile, a.spp, 1, a.seed)
+            .into_iter()
+            .find(|s| s.kind == StreamKind::Bounce(1))
+            .ok_or_else(|| {
+                AppError("--stream bounce: no path survives the first hit in this tile".into())
+            })?,
+        s => {
+            return Err(AppError(format!(
+                "--stream: '{s}' is not primary or bounce"
+            )))
+        }
+    };
+    if stream.is_empty() || stream.len() > 65536 {
+        return Err(AppError(format!(
+            "the stream has {} rays (1 to 65536 needed)",
+            stream.len()
+        )));
+    }
+    let run = kernels::harness::Run {
+        kernel,
+        scene: &scene,
+        b2: &b2,
+        b4: &b4,
+        org: stream.org.clone(),
+        dir: stream.dir.clone(),
+    };
+    let (t, traced) = isa::record(&run, fl, kernel.name());
+    let native = isa::run_native(&run, fl);
+    let refi = kernels::reference::Reference::with_bvh(&scene.mesh, &b2);
+    let bad = kernels::harness::mismatches(kernel.name(), &refi, &stream.org, &stream.dir, &traced);
+    let native_bad = traced.iter().zip(&native).filter(|(x, y)| x != y).count();
+    let rays = stream.len() as u64;
+    let mut rows = vec![
+        Row::new("rays", rays as f64),
+        Row::new("hit_mismatches", bad as f64).key("backend", "traced"),
+        Row::new("hit_mismatches", native_bad as f64).key("backend", "native"),
+        Row::new("ops_per_ray", t.ops.len() as f64 / rays as f64).unit("ops"),
+    ];
+    let timed = fl == m.flavour();
+    if timed {
+        let s = sim::simulate(&m, &[&t], &sim::SimOptions::default()).map_err(AppError)?;
+        rows.extend(crate::machine_cmd::stats_rows(&s, &m, Some(rays)));
+        rows.extend(crate::machine_cmd::region_rows(&s, &t));
+    } else {
+        rows.extend(info_rows(&t));
+    }
+    let mut rep = base_report(
+        &format!("run-{}", kernel.name()),
+        &t,
+        format!(
+            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}",
+            kernel.name(),
+            scene.config.name,
+            a.stream,
+            tile.x,
+            tile.y,
+            a.spp,
+            a.seed
+        ),
+        start.elapsed().as_secs_f64(),
+        rows,
+    );
+    if timed {
+        rep.machine = Some(m.name.clone());
+        rep.fidelity = "full".into();
+    }
+    print!("{}", rep.render(a.format));
+    if bad + native_bad > 0 {
+        return Err(AppError(format!(
+            "{bad} rays differ from the reference, {native_bad} between traced and native"
+        )));
+    }
+    Ok(())
+}
+
+/// The ray-vs-4-boxes workload.
+fn run_boxtest(a: &RunArgs) -> AppResult<()> {
     let start = Instant::now();
     let w = boxstream(a.rays, a.seed)?;
     let m = a.machine.load()?;

@@ -279,3 +279,46 @@ fn set_overrides_change_the_model() {
         "a slower FMA"
     );
 }
+
+#[test]
+fn run_times_the_traversal_kernels_and_checks_their_hits() {
+    for kernel in ["single-bvh4", "drs-bvh4"] {
+        for stream in ["primary", "bounce"] {
+            let j = json(&rtsim(&[
+                "run", "--kernel", kernel, "--scene", "sphere", "--stream", stream, "--tile", "8",
+                "--spp", "4", "--format", "json",
+            ]));
+            let rows = j["rows"].as_array().unwrap();
+            let bad: Vec<f64> = rows
+                .iter()
+                .filter(|r| r["metric"] == "hit_mismatches")
+                .map(|r| r["value"].as_f64().unwrap())
+                .collect();
+            assert_eq!(bad, [0.0, 0.0], "{kernel} {stream}");
+            assert!(
+                rows.iter().any(|r| r["metric"] == "mray_per_s"),
+                "{kernel} {stream}: timed"
+            );
+        }
+    }
+    let j = json(&rtsim(&[
+        "run", "--kernel", "drs-bvh4", "--scene", "sphere", "--tile", "8", "--spp", "4",
+        "--format", "json",
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    assert!(
+        rows.iter()
+            .any(|r| r["metric"] == "cpi" && r["region"] == "core-loop"),
+        "the DRS core loop is timed apart"
+    );
+    let e = err(&rtsim(&[
+        "run",
+        "--kernel",
+        "drs-bvh4",
+        "--machine",
+        "larrabee",
+    ]));
+    assert!(e.contains("4- and 8-lane"), "{e}");
+    let e = err(&rtsim(&["run", "--kernel", "warp-drive"]));
+    assert!(e.contains("warp-drive"), "{e}");
+}

@@ -396,6 +396,28 @@ fn core_node<M: Machine, const N: usize>(
         let gs = m.permute(pm, swg);
         let le = m.cmp(Cmp::Le, pm, gs);
         let gbits = m.movemask(le);
+        // The 9 list conditions, bit-parallel for all r rays at once: ray q's
+        // condition k is bit 4q of conds[k] (other bits are don't-care).
+        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+        let all = m.int(0xFFFF);
+        let (h0, h1, h2, h3) = (hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3));
+        let (a0, a2, g0) = (abits, shr(m, abits, 2), gbits);
+        let na0 = m.s_op(isa::SOp::Xor, a0, all);
+        let na2 = m.s_op(isa::SOp::Xor, a2, all);
+        let ng0 = m.s_op(isa::SOp::Xor, g0, all);
+        let hg = m.s_and(h0, g0);
+        let hng = m.s_and(h0, ng0);
+        let conds = [
+            m.s_and(hg, a0),
+            m.s_and(h1, g0),
+            m.s_and(hg, na0),
+            m.s_and(h2, a2),
+            h3,
+            m.s_and(h2, na2),
+            m.s_and(hng, a0),
+            m.s_and(h1, ng0),
+            m.s_and(hng, na0),
+        ];
         for q in 0..r {
             if q > 0 {
                 let dup = m.s_cmp(Cmp::Eq, idx[q], idx[q - 1]);
@@ -403,38 +425,16 @@ fn core_node<M: Machine, const N: usize>(
                     continue;
                 }
             }
-            let bit = |m: &mut M, v: M::S, b: u32| {
-                let x = m.s_shift(Shift::Shr, v, b);
-                let one = m.int(1);
-                m.s_and(x, one)
-            };
-            let o = 4 * q as u32;
-            let h: Vec<M::S> = (0..4).map(|c| bit(m, hbits, o + c)).collect();
-            let a = bit(m, abits, o);
-            let b = bit(m, abits, o + 2);
-            let g = bit(m, gbits, o);
             let one = m.int(1);
-            let na = m.s_op(isa::SOp::Xor, a, one);
-            let nb = m.s_op(isa::SOp::Xor, b, one);
-            let ng = m.s_op(isa::SOp::Xor, g, one);
-            let and3 = |m: &mut M, x: M::S, y: M::S, z: M::S| {
-                let t = m.s_and(x, y);
-                m.s_and(t, z)
-            };
-            let conds = [
-                and3(m, h[0], g, a),
-                m.s_and(h[1], g),
-                and3(m, h[0], g, na),
-                m.s_and(h[2], b),
-                h[3],
-                m.s_and(h[2], nb),
-                and3(m, h[0], ng, a),
-                m.s_and(h[1], ng),
-                and3(m, h[0], ng, na),
-            ];
             for k in 0..9 {
                 m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx[q]);
-                cnt[k] = m.s_add(cnt[k], conds[k]);
+                let c = if q == 0 {
+                    conds[k]
+                } else {
+                    shr(m, conds[k], 4 * q as u32)
+                };
+                let inc = m.s_and(c, one);
+                cnt[k] = m.s_add(cnt[k], inc);
             }
         }
         j = m.s_addi(j, r as i64);

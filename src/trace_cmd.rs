@@ -18,7 +18,7 @@ pub struct RunArgs {
     /// shipped machine runs).
     #[arg(long, value_parser = parse_isa)]
     pub isa: Option<FlavourId>,
-    /// Kernel: boxtest (ray stream vs 4 boxes), single-bvh4, drs-bvh4.
+    /// Kernel: boxtest (ray stream vs 4 boxes), single-bvh2, single-bvh4, drs-bvh4.
     #[arg(long, default_value = "boxtest")]
     pub kernel: String,
     /// Scene for the traversal kernels (`rtsim list scenes`, a .ron or a mesh file).
@@ -221,11 +221,12 @@ pub fn boxstream(rays: usize, seed: u64) -> AppResult<BoxStream> {
 pub fn run(a: &RunArgs) -> AppResult<()> {
     match a.kernel.as_str() {
         "boxtest" => run_boxtest(a),
-        "single-bvh4" => run_traversal(a, kernels::harness::Kernel::Single),
-        "drs-bvh4" => run_traversal(a, kernels::harness::Kernel::Drs),
-        k => Err(AppError(format!(
-            "--kernel: unknown kernel '{k}' (boxtest, single-bvh4, drs-bvh4)"
-        ))),
+        k => match kernels::harness::Kernel::ALL.iter().find(|t| t.name() == k) {
+            Some(&t) => run_traversal(a, t),
+            None => Err(AppError(format!(
+                "--kernel: unknown kernel '{k}' (boxtest, single-bvh2, single-bvh4, drs-bvh4)"
+            ))),
+        },
     }
 }
 

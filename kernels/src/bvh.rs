@@ -389,12 +389,15 @@ fn sah_split(
 }
 
 /// BVH2 memory layout, one 64-byte line per inner node (DRS: "both
-/// children's boxes in one line"):
+/// children's boxes in one line"), each axis as the DRS Appendix A reads it,
+/// `[min_l, min_r, max_l, max_r]`, one 16-byte load (broadcast to both
+/// 128-bit halves on AVX2):
 ///
 /// | bytes | field |
 /// |---|---|
-/// | 0..24 | left child box: min x y z, max x y z (f32) |
-/// | 24..48 | right child box |
+/// | 0..16 | x: min_l, min_r, max_l, max_r (f32) |
+/// | 16..32 | y: the same |
+/// | 32..48 | z: the same |
 /// | 48..52 | left child ref |
 /// | 52..56 | right child ref |
 /// | 56..64 | padding |
@@ -448,8 +451,8 @@ impl Bvh2Layout {
                 for (k, c) in [left, right].iter().enumerate() {
                     let bx = b.nodes[*c as usize].bounds();
                     for a in 0..3 {
-                        rec[6 * k + a] = bx.lo[a].to_bits();
-                        rec[6 * k + 3 + a] = bx.hi[a].to_bits();
+                        rec[4 * a + k] = bx.lo[a].to_bits();
+                        rec[4 * a + 2 + k] = bx.hi[a].to_bits();
                     }
                 }
                 rec[12] = l;

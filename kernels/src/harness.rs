@@ -10,6 +10,8 @@ use isa::{Machine, MemKind, Program};
 /// Which traversal kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
+    /// Single-ray BVH2.
+    Single2,
     /// Single-ray BVH4.
     Single,
     /// Dynamic ray stream BVH4.
@@ -33,10 +35,13 @@ pub struct Run<'a> {
 }
 
 impl Kernel {
-    /// Stable name (`single-bvh4`, `drs-bvh4`).
+    /// Every kernel.
+    pub const ALL: [Kernel; 3] = [Kernel::Single2, Kernel::Single, Kernel::Drs];
+    /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh4`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
+            Kernel::Single2 => "single-bvh2",
             Kernel::Single => "single-bvh4",
             Kernel::Drs => "drs-bvh4",
         }
@@ -45,7 +50,7 @@ impl Kernel {
     #[must_use]
     pub fn supports(self, lanes: usize) -> bool {
         match self {
-            Kernel::Single => true,
+            Kernel::Single | Kernel::Single2 => true,
             Kernel::Drs => matches!(lanes, 4 | 8),
         }
     }
@@ -54,7 +59,6 @@ impl Kernel {
 impl Program for Run<'_> {
     type Out = Vec<(f32, i32)>;
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
         let n = self.org.len();
         let (tr, is) = ray_records(&self.org, &self.dir, &vec![f32::INFINITY; n]);
         let mut trav = m.space().alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
@@ -63,7 +67,18 @@ impl Program for Run<'_> {
             .space()
             .alloc_bytes(MemKind::Hits, "hits", hit_records(n), 64);
         match self.kernel {
+            Kernel::Single2 => {
+                let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
+                let mut stack = m.space().alloc(
+                    MemKind::Stack,
+                    "stack",
+                    crate::single::STACK_ENTRIES * 8,
+                    64,
+                );
+                crate::single::trace2(m, &s, &mut trav, &isect, &mut hits, &mut stack, n);
+            }
             Kernel::Single => {
+                let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut stack = m.space().alloc(
                     MemKind::Stack,
                     "stack",
@@ -73,6 +88,7 @@ impl Program for Run<'_> {
                 crate::single::trace(m, &s, &mut trav, &isect, &mut hits, &mut stack, n);
             }
             Kernel::Drs => {
+                let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
                 crate::drs::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
             }

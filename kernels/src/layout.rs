@@ -41,8 +41,24 @@ pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> Scen
     for i in 0..b4.nodes.len() {
         node_words.extend_from_slice(&b4.record(i));
     }
-    let mut block_words: Vec<u32> = Vec::with_capacity(b4.leaves.len() * 80);
-    for &[first, count] in &b4.leaves {
+    let block_words = blocks(mesh, b2, &b4.leaves);
+    let nodes = m
+        .space()
+        .alloc_u32(MemKind::Nodes, "bvh4-nodes", &node_words, 64);
+    let tris = m
+        .space()
+        .alloc_u32(MemKind::Triangles, "tri-blocks", &block_words, 64);
+    SceneBufs {
+        nodes,
+        tris,
+        root_bounds: b4.root_bounds,
+    }
+}
+
+/// Triangle blocks of `leaves` ((first, count) into `b2.prims`), one per leaf.
+fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]]) -> Vec<u32> {
+    let mut block_words: Vec<u32> = Vec::with_capacity(leaves.len() * 80);
+    for &[first, count] in leaves {
         assert!(
             count as usize <= BLOCK,
             "leaf of {count} triangles: build with max_leaf <= 8"
@@ -64,16 +80,42 @@ pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> Scen
         }
         block_words.extend_from_slice(&w);
     }
+    block_words
+}
+
+/// A BVH2 laid into a machine's memory ([`crate::bvh::Bvh2Layout`] nodes,
+/// the same triangle blocks); `root` is the root's ref.
+pub struct SceneBufs2 {
+    /// BVH2 nodes, 64 bytes each.
+    pub nodes: Buf,
+    /// Triangle blocks.
+    pub tris: Buf,
+    /// The root's ref (a node, or a leaf for a one-leaf tree).
+    pub root: u32,
+}
+
+/// Lay a BVH2 (leaves of at most 8 triangles) into `m`'s memory.
+pub fn lay_out2<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> SceneBufs2 {
+    let lay = crate::bvh::Bvh2Layout::new(b2);
+    let words: Vec<u32> = lay.nodes.iter().flatten().copied().collect();
+    let words = if words.is_empty() {
+        vec![0u32; 16]
+    } else {
+        words
+    };
     let nodes = m
         .space()
-        .alloc_u32(MemKind::Nodes, "bvh4-nodes", &node_words, 64);
-    let tris = m
-        .space()
-        .alloc_u32(MemKind::Triangles, "tri-blocks", &block_words, 64);
-    SceneBufs {
+        .alloc_u32(MemKind::Nodes, "bvh2-nodes", &words, 64);
+    let tris = m.space().alloc_u32(
+        MemKind::Triangles,
+        "tri-blocks",
+        &blocks(mesh, b2, &lay.leaves),
+        64,
+    );
+    SceneBufs2 {
         nodes,
         tris,
-        root_bounds: b4.root_bounds,
+        root: lay.root,
     }
 }
 

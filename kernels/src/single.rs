@@ -8,7 +8,7 @@
 //! lanes (Embree uses a sorting network); a leaf is one block of <= 8 triangles.
 
 use crate::bvh::EMPTY_SLOT;
-use crate::layout::{is_leaf, SceneBufs, BLOCK_BYTES, NODE_BYTES};
+use crate::layout::{is_leaf, SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
 use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, Region};
 
 /// Branch sites of the kernel.
@@ -32,6 +32,8 @@ pub mod site {
     pub const TRI: Site = Site(27);
     /// Another block pass (narrow flavours)?
     pub const PASS: Site = Site(28);
+    /// BVH2: the only hit child is the left one?
+    pub const SIDE: Site = Site(29);
 }
 
 /// Stack entries one ray can need (3 pushes per level x 64 levels, rounded up).
@@ -328,4 +330,162 @@ pub fn intersect<M: Machine>(
         u: uu,
         v: vv,
     })
+}
+
+/// Trace rays `[0, nrays)` through a BVH2 (the DRS paper's "Single BVH2"):
+/// as [`trace`], buffers the same.
+pub fn trace2<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    nrays: usize,
+) {
+    let mut ray = m.int(0);
+    let nr = m.int(nrays as i64);
+    loop {
+        trace_ray2(m, s, trav, isect, hits, stack, ray);
+        ray = m.s_addi(ray, 1);
+        if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
+            break;
+        }
+    }
+}
+
+/// One ray through a BVH2: per node one 16-byte load per axis
+/// (`[min_l, min_r, max_l, max_r]`, repeated across the lanes), one FMA per
+/// axis for all four planes, a lane swap (`vpermilps`) to pair each min with
+/// its max, so lanes 0 and 1 hold the two children's entry and exit; the
+/// nearer hit child is taken, the farther pushed with its entry distance.
+///
+/// Deviation: the node test uses the lanes there are (4 of them carry
+/// data), as Embree's BVH2 path does with SSE.
+pub fn trace_ray2<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    ray: M::S,
+) {
+    let n = M::LANES;
+    let width = n.min(8);
+    let passes = 8 / width;
+    let swap: Vec<u8> = (0..n).map(|i| (i ^ 2) as u8).collect();
+    m.region(Region::SingleRay);
+    let ro = m.s_shift(isa::Shift::Shl, ray, 5);
+    let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
+    let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
+    let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
+    let tnear_ray = bc(m, trav, 3);
+    let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
+    let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
+    let mut tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
+    let mut tfar = m.broadcast(tfar_x);
+    let ho = m.s_shift(isa::Shift::Shl, ray, 4);
+    let mut best_u = m.x_load(hits, At::idx(ho, 1, 4));
+    let mut best_v = m.x_load(hits, At::idx(ho, 1, 8));
+    let mut best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
+    let mut sp = m.int(0);
+    let start = m.int(i64::from(s.root));
+    m.s_store(stack, At::off(0), 4, start);
+    let z = m.float(0.0);
+    m.x_store(stack, At::off(4), z);
+    sp = m.s_addi(sp, 1);
+    loop {
+        m.region(Region::Traversal);
+        let zero = m.int(0);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
+            break;
+        }
+        sp = m.s_addi(sp, -1);
+        let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
+        let tn = m.x_load(stack, At::idx(sp, 8, 4));
+        let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
+        if m.branch(site::CULL, cull) {
+            continue;
+        }
+        let mut missed = false;
+        loop {
+            let leaf_flag = m.int(i64::from(crate::bvh::LEAF));
+            let lf = m.s_and(node, leaf_flag);
+            if m.branch(site::LEAF, lf) {
+                break;
+            }
+            let base = m.s_shift(isa::Shift::Shl, node, 6);
+            let mut tn_v = tnear_ray;
+            let mut tf_v = tfar;
+            for a in 0..3 {
+                let planes = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
+                let t = m.fmsub(planes, idir[a], oid[a]);
+                let sw = m.permute(t, &swap);
+                let mn = m.min(t, sw);
+                let mx = m.max(t, sw);
+                tn_v = m.max(tn_v, mn);
+                tf_v = m.min(tf_v, mx);
+            }
+            let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
+            let bits = m.movemask(hitk);
+            let lr = m.int(3);
+            let bits = m.s_and(bits, lr);
+            let none = m.s_cmp(Cmp::Eq, bits, zero);
+            if m.branch(site::ANY_CHILD, none) {
+                missed = true;
+                break;
+            }
+            let l = m.s_load(&s.nodes, At::idx(base, 1, 48), 4, false);
+            let r = m.s_load(&s.nodes, At::idx(base, 1, 52), 4, false);
+            let is_both = m.s_cmp(Cmp::Eq, bits, lr);
+            if m.branch(site::CHILD, is_both) {
+                let dl = m.extract(tn_v, 0);
+                let dr = m.extract(tn_v, 1);
+                let right_closer = m.x_cmp(Cmp::Lt, dr, dl);
+                let (near, far, dfar) = if m.branch(site::CLOSER, right_closer) {
+                    (r, l, dl)
+                } else {
+                    (l, r, dr)
+                };
+                m.s_store(stack, At::idx(sp, 8, 0), 4, far);
+                m.x_store(stack, At::idx(sp, 8, 4), dfar);
+                sp = m.s_addi(sp, 1);
+                node = near;
+            } else {
+                let one = m.int(1);
+                let only_left = m.s_cmp(Cmp::Eq, bits, one);
+                node = if m.branch(site::SIDE, only_left) {
+                    l
+                } else {
+                    r
+                };
+            }
+        }
+        if missed {
+            continue;
+        }
+        m.region(Region::Leaf);
+        let mask_idx = m.int(i64::from(!crate::bvh::LEAF));
+        let blk = m.s_and(node, mask_idx);
+        let bytes = m.int(BLOCK_BYTES as i64);
+        let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+        for p in 0..passes {
+            let blk = load_block(m, &s.tris, bb, p);
+            if let Some(h) = intersect(m, &blk, &org, &dir, tfar) {
+                tfar_x = h.t;
+                tfar = h.tb;
+                best_u = h.u;
+                best_v = h.v;
+                let off = 32 * 9 + 4 * (width * p + h.lane);
+                best_prim = m.s_load(&s.tris, At::idx(bb, 1, off), 4, true);
+            }
+        }
+    }
+    m.region(Region::SingleRay);
+    m.x_store(hits, At::idx(ho, 1, 0), tfar_x);
+    m.x_store(trav, At::idx(ro, 1, 28), tfar_x);
+    m.x_store(hits, At::idx(ho, 1, 4), best_u);
+    m.x_store(hits, At::idx(ho, 1, 8), best_v);
+    m.s_store(hits, At::idx(ho, 1, 12), 4, best_prim);
 }

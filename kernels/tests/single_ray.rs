@@ -1,4 +1,4 @@
-//! The single-ray BVH4 kernel returns the reference's hits on every flavour,
+//! The single-ray BVH2 and BVH4 kernels return the reference's hits on every flavour,
 //! traced and native (agreement rule: `common::mismatches`).
 
 mod common;
@@ -10,7 +10,7 @@ use kernels::reference::{Ray, Reference};
 use kernels::scene::Scene;
 use kernels::workload::primary_tile;
 
-fn check(scene_name: &str, flavours: &[FlavourId]) {
+fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
     let scene = Scene::load(scene_name).unwrap();
     let b2 = Bvh2::build(
         &scene.mesh,
@@ -48,7 +48,7 @@ fn check(scene_name: &str, flavours: &[FlavourId]) {
         org.len()
     );
     let run = Run {
-        kernel: Kernel::Single,
+        kernel,
         scene: &scene,
         b2: &b2,
         b4: &b4,
@@ -60,7 +60,8 @@ fn check(scene_name: &str, flavours: &[FlavourId]) {
         assert_eq!(
             traced,
             isa::run_native(&run, fl),
-            "{scene_name} {fl}: traced and native agree"
+            "{} {scene_name} {fl}: traced and native agree",
+            kernel.name()
         );
         let bad = mismatches(&format!("{scene_name} {fl}"), &refi, &org, &dir, &traced);
         assert_eq!(
@@ -75,6 +76,7 @@ fn check(scene_name: &str, flavours: &[FlavourId]) {
 #[test]
 fn single_ray_bvh4_matches_the_reference_on_the_sphere_scene() {
     check(
+        Kernel::Single,
         "sphere",
         &[
             FlavourId::Avx2,
@@ -87,6 +89,22 @@ fn single_ray_bvh4_matches_the_reference_on_the_sphere_scene() {
 
 #[test]
 fn single_ray_bvh4_matches_the_reference_in_rooms_and_foliage() {
-    check("saloon", &[FlavourId::Avx2]);
-    check("fern", &[FlavourId::Avx2]);
+    check(Kernel::Single, "saloon", &[FlavourId::Avx2]);
+    check(Kernel::Single, "fern", &[FlavourId::Avx2]);
+}
+
+#[test]
+fn single_ray_bvh2_matches_the_reference_on_every_flavour() {
+    check(
+        Kernel::Single2,
+        "sphere",
+        &[
+            FlavourId::Avx2,
+            FlavourId::Lrb16,
+            FlavourId::Sse4,
+            FlavourId::Avx512,
+        ],
+    );
+    check(Kernel::Single2, "saloon", &[FlavourId::Avx2]);
+    check(Kernel::Single2, "fern", &[FlavourId::Avx2]);
 }

@@ -291,8 +291,14 @@ fn run_traversal(a: &RunArgs, kernel: kernels::harness::Kernel) -> AppResult<()>
         org: stream.org.clone(),
         dir: stream.dir.clone(),
     };
-    let (t, traced) = isa::record(&run, fl, kernel.name());
-    let native = isa::run_native(&run, fl);
+    let (t, (traced, tests)) = isa::record(&run, fl, kernel.name());
+    let (native, native_tests) = isa::run_native(&run, fl);
+    if native_tests != tests {
+        return Err(AppError(format!(
+            "{}: traced and native backends counted different tests ({tests:?} vs {native_tests:?})",
+            kernel.name()
+        )));
+    }
     let refi = kernels::reference::Reference::with_bvh(&scene.mesh, &b2);
     let bad = kernels::harness::mismatches(kernel.name(), &refi, &stream.org, &stream.dir, &traced);
     let native_bad = traced.iter().zip(&native).filter(|(x, y)| x != y).count();
@@ -302,6 +308,11 @@ fn run_traversal(a: &RunArgs, kernel: kernels::harness::Kernel) -> AppResult<()>
         Row::new("hit_mismatches", bad as f64).key("backend", "traced"),
         Row::new("hit_mismatches", native_bad as f64).key("backend", "native"),
         Row::new("ops_per_ray", t.ops.len() as f64 / rays as f64).unit("ops"),
+        Row::new("ray_node_tests", tests.node_tests() as f64),
+        Row::new("ray_node_tests", tests.core_loop as f64).key("region", "core-loop"),
+        Row::new("core_loop_share", tests.core_loop_share()),
+        Row::new("ray_leaf_tests", tests.leaf as f64),
+        Row::new("culled_pops", tests.culled as f64),
     ];
     let timed = fl == m.flavour();
     if timed {

@@ -68,6 +68,8 @@ pub struct StreamBufs {
     pub counters: Buf,
     /// Single-ray fallback stack.
     pub stack: Buf,
+    /// Ray-node and ray-leaf tests so far.
+    pub tests: crate::stats::Tests,
 }
 
 impl StreamBufs {
@@ -93,6 +95,7 @@ impl StreamBufs {
                 crate::single::STACK_ENTRIES * 8,
                 64,
             ),
+            tests: crate::stats::Tests::default(),
         }
     }
 }
@@ -187,13 +190,24 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch_if(site::FEW, Cmp::Lt, count, few) {
             m.region(Region::SingleRay);
             for_each_ray(m, &st.lists, rays_at, count, |m, ray| {
-                trace_ray(m, s, trav, isect, hits, &mut st.stack, ray, node)
+                trace_ray(
+                    m,
+                    s,
+                    trav,
+                    isect,
+                    hits,
+                    &mut st.stack,
+                    ray,
+                    node,
+                    &mut st.tests,
+                )
             });
             continue;
         }
         let leaf_flag = m.int(i64::from(crate::bvh::LEAF));
         let lf = m.s_and(node, leaf_flag);
         if m.branch(site::LEAF, lf) {
+            st.tests.leaf += count.get() as u64;
             leaf_item(m, s, trav, isect, hits, &st.lists, node, rays_at, count);
             continue;
         }
@@ -425,6 +439,7 @@ fn core_node<M: Machine, const N: usize>(
                     continue;
                 }
             }
+            st.tests.core_loop += 1;
             let one = m.int(1);
             for k in 0..9 {
                 m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx[q]);

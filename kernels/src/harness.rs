@@ -18,7 +18,8 @@ pub enum Kernel {
     Drs,
 }
 
-/// A kernel over a ray stream of a scene; the output is (t, prim) per ray.
+/// A kernel over a ray stream of a scene; the output is (t, prim) per ray
+/// and the kernel's test counts.
 pub struct Run<'a> {
     /// The kernel.
     pub kernel: Kernel,
@@ -57,7 +58,7 @@ impl Kernel {
 }
 
 impl Program for Run<'_> {
-    type Out = Vec<(f32, i32)>;
+    type Out = (Vec<(f32, i32)>, crate::stats::Tests);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let n = self.org.len();
         let (tr, is) = ray_records(&self.org, &self.dir, &vec![f32::INFINITY; n]);
@@ -66,6 +67,7 @@ impl Program for Run<'_> {
         let mut hits = m
             .space()
             .alloc_bytes(MemKind::Hits, "hits", hit_records(n), 64);
+        let mut tests = crate::stats::Tests::default();
         match self.kernel {
             Kernel::Single2 => {
                 let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
@@ -75,7 +77,9 @@ impl Program for Run<'_> {
                     crate::single::STACK_ENTRIES * 8,
                     64,
                 );
-                crate::single::trace2(m, &s, &mut trav, &isect, &mut hits, &mut stack, n);
+                crate::single::trace2(
+                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests,
+                );
             }
             Kernel::Single => {
                 let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
@@ -85,17 +89,21 @@ impl Program for Run<'_> {
                     crate::single::STACK_ENTRIES * 8,
                     64,
                 );
-                crate::single::trace(m, &s, &mut trav, &isect, &mut hits, &mut stack, n);
+                crate::single::trace(
+                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests,
+                );
             }
             Kernel::Drs => {
                 let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
                 crate::drs::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
+                tests = st.tests;
             }
         }
-        (0..n)
+        let out = (0..n)
             .map(|i| (hits.f32_at(16 * i), hits.u32_at(16 * i + 12) as i32))
-            .collect()
+            .collect();
+        (out, tests)
     }
 }
 

@@ -16,4 +16,5 @@ pub mod micro;
 pub mod reference;
 pub mod scene;
 pub mod single;
+pub mod stats;
 pub mod workload;

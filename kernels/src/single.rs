@@ -9,6 +9,7 @@
 
 use crate::bvh::EMPTY_SLOT;
 use crate::layout::{is_leaf, SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
+use crate::stats::Tests;
 use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, Region};
 
 /// Branch sites of the kernel.
@@ -42,6 +43,7 @@ pub const STACK_ENTRIES: usize = 256;
 /// Trace rays `[0, nrays)`: `trav`/`isect` are the ray records of
 /// [`crate::layout::ray_records`]; `hits` holds one 16-byte record per ray
 /// ([`crate::layout::hit_records`]); `stack` needs `STACK_ENTRIES * 8` bytes.
+#[allow(clippy::too_many_arguments)]
 pub fn trace<M: Machine>(
     m: &mut M,
     s: &SceneBufs,
@@ -50,12 +52,13 @@ pub fn trace<M: Machine>(
     hits: &mut Buf,
     stack: &mut Buf,
     nrays: usize,
+    tests: &mut Tests,
 ) {
     let mut ray = m.int(0);
     let nr = m.int(nrays as i64);
     let root = m.int(0);
     loop {
-        trace_ray(m, s, trav, isect, hits, stack, ray, root);
+        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests);
         ray = m.s_addi(ray, 1);
         if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
             break;
@@ -76,6 +79,7 @@ pub fn trace_ray<M: Machine>(
     stack: &mut Buf,
     ray: M::S,
     start: M::S,
+    tests: &mut Tests,
 ) {
     let n = M::LANES;
     let width = n.min(8);
@@ -112,6 +116,7 @@ pub fn trace_ray<M: Machine>(
         let tn = m.x_load(stack, At::idx(sp, 8, 4));
         let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
         if m.branch(site::CULL, cull) {
+            tests.culled += 1;
             continue;
         }
         // Descend through inner nodes.
@@ -123,6 +128,7 @@ pub fn trace_ray<M: Machine>(
             }
             // node * 128: a shift.
             let base = m.s_shift(isa::Shift::Shl, node, NODE_BYTES.trailing_zeros());
+            tests.other += 1;
             let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
             let mut tn_v = tnear_ray;
             let mut tf_v = tfar;
@@ -185,6 +191,7 @@ pub fn trace_ray<M: Machine>(
         let blk = m.s_and(node, mask_idx);
         let bytes = m.int(BLOCK_BYTES as i64);
         let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+        tests.leaf += 1;
         for p in 0..passes {
             let blk = load_block(m, &s.tris, bb, p);
             if let Some(h) = intersect(m, &blk, &org, &dir, tfar) {
@@ -334,6 +341,7 @@ pub fn intersect<M: Machine>(
 
 /// Trace rays `[0, nrays)` through a BVH2 (the DRS paper's "Single BVH2"):
 /// as [`trace`], buffers the same.
+#[allow(clippy::too_many_arguments)]
 pub fn trace2<M: Machine>(
     m: &mut M,
     s: &SceneBufs2,
@@ -342,11 +350,12 @@ pub fn trace2<M: Machine>(
     hits: &mut Buf,
     stack: &mut Buf,
     nrays: usize,
+    tests: &mut Tests,
 ) {
     let mut ray = m.int(0);
     let nr = m.int(nrays as i64);
     loop {
-        trace_ray2(m, s, trav, isect, hits, stack, ray);
+        trace_ray2(m, s, trav, isect, hits, stack, ray, tests);
         ray = m.s_addi(ray, 1);
         if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
             break;
@@ -362,6 +371,7 @@ pub fn trace2<M: Machine>(
 ///
 /// Deviation: the node test uses the lanes there are (4 of them carry
 /// data), as Embree's BVH2 path does with SSE.
+#[allow(clippy::too_many_arguments)]
 pub fn trace_ray2<M: Machine>(
     m: &mut M,
     s: &SceneBufs2,
@@ -370,6 +380,7 @@ pub fn trace_ray2<M: Machine>(
     hits: &mut Buf,
     stack: &mut Buf,
     ray: M::S,
+    tests: &mut Tests,
 ) {
     let n = M::LANES;
     let width = n.min(8);
@@ -406,6 +417,7 @@ pub fn trace_ray2<M: Machine>(
         let tn = m.x_load(stack, At::idx(sp, 8, 4));
         let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
         if m.branch(site::CULL, cull) {
+            tests.culled += 1;
             continue;
         }
         let mut missed = false;
@@ -416,6 +428,7 @@ pub fn trace_ray2<M: Machine>(
                 break;
             }
             let base = m.s_shift(isa::Shift::Shl, node, 6);
+            tests.other += 1;
             let mut tn_v = tnear_ray;
             let mut tf_v = tfar;
             for a in 0..3 {
@@ -470,6 +483,7 @@ pub fn trace_ray2<M: Machine>(
         let blk = m.s_and(node, mask_idx);
         let bytes = m.int(BLOCK_BYTES as i64);
         let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+        tests.leaf += 1;
         for p in 0..passes {
             let blk = load_block(m, &s.tris, bb, p);
             if let Some(h) = intersect(m, &blk, &org, &dir, tfar) {

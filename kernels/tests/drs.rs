@@ -33,12 +33,16 @@ fn check(scene_name: &str, streams: &[RayStream], flavours: &[FlavourId]) {
             dir: st.dir.clone(),
         };
         for &fl in flavours {
-            let traced = isa::record(&run, fl, "drs").1;
+            let (traced, tests) = isa::record(&run, fl, "drs").1;
             assert_eq!(
-                traced,
+                (traced.clone(), tests),
                 isa::run_native(&run, fl),
                 "{scene_name} {fl}: traced and native agree"
             );
+            // Streams of >= 16 rays start in the core loop: each of its rays
+            // is tested against the root there.
+            assert!(tests.core_loop >= st.len() as u64, "{tests:?}");
+            assert!(tests.core_loop_share() > 0.5, "{tests:?}");
             let bad = mismatches(
                 &format!("{scene_name} {fl}"),
                 &refi,

@@ -56,13 +56,18 @@ fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
         dir: dir.clone(),
     };
     for &fl in flavours {
-        let traced = isa::record(&run, fl, "single").1;
+        let (traced, tests) = isa::record(&run, fl, "single").1;
         assert_eq!(
-            traced,
+            (traced.clone(), tests),
             isa::run_native(&run, fl),
             "{} {scene_name} {fl}: traced and native agree",
             kernel.name()
         );
+        // Single-ray kernels have no core loop; every ray tests the root
+        // (all these scenes have an inner root) and some leaf.
+        assert_eq!(tests.core_loop, 0);
+        assert!(tests.other >= org.len() as u64, "{tests:?}");
+        assert!(tests.leaf > 0, "{tests:?}");
         let bad = mismatches(&format!("{scene_name} {fl}"), &refi, &org, &dir, &traced);
         assert_eq!(
             bad,

@@ -4,6 +4,7 @@
 mod machine_cmd;
 mod png;
 mod report;
+mod reproduce;
 mod scene_cmd;
 mod trace_cmd;
 
@@ -42,6 +43,8 @@ enum Cmd {
     /// boxes, the DRS inner test) on an ISA, check every ray against the
     /// scalar reference, and report what the op stream holds.
     Run(trace_cmd::RunArgs),
+    /// Compute a paper's table on the models (drs-table2).
+    Reproduce(reproduce::ReproduceArgs),
     /// Record, inspect and convert op traces.
     #[command(subcommand)]
     Trace(trace_cmd::TraceCmd),
@@ -141,6 +144,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let r = match cli.cmd {
         Cmd::Run(a) => trace_cmd::run(&a),
+        Cmd::Reproduce(a) => reproduce::reproduce(&a),
         Cmd::Trace(t) => trace_cmd::trace(t),
         Cmd::Sim(a) => machine_cmd::sim_cmd(&a),
         Cmd::Calibrate(a) => machine_cmd::calibrate_cmd(&a),

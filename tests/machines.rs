@@ -322,3 +322,60 @@ fn run_times_the_traversal_kernels_and_checks_their_hits() {
     let e = err(&rtsim(&["run", "--kernel", "warp-drive"]));
     assert!(e.contains("warp-drive"), "{e}");
 }
+
+#[test]
+fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
+    let j = json(&rtsim(&[
+        "reproduce",
+        "drs-table2",
+        "--quick",
+        "--tiles",
+        "1",
+        "--spp",
+        "2",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(j["machine"], "haswell-i7-4750hq");
+    assert_eq!(j["sample"]["tiles_per_scene"], 1);
+    let rows = j["rows"].as_array().unwrap();
+    let get = |scene: &str, method: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| {
+                r["scene"] == scene
+                    && r["method"] == method
+                    && r["metric"] == metric
+                    && r.get("region").is_none()
+            })
+            .collect();
+        assert_eq!(r.len(), 1, "{scene} {method} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+        for method in ["single-bvh4", "drs-bvh4"] {
+            assert_eq!(
+                get(scene, method, "hit_mismatches"),
+                0.0,
+                "{scene} {method}"
+            );
+            assert!(get(scene, method, "s_per_gray") > 0.0);
+            assert!(
+                get(scene, method, "cpi") > 0.25,
+                "{scene} {method}: CPI >= 1/width"
+            );
+        }
+        let share = get(scene, "drs-bvh4", "core_loop_share");
+        assert!(share > 0.0 && share <= 1.0, "{scene}: {share}");
+        assert!(
+            get(scene, "drs-bvh4", "core_loop_cpi") < get(scene, "drs-bvh4", "cpi"),
+            "{scene}: the core loop has the lowest CPI"
+        );
+    }
+    assert!(
+        rows.iter().filter(|r| r.get("paper").is_some()).count() >= 4 * 7,
+        "the paper's figures beside ours"
+    );
+    let e = err(&rtsim(&["reproduce", "drs-table9"]));
+    assert!(e.contains("unknown report 'drs-table9'"), "{e}");
+}

@@ -1,0 +1,311 @@
+//! `rtsim reproduce NAME`: a paper's table computed on the models.
+//!
+//! `drs-table2` (Fuetterling et al.'s Table 2): CPI and s/Gray of Single
+//! BVH4 and Our BVH4 (DRS), the core loop alone, and the share of ray-node
+//! tests done in the core loop, over a seeded sample of 16 x 16 pixel x
+//! 16 spp tiles of the four scene stand-ins, each tile's primary stream and
+//! its bounce streams traced by every kernel on the same rays.
+
+use crate::machine_cmd::MachineArgs;
+use crate::report::{Format, Report, Row};
+use crate::trace_cmd::write_atomic;
+use crate::{AppError, AppResult};
+use clap::Args;
+use isa::Region;
+use kernels::bvh::{BuildConfig, Bvh2, Bvh4};
+use kernels::harness::{mismatches, Kernel, Run};
+use kernels::reference::Reference;
+use kernels::scene::Scene;
+use kernels::workload::{path_trace_tile, StreamKind, Tile};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// `rtsim reproduce` arguments.
+#[derive(Args)]
+pub struct ReproduceArgs {
+    /// Report: drs-table2.
+    pub name: String,
+    /// Smaller sample (2 tiles per scene, 1 bounce) for a run of about a minute.
+    #[arg(long)]
+    pub quick: bool,
+    /// Machine.
+    #[command(flatten)]
+    pub machine: MachineArgs,
+    /// Tiles per scene (overrides the sample size).
+    #[arg(long)]
+    pub tiles: Option<u32>,
+    /// Samples per pixel (overrides 16).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Tile sample seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Output format.
+    #[arg(long, value_enum, default_value = "text")]
+    pub format: Format,
+    /// Also write the report to DIR/NAME.{txt,json,csv}.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+/// The paper's scenes and its Table 2: (scene, single CPI, single s/Gray,
+/// ours CPI, ours s/Gray, core loop CPI, core loop s/Gray, core-loop share %).
+const PAPER_TABLE2: [(&str, [f64; 7]); 4] = [
+    ("crown", [1.40, 70.0, 1.02, 54.0, 0.61, 16.0, 76.0]),
+    ("bentley", [1.28, 50.0, 0.88, 33.0, 0.61, 13.0, 88.0]),
+    ("dragon", [1.29, 54.0, 0.91, 39.0, 0.60, 15.0, 86.0]),
+    ("sanmiguel", [1.45, 117.0, 0.95, 81.0, 0.60, 31.0, 83.0]),
+];
+
+/// `rtsim reproduce`.
+pub fn reproduce(a: &ReproduceArgs) -> AppResult<()> {
+    match a.name.as_str() {
+        "drs-table2" => drs_table2(a),
+        n => Err(AppError(format!(
+            "reproduce: unknown report '{n}' (drs-table2)"
+        ))),
+    }
+}
+
+/// Sums over the streams of one (scene, kernel).
+#[derive(Default)]
+struct Acc {
+    rays: u64,
+    cycles: u64,
+    ops: u64,
+    core_cycles: u64,
+    core_ops: u64,
+    dram: u64,
+    core_tests: u64,
+    node_tests: u64,
+    bad: u64,
+    /// Per tile: (rays, cycles), for the confidence interval.
+    tiles: Vec<(u64, u64)>,
+}
+
+/// splitmix64: the tile sample's generator.
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Mean and 95% half-width (normal approximation) of per-tile values.
+fn mean_ci(v: &[f64]) -> (f64, Option<f64>) {
+    let n = v.len() as f64;
+    let mean = v.iter().sum::<f64>() / n;
+    if v.len() < 2 {
+        return (mean, None);
+    }
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, Some(1.96 * (var / n).sqrt()))
+}
+
+fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
+    let start = Instant::now();
+    let m = a.machine.load()?;
+    let fl = m.flavour();
+    if !Kernel::Drs.supports(fl.lanes()) {
+        return Err(AppError(format!(
+            "--machine {}: drs-table2 needs a 4- or 8-lane ISA, {fl} has {} lanes",
+            m.name,
+            fl.lanes()
+        )));
+    }
+    let (mut ntiles, bounces, size, mut spp) = if a.quick {
+        (2, 1, 16, 16)
+    } else {
+        (6, 2, 16, 16)
+    };
+    if let Some(t) = a.tiles {
+        if t == 0 || t > 1024 {
+            return Err(AppError(format!("--tiles: {t} is not 1 to 1024")));
+        }
+        ntiles = t;
+    }
+    if let Some(n) = a.spp {
+        if n == 0 || n > 16 {
+            return Err(AppError(format!(
+                "--spp: {n} is not 1 to 16 (streams hold at most 4096 rays)"
+            )));
+        }
+        spp = n;
+    }
+    let kernels = [Kernel::Single, Kernel::Drs];
+    let mut rows = Vec::new();
+    let mut ops_total = 0u64;
+    for (scene_name, paper) in PAPER_TABLE2 {
+        let scene = Scene::load(scene_name).map_err(|e| AppError(e.0))?;
+        let b2 = Bvh2::build(
+            &scene.mesh,
+            &BuildConfig {
+                max_leaf: 8,
+                ..BuildConfig::default()
+            },
+        )
+        .map_err(AppError)?;
+        let b4 = Bvh4::collapse(&b2);
+        let refi = Reference::with_bvh(&scene.mesh, &b2);
+        let cam = &scene.config.camera;
+        let (tw, th) = (cam.width / size, cam.height / size);
+        let mut acc: Vec<Acc> = kernels.iter().map(|_| Acc::default()).collect();
+        for i in 0..ntiles {
+            let r = mix(a.seed ^ mix(i as u64 + 1));
+            let tile = Tile {
+                x: (r % u64::from(tw)) as u32,
+                y: ((r >> 32) % u64::from(th)) as u32,
+                size,
+            };
+            let streams = path_trace_tile(&scene, &b2, tile, spp, bounces, a.seed);
+            let mut tile_sums = vec![(0u64, 0u64); kernels.len()];
+            for st in streams
+                .iter()
+                .filter(|s| !matches!(s.kind, StreamKind::Shadow(_)) && !s.is_empty())
+            {
+                let run_base = |k: Kernel| Run {
+                    kernel: k,
+                    scene: &scene,
+                    b2: &b2,
+                    b4: &b4,
+                    org: st.org.clone(),
+                    dir: st.dir.clone(),
+                };
+                for (ki, &k) in kernels.iter().enumerate() {
+                    let run = run_base(k);
+                    let (t, (hits, tests)) = isa::record(&run, fl, k.name());
+                    let label = format!(
+                        "{scene_name} tile ({}, {}) {:?} {}",
+                        tile.x,
+                        tile.y,
+                        st.kind,
+                        k.name()
+                    );
+                    let bad = mismatches(&label, &refi, &st.org, &st.dir, &hits);
+                    let s =
+                        sim::simulate(&m, &[&t], &sim::SimOptions::default()).map_err(AppError)?;
+                    let ac = &mut acc[ki];
+                    ac.rays += st.len() as u64;
+                    ac.cycles += s.cycles;
+                    ac.ops += s.ops;
+                    ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
+                    ac.core_ops += s.region_ops[Region::CoreLoop as usize];
+                    ac.dram += s.dram_read + s.dram_written;
+                    ac.core_tests += tests.core_loop;
+                    ac.node_tests += tests.node_tests();
+                    ac.bad += bad as u64;
+                    ops_total += t.ops.len() as u64;
+                    tile_sums[ki].0 += st.len() as u64;
+                    tile_sums[ki].1 += s.cycles;
+                }
+            }
+            for (ki, ts) in tile_sums.into_iter().enumerate() {
+                if ts.0 > 0 {
+                    acc[ki].tiles.push(ts);
+                }
+            }
+        }
+        // s/Gray for the whole chip: per-core seconds per ray over the cores
+        // (the paper measured 4 threads on 4 cores).
+        let sgray = |cycles: u64, rays: u64| {
+            cycles as f64 / (m.clock_ghz * 1e9) / rays.max(1) as f64 * 1e9 / f64::from(m.cores)
+        };
+        for (ki, &k) in kernels.iter().enumerate() {
+            let ac = &acc[ki];
+            let row = |metric: &str, v: f64| {
+                Row::new(metric, v)
+                    .key("scene", scene_name)
+                    .key("method", k.name())
+            };
+            let per_tile: Vec<f64> = ac.tiles.iter().map(|&(r, c)| sgray(c, r)).collect();
+            let (_, ci) = mean_ci(&per_tile);
+            let (pc, ps) = if k == Kernel::Single {
+                (paper[0], paper[1])
+            } else {
+                (paper[2], paper[3])
+            };
+            let mut r = row("cpi", ac.cycles as f64 / ac.ops.max(1) as f64);
+            r.paper = Some(pc);
+            rows.push(r);
+            let mut r = row("s_per_gray", sgray(ac.cycles, ac.rays)).unit("s/Gray");
+            r.paper = Some(ps);
+            r.ci95 = ci;
+            rows.push(r);
+            rows.push(row("bytes_per_ray", ac.dram as f64 / ac.rays.max(1) as f64).unit("B/ray"));
+            rows.push(row("rays", ac.rays as f64));
+            rows.push(row("hit_mismatches", ac.bad as f64));
+            if k == Kernel::Drs {
+                let mut r = row(
+                    "core_loop_cpi",
+                    ac.core_cycles as f64 / ac.core_ops.max(1) as f64,
+                );
+                r.paper = Some(paper[4]);
+                rows.push(r);
+                let mut r = row("s_per_gray", sgray(ac.core_cycles, ac.rays))
+                    .key("region", "core-loop")
+                    .unit("s/Gray");
+                r.paper = Some(paper[5]);
+                rows.push(r);
+                let mut r = row(
+                    "core_loop_share",
+                    ac.core_tests as f64 / ac.node_tests.max(1) as f64,
+                );
+                r.paper = Some(paper[6] / 100.0);
+                rows.push(r);
+            }
+        }
+    }
+    let bad: f64 = rows
+        .iter()
+        .filter(|r| r.metric == "hit_mismatches")
+        .map(|r| r.value)
+        .sum();
+    let mut sample = BTreeMap::new();
+    sample.insert("tiles_per_scene".into(), serde_json::json!(ntiles));
+    sample.insert(
+        "tile".into(),
+        serde_json::json!(format!("{size}x{size} px x {spp} spp")),
+    );
+    sample.insert("bounces".into(), serde_json::json!(bounces));
+    sample.insert(
+        "streams".into(),
+        serde_json::json!(
+            "primary and bounce streams (shadow rays not yet traced by these kernels)"
+        ),
+    );
+    sample.insert("seed".into(), serde_json::json!(a.seed));
+    sample.insert(
+        "ci95".into(),
+        serde_json::json!("s_per_gray over tiles, normal approximation"),
+    );
+    let rep = Report {
+        report: "drs-table2".into(),
+        machine: Some(m.name.clone()),
+        isa: Some(fl.name().into()),
+        fidelity: "full".into(),
+        sample: Some(sample),
+        input: Some(format!(
+            "Single BVH4 vs Our BVH4 (DRS) on crown, bentley, dragon, sanmiguel stand-ins; s/Gray is chip time over {} cores at {} GHz, ray queries only (the paper's Table 2 likewise times only the ray query kernels)",
+            m.cores, m.clock_ghz
+        )),
+        ops_simulated: ops_total,
+        host_seconds: start.elapsed().as_secs_f64(),
+        rows,
+    };
+    let text = rep.render(a.format);
+    if let Some(dir) = &a.out {
+        std::fs::create_dir_all(dir).map_err(|e| AppError(format!("{}: {e}", dir.display())))?;
+        let ext = match a.format {
+            Format::Text => "txt",
+            Format::Json => "json",
+            Format::Csv => "csv",
+        };
+        write_atomic(&dir.join(format!("drs-table2.{ext}")), text.as_bytes())?;
+    }
+    print!("{text}");
+    if bad > 0.0 {
+        return Err(AppError(format!("{bad} rays differ from the reference")));
+    }
+    Ok(())
+}

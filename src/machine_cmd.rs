@@ -166,6 +166,7 @@ fn report(
         ops_simulated: ops,
         host_seconds: secs,
         rows,
+        notes: Vec::new(),
     }
 }
 

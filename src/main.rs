@@ -135,6 +135,7 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
         ops_simulated: 0,
         host_seconds: 0.0,
         rows,
+        notes: Vec::new(),
     };
     print!("{}", rep.render(format));
     Ok(())

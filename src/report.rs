@@ -91,6 +91,9 @@ pub struct Report {
     pub host_seconds: f64,
     /// The figures.
     pub rows: Vec<Row>,
+    /// Why figures differ from the paper's, and what the sample leaves out.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 fn num(v: f64) -> String {
@@ -233,6 +236,9 @@ impl Report {
                 .map(|(v, w)| format!("{v:<w$}"))
                 .collect();
             let _ = writeln!(s, "  {}", cells.join("  ").trim_end());
+        }
+        for n in &self.notes {
+            let _ = writeln!(s, "note: {n}");
         }
         s
     }

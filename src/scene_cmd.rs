@@ -207,6 +207,7 @@ pub fn list_scenes(format: Format) -> AppResult<()> {
         ops_simulated: 0,
         host_seconds: start.elapsed().as_secs_f64(),
         rows,
+        notes: Vec::new(),
     };
     print!("{}", rep.render(format));
     Ok(())

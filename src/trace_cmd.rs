@@ -205,6 +205,7 @@ fn base_report(name: &str, t: &Trace, input: String, secs: f64, rows: Vec<Row>) 
         ops_simulated: t.ops.len() as u64,
         host_seconds: secs,
         rows,
+        notes: Vec::new(),
     }
 }
 

@@ -376,6 +376,13 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
         rows.iter().filter(|r| r.get("paper").is_some()).count() >= 4 * 7,
         "the paper's figures beside ours"
     );
+    let notes = j["notes"].as_array().unwrap();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.as_str().unwrap().starts_with("dragon: Our BVH4")),
+        "each scene's comparison with the paper is spelled out: {notes:?}"
+    );
     let e = err(&rtsim(&["reproduce", "drs-table9"]));
     assert!(e.contains("unknown report 'drs-table9'"), "{e}");
 }

@@ -263,6 +263,7 @@ mod tests {
                 Row::new("ops", 2.0).key("class", "vfma").unit("ops"),
                 Row::new("ratio", 0.25).key("name", "a,b"),
             ],
+            notes: Vec::new(),
         }
     }
 

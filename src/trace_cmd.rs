@@ -18,7 +18,7 @@ pub struct RunArgs {
     /// shipped machine runs).
     #[arg(long, value_parser = parse_isa)]
     pub isa: Option<FlavourId>,
-    /// Kernel: boxtest (ray stream vs 4 boxes), single-bvh2, single-bvh4, drs-bvh4.
+    /// Kernel: boxtest (ray stream vs 4 boxes), single-bvh2, single-bvh4, drs-bvh2, drs-bvh4.
     #[arg(long, default_value = "boxtest")]
     pub kernel: String,
     /// Scene for the traversal kernels (`rtsim list scenes`, a .ron or a mesh file).
@@ -225,7 +225,7 @@ pub fn run(a: &RunArgs) -> AppResult<()> {
         k => match kernels::harness::Kernel::ALL.iter().find(|t| t.name() == k) {
             Some(&t) => run_traversal(a, t),
             None => Err(AppError(format!(
-                "--kernel: unknown kernel '{k}' (boxtest, single-bvh2, single-bvh4, drs-bvh4)"
+                "--kernel: unknown kernel '{k}' (boxtest, single-bvh2, single-bvh4, drs-bvh2, drs-bvh4)"
             ))),
         },
     }

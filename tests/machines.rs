@@ -282,7 +282,7 @@ fn set_overrides_change_the_model() {
 
 #[test]
 fn run_times_the_traversal_kernels_and_checks_their_hits() {
-    for kernel in ["single-bvh2", "single-bvh4", "drs-bvh4"] {
+    for kernel in ["single-bvh2", "single-bvh4", "drs-bvh2", "drs-bvh4"] {
         for stream in ["primary", "bounce"] {
             let j = json(&rtsim(&[
                 "run", "--kernel", kernel, "--scene", "sphere", "--stream", stream, "--tile", "8",

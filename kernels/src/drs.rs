@@ -208,7 +208,9 @@ fn trace_n<M: Machine, const N: usize>(
         let lf = m.s_and(node, leaf_flag);
         if m.branch(site::LEAF, lf) {
             st.tests.leaf += count.get() as u64;
-            leaf_item(m, s, trav, isect, hits, &st.lists, node, rays_at, count);
+            leaf_item(
+                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count,
+            );
             continue;
         }
         core_node::<M, N>(m, s, st, trav, &mut sp, node, oct, rays_at, count, inf);
@@ -218,7 +220,7 @@ fn trace_n<M: Machine, const N: usize>(
 /// Reserve `r - 1` padding slots after an item's last index (a copy of it),
 /// set the list counter past them, and push the item.
 #[allow(clippy::too_many_arguments)]
-fn pad_and_push<M: Machine>(
+pub(crate) fn pad_and_push<M: Machine>(
     m: &mut M,
     st: &mut StreamBufs,
     sp: &mut M::S,
@@ -249,7 +251,7 @@ fn pad_and_push<M: Machine>(
 }
 
 /// Call `f` with each ray index of an item (`count` u16 indices at byte `at` of `lists`).
-fn for_each_ray<M: Machine>(
+pub(crate) fn for_each_ray<M: Machine>(
     m: &mut M,
     lists: &Buf,
     at: M::S,
@@ -272,9 +274,9 @@ fn for_each_ray<M: Machine>(
 
 /// Every ray of a leaf item against the leaf's block, loaded once.
 #[allow(clippy::too_many_arguments)]
-fn leaf_item<M: Machine>(
+pub(crate) fn leaf_item<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    tris: &Buf,
     trav: &mut Buf,
     isect: &Buf,
     hits: &mut Buf,
@@ -290,7 +292,7 @@ fn leaf_item<M: Machine>(
     let blk = m.s_and(node, idx_mask);
     let bytes = m.int(BLOCK_BYTES as i64);
     let bb = m.s_op(isa::SOp::Mul, blk, bytes);
-    let blocks: Vec<_> = (0..passes).map(|p| load_block(m, &s.tris, bb, p)).collect();
+    let blocks: Vec<_> = (0..passes).map(|p| load_block(m, tris, bb, p)).collect();
     for_each_ray(m, lists, at, count, |m, ray| {
         let ro = m.s_shift(Shift::Shl, ray, 5);
         let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
@@ -307,7 +309,7 @@ fn leaf_item<M: Machine>(
         if let Some((p, h)) = best {
             let ho = m.s_shift(Shift::Shl, ray, 4);
             let prim = m.s_load(
-                &s.tris,
+                tris,
                 At::idx(bb, 1, 32 * 9 + 4 * (width * p + h.lane)),
                 4,
                 true,

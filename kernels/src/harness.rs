@@ -16,6 +16,8 @@ pub enum Kernel {
     Single,
     /// Dynamic ray stream BVH4.
     Drs,
+    /// Dynamic ray stream BVH2.
+    Drs2,
 }
 
 /// A kernel over a ray stream of a scene; the output is (t, prim) per ray
@@ -37,14 +39,15 @@ pub struct Run<'a> {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 3] = [Kernel::Single2, Kernel::Single, Kernel::Drs];
-    /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh4`).
+    pub const ALL: [Kernel; 4] = [Kernel::Single2, Kernel::Single, Kernel::Drs2, Kernel::Drs];
+    /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh2`, `drs-bvh4`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
             Kernel::Single2 => "single-bvh2",
             Kernel::Single => "single-bvh4",
             Kernel::Drs => "drs-bvh4",
+            Kernel::Drs2 => "drs-bvh2",
         }
     }
     /// Whether it runs on machines of `lanes` lanes.
@@ -52,7 +55,7 @@ impl Kernel {
     pub fn supports(self, lanes: usize) -> bool {
         match self {
             Kernel::Single | Kernel::Single2 => true,
-            Kernel::Drs => matches!(lanes, 4 | 8),
+            Kernel::Drs | Kernel::Drs2 => matches!(lanes, 4 | 8),
         }
     }
 }
@@ -97,6 +100,12 @@ impl Program for Run<'_> {
                 let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
                 crate::drs::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
+                tests = st.tests;
+            }
+            Kernel::Drs2 => {
+                let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
+                let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
+                crate::drs2::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
                 tests = st.tests;
             }
         }

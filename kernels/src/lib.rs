@@ -9,6 +9,7 @@
 pub mod boxtest;
 pub mod bvh;
 pub mod drs;
+pub mod drs2;
 pub mod harness;
 pub mod layout;
 pub mod mesh;

@@ -355,7 +355,8 @@ pub fn trace2<M: Machine>(
     let mut ray = m.int(0);
     let nr = m.int(nrays as i64);
     loop {
-        trace_ray2(m, s, trav, isect, hits, stack, ray, tests);
+        let root = m.int(i64::from(s.root));
+        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests);
         ray = m.s_addi(ray, 1);
         if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
             break;
@@ -363,7 +364,8 @@ pub fn trace2<M: Machine>(
     }
 }
 
-/// One ray through a BVH2: per node one 16-byte load per axis
+/// One ray through a BVH2 from node `start` (a node index or leaf ref;
+/// hit record and `t_far` kept and written back as in [`trace_ray`]): per node one 16-byte load per axis
 /// (`[min_l, min_r, max_l, max_r]`, repeated across the lanes), one FMA per
 /// axis for all four planes, a lane swap (`vpermilps`) to pair each min with
 /// its max, so lanes 0 and 1 hold the two children's entry and exit; the
@@ -380,6 +382,7 @@ pub fn trace_ray2<M: Machine>(
     hits: &mut Buf,
     stack: &mut Buf,
     ray: M::S,
+    start: M::S,
     tests: &mut Tests,
 ) {
     let n = M::LANES;
@@ -401,7 +404,6 @@ pub fn trace_ray2<M: Machine>(
     let mut best_v = m.x_load(hits, At::idx(ho, 1, 8));
     let mut best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
     let mut sp = m.int(0);
-    let start = m.int(i64::from(s.root));
     m.s_store(stack, At::off(0), 4, start);
     let z = m.float(0.0);
     m.x_store(stack, At::off(4), z);

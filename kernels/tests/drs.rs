@@ -1,4 +1,4 @@
-//! The dynamic ray stream BVH4 kernel returns the reference's closest hits
+//! The dynamic ray stream BVH4 and BVH2 kernels return the reference's closest hits
 //! (agreement rule: `common::mismatches`) on a 4096-ray primary stream
 //! (16 x 16 pixels x 16 samples, the DRS stream) and on path-tracing bounce streams.
 
@@ -24,44 +24,48 @@ fn check(scene_name: &str, streams: &[RayStream], flavours: &[FlavourId]) {
     let b4 = Bvh4::collapse(&b2);
     let refi = Reference::with_bvh(&scene.mesh, &b2);
     for st in streams {
-        let run = Run {
-            kernel: Kernel::Drs,
-            scene: &scene,
-            b2: &b2,
-            b4: &b4,
-            org: st.org.clone(),
-            dir: st.dir.clone(),
-        };
-        for &fl in flavours {
-            let (traced, tests) = isa::record(&run, fl, "drs").1;
-            assert_eq!(
-                (traced.clone(), tests),
-                isa::run_native(&run, fl),
-                "{scene_name} {fl}: traced and native agree"
-            );
-            // Streams of >= 16 rays start in the core loop: each of its rays
-            // is tested against the root there.
-            assert!(tests.core_loop >= st.len() as u64, "{tests:?}");
-            assert!(tests.core_loop_share() > 0.5, "{tests:?}");
-            let bad = mismatches(
-                &format!("{scene_name} {fl}"),
-                &refi,
-                &st.org,
-                &st.dir,
-                &traced,
-            );
-            assert_eq!(
-                bad,
-                0,
-                "{scene_name} {fl}: {bad} of {} rays differ",
-                st.len()
-            );
+        for kernel in [Kernel::Drs, Kernel::Drs2] {
+            let run = Run {
+                kernel,
+                scene: &scene,
+                b2: &b2,
+                b4: &b4,
+                org: st.org.clone(),
+                dir: st.dir.clone(),
+            };
+            for &fl in flavours {
+                let (traced, tests) = isa::record(&run, fl, kernel.name()).1;
+                assert_eq!(
+                    (traced.clone(), tests),
+                    isa::run_native(&run, fl),
+                    "{} {scene_name} {fl}: traced and native agree",
+                    kernel.name()
+                );
+                // Streams of >= 16 rays start in the core loop: each of its rays
+                // is tested against the root there.
+                assert!(tests.core_loop >= st.len() as u64, "{tests:?}");
+                assert!(tests.core_loop_share() > 0.5, "{tests:?}");
+                let bad = mismatches(
+                    &format!("{} {scene_name} {fl}", kernel.name()),
+                    &refi,
+                    &st.org,
+                    &st.dir,
+                    &traced,
+                );
+                assert_eq!(
+                    bad,
+                    0,
+                    "{} {scene_name} {fl}: {bad} of {} rays differ",
+                    kernel.name(),
+                    st.len()
+                );
+            }
         }
     }
 }
 
 #[test]
-fn drs_bvh4_matches_the_reference_on_primary_and_bounce_streams() {
+fn drs_kernels_match_the_reference_on_primary_and_bounce_streams() {
     let scene = Scene::load("saloon").unwrap();
     let cam = &scene.config.camera;
     let b2 = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
@@ -89,7 +93,7 @@ fn drs_bvh4_matches_the_reference_on_primary_and_bounce_streams() {
 }
 
 #[test]
-fn drs_bvh4_matches_the_reference_on_foliage() {
+fn drs_kernels_match_the_reference_on_foliage() {
     let scene = Scene::load("fern").unwrap();
     let cam = &scene.config.camera;
     let p = primary_tile(cam, cam.width / 32, cam.height / 32, 16, 4, 3);

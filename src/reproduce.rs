@@ -127,15 +127,20 @@ fn mix(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
-/// Mean and 95% half-width (normal approximation) of per-tile values.
-fn mean_ci(v: &[f64]) -> (f64, Option<f64>) {
-    let n = v.len() as f64;
-    let mean = v.iter().sum::<f64>() / n;
+/// 95% half-width of the ratio estimator sum(num) / sum(den) over tiles
+/// (delta method, normal approximation); `None` below 2 tiles. A tile's own
+/// ratio is not averaged: tiles whose rays all miss are very fast and would
+/// dominate a mean of per-tile rates.
+fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
     if v.len() < 2 {
-        return (mean, None);
+        return None;
     }
-    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
-    (mean, Some(1.96 * (var / n).sqrt()))
+    let n = v.len() as f64;
+    let (sn, sd) = v.iter().fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
+    let r = sn / sd;
+    let dbar = sd / n;
+    let var = v.iter().map(|&(x, y)| (x - r * y).powi(2)).sum::<f64>() / (n - 1.0);
+    Some(1.96 * (var / n).sqrt() / dbar)
 }
 
 /// The machine and tile sample of a reproduce run.
@@ -290,8 +295,13 @@ fn drs_table1(a: &ReproduceArgs) -> AppResult<()> {
                     .key("scene", scene_name)
                     .key("method", k.name())
             };
-            let per_tile: Vec<f64> = ac.tiles.iter().map(|&(r, c)| mray(c, r)).collect();
-            let (_, ci) = mean_ci(&per_tile);
+            // Rate = rays / cycles, scaled like `mray`.
+            let pairs: Vec<(f64, f64)> = ac
+                .tiles
+                .iter()
+                .map(|&(r, c)| (r as f64, c as f64))
+                .collect();
+            let ci = ratio_ci(&pairs).map(|h| h * mray(1, 1));
             let mut r = row("mray_per_s", mray(ac.cycles, ac.rays)).unit("Mray/s");
             r.paper = Some(paper[ki].0);
             r.ci95 = ci;
@@ -363,8 +373,13 @@ fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
                     .key("scene", scene_name)
                     .key("method", k.name())
             };
-            let per_tile: Vec<f64> = ac.tiles.iter().map(|&(r, c)| sgray(c, r)).collect();
-            let (_, ci) = mean_ci(&per_tile);
+            // Time per ray = cycles / rays, scaled like `sgray`.
+            let pairs: Vec<(f64, f64)> = ac
+                .tiles
+                .iter()
+                .map(|&(r, c)| (c as f64, r as f64))
+                .collect();
+            let ci = ratio_ci(&pairs).map(|h| h * sgray(1, 1));
             let (pc, ps) = if k == Kernel::Single {
                 (paper[0], paper[1])
             } else {
@@ -502,4 +517,18 @@ fn finish(
         return Err(AppError(format!("{bad} rays differ from the reference")));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::ratio_ci;
+
+    #[test]
+    fn ratio_ci_is_zero_for_proportional_tiles_and_grows_with_spread() {
+        assert_eq!(ratio_ci(&[(1.0, 2.0)]), None);
+        assert!(ratio_ci(&[(1.0, 2.0), (2.0, 4.0), (3.0, 6.0)]).unwrap() < 1e-12);
+        let wide = ratio_ci(&[(1.0, 2.0), (4.0, 2.0)]).unwrap();
+        let narrow = ratio_ci(&[(1.0, 2.0), (1.5, 2.0)]).unwrap();
+        assert!(wide > narrow && narrow > 0.0);
+    }
 }

@@ -81,24 +81,8 @@ pub fn trace_ray<M: Machine>(
     start: M::S,
     tests: &mut Tests,
 ) {
-    let n = M::LANES;
-    let width = n.min(8);
-    let passes = 8 / width;
-    m.region(Region::SingleRay);
-    let ro = m.s_shift(isa::Shift::Shl, ray, 5);
-    // Ray data, broadcast per component (vbroadcastss m32).
-    let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
-    let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
-    let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
-    let tnear_ray = bc(m, trav, 3);
-    let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
-    let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
-    let mut tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
-    let mut tfar = m.broadcast(tfar_x);
-    let ho = m.s_shift(isa::Shift::Shl, ray, 4);
-    let mut best_u = m.x_load(hits, At::idx(ho, 1, 4));
-    let mut best_v = m.x_load(hits, At::idx(ho, 1, 8));
-    let mut best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
+    let mut st = RayState::load(m, trav, isect, hits, ray);
+    let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     // Push the start node.
     let mut sp = m.int(0);
     m.s_store(stack, At::off(0), 4, start);
@@ -114,7 +98,7 @@ pub fn trace_ray<M: Machine>(
         sp = m.s_addi(sp, -1);
         let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
         let tn = m.x_load(stack, At::idx(sp, 8, 4));
-        let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
+        let cull = m.x_cmp(Cmp::Gt, tn, st.tfar_x);
         if m.branch(site::CULL, cull) {
             tests.culled += 1;
             continue;
@@ -131,7 +115,7 @@ pub fn trace_ray<M: Machine>(
             tests.other += 1;
             let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
             let mut tn_v = tnear_ray;
-            let mut tf_v = tfar;
+            let mut tf_v = st.tfar;
             for a in 0..3 {
                 let lo = b(m, 2 * a);
                 let hi = b(m, 2 * a + 1);
@@ -186,31 +170,94 @@ pub fn trace_ray<M: Machine>(
             continue;
         }
         // Leaf: one block of 8 triangles, in passes of the lanes there are.
+        tests.leaf += 1;
+        st.leaf(m, &s.tris, node);
+    }
+    // Write the hit record and the new t_far.
+    m.region(Region::SingleRay);
+    st.write(m, trav, hits);
+}
+
+/// One ray's registers in the single-ray kernels: its data broadcast per
+/// component (vbroadcastss m32) and its best hit so far.
+struct RayState<M: Machine> {
+    ro: M::S,
+    ho: M::S,
+    idir: [M::F; 3],
+    oid: [M::F; 3],
+    tnear: M::F,
+    org: [M::F; 3],
+    dir: [M::F; 3],
+    tfar_x: M::X,
+    tfar: M::F,
+    best_u: M::X,
+    best_v: M::X,
+    best_prim: M::S,
+}
+
+impl<M: Machine> RayState<M> {
+    /// Load ray `ray`'s records and its hit record.
+    fn load(m: &mut M, trav: &Buf, isect: &Buf, hits: &Buf, ray: M::S) -> Self {
+        m.region(Region::SingleRay);
+        let ro = m.s_shift(isa::Shift::Shl, ray, 5);
+        let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
+        let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
+        let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
+        let tnear = bc(m, trav, 3);
+        let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
+        let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
+        let tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
+        let tfar = m.broadcast(tfar_x);
+        let ho = m.s_shift(isa::Shift::Shl, ray, 4);
+        let best_u = m.x_load(hits, At::idx(ho, 1, 4));
+        let best_v = m.x_load(hits, At::idx(ho, 1, 8));
+        let best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
+        RayState {
+            ro,
+            ho,
+            idir,
+            oid,
+            tnear,
+            org,
+            dir,
+            tfar_x,
+            tfar,
+            best_u,
+            best_v,
+            best_prim,
+        }
+    }
+
+    /// Leaf `node`: one block of 8 triangles, in passes of the lanes there are.
+    fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S) {
+        let width = M::LANES.min(8);
         m.region(Region::Leaf);
         let mask_idx = m.int(i64::from(!crate::bvh::LEAF));
         let blk = m.s_and(node, mask_idx);
         let bytes = m.int(BLOCK_BYTES as i64);
         let bb = m.s_op(isa::SOp::Mul, blk, bytes);
-        tests.leaf += 1;
-        for p in 0..passes {
-            let blk = load_block(m, &s.tris, bb, p);
-            if let Some(h) = intersect(m, &blk, &org, &dir, tfar) {
-                tfar_x = h.t;
-                tfar = h.tb;
-                best_u = h.u;
-                best_v = h.v;
+        for p in 0..8 / width {
+            let blk = load_block(m, tris, bb, p);
+            if let Some(h) = intersect(m, &blk, &self.org, &self.dir, self.tfar) {
+                self.tfar_x = h.t;
+                self.tfar = h.tb;
+                self.best_u = h.u;
+                self.best_v = h.v;
                 let off = 32 * 9 + 4 * (width * p + h.lane);
-                best_prim = m.s_load(&s.tris, At::idx(bb, 1, off), 4, true);
+                self.best_prim = m.s_load(tris, At::idx(bb, 1, off), 4, true);
             }
         }
     }
-    // Write the hit record and the new t_far.
-    m.region(Region::SingleRay);
-    m.x_store(hits, At::idx(ho, 1, 0), tfar_x);
-    m.x_store(trav, At::idx(ro, 1, 28), tfar_x);
-    m.x_store(hits, At::idx(ho, 1, 4), best_u);
-    m.x_store(hits, At::idx(ho, 1, 8), best_v);
-    m.s_store(hits, At::idx(ho, 1, 12), 4, best_prim);
+
+    /// Write the hit record and the new t_far.
+    fn write(self, m: &mut M, trav: &mut Buf, hits: &mut Buf) {
+        let (ro, ho) = (self.ro, self.ho);
+        m.x_store(hits, At::idx(ho, 1, 0), self.tfar_x);
+        m.x_store(trav, At::idx(ro, 1, 28), self.tfar_x);
+        m.x_store(hits, At::idx(ho, 1, 4), self.best_u);
+        m.x_store(hits, At::idx(ho, 1, 8), self.best_v);
+        m.s_store(hits, At::idx(ho, 1, 12), 4, self.best_prim);
+    }
 }
 
 /// The rows of one 8-wide triangle block (one pass of `min(LANES, 8)` lanes).
@@ -386,23 +433,9 @@ pub fn trace_ray2<M: Machine>(
     tests: &mut Tests,
 ) {
     let n = M::LANES;
-    let width = n.min(8);
-    let passes = 8 / width;
     let swap: Vec<u8> = (0..n).map(|i| (i ^ 2) as u8).collect();
-    m.region(Region::SingleRay);
-    let ro = m.s_shift(isa::Shift::Shl, ray, 5);
-    let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
-    let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
-    let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
-    let tnear_ray = bc(m, trav, 3);
-    let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
-    let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
-    let mut tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
-    let mut tfar = m.broadcast(tfar_x);
-    let ho = m.s_shift(isa::Shift::Shl, ray, 4);
-    let mut best_u = m.x_load(hits, At::idx(ho, 1, 4));
-    let mut best_v = m.x_load(hits, At::idx(ho, 1, 8));
-    let mut best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
+    let mut st = RayState::load(m, trav, isect, hits, ray);
+    let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     let mut sp = m.int(0);
     m.s_store(stack, At::off(0), 4, start);
     let z = m.float(0.0);
@@ -417,7 +450,7 @@ pub fn trace_ray2<M: Machine>(
         sp = m.s_addi(sp, -1);
         let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
         let tn = m.x_load(stack, At::idx(sp, 8, 4));
-        let cull = m.x_cmp(Cmp::Gt, tn, tfar_x);
+        let cull = m.x_cmp(Cmp::Gt, tn, st.tfar_x);
         if m.branch(site::CULL, cull) {
             tests.culled += 1;
             continue;
@@ -432,7 +465,7 @@ pub fn trace_ray2<M: Machine>(
             let base = m.s_shift(isa::Shift::Shl, node, 6);
             tests.other += 1;
             let mut tn_v = tnear_ray;
-            let mut tf_v = tfar;
+            let mut tf_v = st.tfar;
             for a in 0..3 {
                 let planes = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
                 let t = m.fmsub(planes, idir[a], oid[a]);
@@ -480,28 +513,9 @@ pub fn trace_ray2<M: Machine>(
         if missed {
             continue;
         }
-        m.region(Region::Leaf);
-        let mask_idx = m.int(i64::from(!crate::bvh::LEAF));
-        let blk = m.s_and(node, mask_idx);
-        let bytes = m.int(BLOCK_BYTES as i64);
-        let bb = m.s_op(isa::SOp::Mul, blk, bytes);
         tests.leaf += 1;
-        for p in 0..passes {
-            let blk = load_block(m, &s.tris, bb, p);
-            if let Some(h) = intersect(m, &blk, &org, &dir, tfar) {
-                tfar_x = h.t;
-                tfar = h.tb;
-                best_u = h.u;
-                best_v = h.v;
-                let off = 32 * 9 + 4 * (width * p + h.lane);
-                best_prim = m.s_load(&s.tris, At::idx(bb, 1, off), 4, true);
-            }
-        }
+        st.leaf(m, &s.tris, node);
     }
     m.region(Region::SingleRay);
-    m.x_store(hits, At::idx(ho, 1, 0), tfar_x);
-    m.x_store(trav, At::idx(ro, 1, 28), tfar_x);
-    m.x_store(hits, At::idx(ho, 1, 4), best_u);
-    m.x_store(hits, At::idx(ho, 1, 8), best_v);
-    m.s_store(hits, At::idx(ho, 1, 12), 4, best_prim);
+    st.write(m, trav, hits);
 }

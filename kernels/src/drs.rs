@@ -362,35 +362,13 @@ fn core_node<M: Machine, const N: usize>(
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
-    let (dn, of, sp4) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR, &Pat::<N>::SPLAT);
-    let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
+    let sp4 = &Pat::<N>::SPLAT;
     let (swp, swg) = (&Pat::<N>::SWAP_PAIRS, &Pat::<N>::SWAP_GROUPS);
     m.region(Region::CoreLoop);
     let mut j = m.int(0);
     loop {
         // r ray indices (the last may be padding, a copy of the one before).
-        let idx: Vec<M::S> = (0..r)
-            .map(|q| {
-                let o = m.s_shift(Shift::Shl, j, 1);
-                let o = m.s_add(o, at);
-                m.s_load(&st.lists, At::idx(o, 1, 2 * q), 2, false)
-            })
-            .collect();
-        let (dir_near, org_far) = if r == 1 {
-            let ro = m.s_shift(Shift::Shl, idx[0], 5);
-            (
-                m.load(trav, At::idx(ro, 1, 0)),
-                m.load(trav, At::idx(ro, 1, 16)),
-            )
-        } else {
-            let ra = m.s_shift(Shift::Shl, idx[0], 5);
-            let rb = m.s_shift(Shift::Shl, idx[1], 5);
-            let a = m.loadu(trav, At::idx(ra, 1, 0));
-            let b = m.loadu(trav, At::idx(rb, 1, 0));
-            let d = if dn_id { a } else { m.shuffle2(a, b, dn) };
-            let o = if of_id { b } else { m.shuffle2(a, b, of) };
-            (d, o)
-        };
+        let (idx, dir_near, org_far) = load_rays::<M, N>(m, &st.lists, trav, j, at);
         let mut tn = m.permute(dir_near, &sp4[3]);
         let mut tf = m.permute(org_far, &sp4[3]);
         for a in 0..3 {
@@ -434,26 +412,7 @@ fn core_node<M: Machine, const N: usize>(
             m.s_and(h1, ng0),
             m.s_and(hng, na0),
         ];
-        for q in 0..r {
-            if q > 0 {
-                let dup = m.s_cmp(Cmp::Eq, idx[q], idx[q - 1]);
-                if m.branch(site::PAD, dup) {
-                    continue;
-                }
-            }
-            st.tests.core_loop += 1;
-            let one = m.int(1);
-            for k in 0..9 {
-                m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx[q]);
-                let c = if q == 0 {
-                    conds[k]
-                } else {
-                    shr(m, conds[k], 4 * q as u32)
-                };
-                let inc = m.s_and(c, one);
-                cnt[k] = m.s_add(cnt[k], inc);
-            }
-        }
+        append(m, st, &idx, &conds, &mut cnt, site::PAD);
         j = m.s_addi(j, r as i64);
         if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
             break;
@@ -472,5 +431,76 @@ fn core_node<M: Machine, const N: usize>(
             false,
         );
         pad_and_push(m, st, sp, k, child, starts[k], cnt[k], oct, r);
+    }
+}
+
+/// The core loop's ray fetch: the next LANES/4 ray indices of an item (at
+/// byte `at` of `lists`, iteration `j`) and their traversal records, as
+/// `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
+pub(crate) fn load_rays<M: Machine, const N: usize>(
+    m: &mut M,
+    lists: &Buf,
+    trav: &Buf,
+    j: M::S,
+    at: M::S,
+) -> (Vec<M::S>, M::F, M::F) {
+    let r = N / 4;
+    let (dn, of) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR);
+    let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
+    let idx: Vec<M::S> = (0..r)
+        .map(|q| {
+            let o = m.s_shift(Shift::Shl, j, 1);
+            let o = m.s_add(o, at);
+            m.s_load(lists, At::idx(o, 1, 2 * q), 2, false)
+        })
+        .collect();
+    let (dir_near, org_far) = if r == 1 {
+        let ro = m.s_shift(Shift::Shl, idx[0], 5);
+        (
+            m.load(trav, At::idx(ro, 1, 0)),
+            m.load(trav, At::idx(ro, 1, 16)),
+        )
+    } else {
+        let ra = m.s_shift(Shift::Shl, idx[0], 5);
+        let rb = m.s_shift(Shift::Shl, idx[1], 5);
+        let a = m.loadu(trav, At::idx(ra, 1, 0));
+        let b = m.loadu(trav, At::idx(rb, 1, 0));
+        let d = if dn_id { a } else { m.shuffle2(a, b, dn) };
+        let o = if of_id { b } else { m.shuffle2(a, b, of) };
+        (d, o)
+    };
+    (idx, dir_near, org_far)
+}
+
+/// Append each ray of an iteration (skipping padding duplicates) to every
+/// list with a scalar store, advancing list k by ray q's condition bit 4q
+/// of `conds[k]` (branch-free).
+pub(crate) fn append<M: Machine>(
+    m: &mut M,
+    st: &mut StreamBufs,
+    idx: &[M::S],
+    conds: &[M::S],
+    cnt: &mut [M::S],
+    pad: isa::Site,
+) {
+    for q in 0..idx.len() {
+        if q > 0 {
+            let dup = m.s_cmp(Cmp::Eq, idx[q], idx[q - 1]);
+            if m.branch(pad, dup) {
+                continue;
+            }
+        }
+        st.tests.core_loop += 1;
+        let one = m.int(1);
+        for k in 0..conds.len() {
+            m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx[q]);
+            let c = if q == 0 {
+                conds[k]
+            } else {
+                m.s_shift(Shift::Shr, conds[k], 4 * q as u32)
+            };
+            let inc = m.s_and(c, one);
+            cnt[k] = m.s_add(cnt[k], inc);
+        }
     }
 }

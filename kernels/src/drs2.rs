@@ -22,7 +22,7 @@
 //! (one more op per axis); list counters live in memory between nodes.
 
 use crate::boxtest::Pat;
-use crate::drs::{for_each_ray, leaf_item, pad_and_push, StreamBufs};
+use crate::drs::{append, for_each_ray, leaf_item, load_rays, pad_and_push, StreamBufs};
 use crate::layout::SceneBufs2;
 use crate::single::trace_ray2;
 use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
@@ -159,8 +159,7 @@ fn core_node<M: Machine, const N: usize>(
     let r = N / 4;
     m.region(Region::Traversal);
     let base = m.s_shift(Shift::Shl, node, 6);
-    let (dn, of, sp4) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR, &Pat::<N>::SPLAT);
-    let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
+    let sp4 = &Pat::<N>::SPLAT;
     let (swp, swg) = (&Pat::<N>::SWAP_PAIRS, &Pat::<N>::SWAP_GROUPS);
     // Rows [min_l, min_r, max_l, max_r] and [max_l, max_r, min_l, min_r].
     let mut rows = Vec::with_capacity(3);
@@ -178,28 +177,7 @@ fn core_node<M: Machine, const N: usize>(
     m.region(Region::CoreLoop);
     let mut j = m.int(0);
     loop {
-        let idx: Vec<M::S> = (0..r)
-            .map(|q| {
-                let o = m.s_shift(Shift::Shl, j, 1);
-                let o = m.s_add(o, at);
-                m.s_load(&st.lists, At::idx(o, 1, 2 * q), 2, false)
-            })
-            .collect();
-        let (dir_near, org_far) = if r == 1 {
-            let ro = m.s_shift(Shift::Shl, idx[0], 5);
-            (
-                m.load(trav, At::idx(ro, 1, 0)),
-                m.load(trav, At::idx(ro, 1, 16)),
-            )
-        } else {
-            let ra = m.s_shift(Shift::Shl, idx[0], 5);
-            let rb = m.s_shift(Shift::Shl, idx[1], 5);
-            let a = m.loadu(trav, At::idx(ra, 1, 0));
-            let b = m.loadu(trav, At::idx(rb, 1, 0));
-            let d = if dn_id { a } else { m.shuffle2(a, b, dn) };
-            let o = if of_id { b } else { m.shuffle2(a, b, of) };
-            (d, o)
-        };
+        let (idx, dir_near, org_far) = load_rays::<M, N>(m, &st.lists, trav, j, at);
         // Lanes 0, 1 of each ray's 4: entry of left, right; lanes 2, 3: exit.
         let mut tmax = m.permute(dir_near, &sp4[3]);
         let mut tmin = m.permute(org_far, &sp4[3]);
@@ -225,26 +203,7 @@ fn core_node<M: Machine, const N: usize>(
         let all = m.int(0xFFFF);
         let norder = m.s_op(isa::SOp::Xor, order, all);
         let conds = [m.s_and(hbits, norder), h1, m.s_and(hbits, order)];
-        for q in 0..r {
-            if q > 0 {
-                let dup = m.s_cmp(Cmp::Eq, idx[q], idx[q - 1]);
-                if m.branch(site::PAD, dup) {
-                    continue;
-                }
-            }
-            st.tests.core_loop += 1;
-            let one = m.int(1);
-            for k in 0..3 {
-                m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx[q]);
-                let c = if q == 0 {
-                    conds[k]
-                } else {
-                    shr(m, conds[k], 4 * q as u32)
-                };
-                let inc = m.s_and(c, one);
-                cnt[k] = m.s_add(cnt[k], inc);
-            }
-        }
+        append(m, st, &idx, &conds, &mut cnt, site::PAD);
         j = m.s_addi(j, r as i64);
         if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
             break;

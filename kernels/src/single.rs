@@ -54,11 +54,18 @@ pub fn trace<M: Machine>(
     nrays: usize,
     tests: &mut Tests,
 ) {
+    let root = m.int(0);
+    each_ray(m, nrays, |m, ray| {
+        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests);
+    });
+}
+
+/// Call `f` with each ray index `0..nrays` (a counted loop, at least once).
+fn each_ray<M: Machine>(m: &mut M, nrays: usize, mut f: impl FnMut(&mut M, M::S)) {
     let mut ray = m.int(0);
     let nr = m.int(nrays as i64);
-    let root = m.int(0);
     loop {
-        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests);
+        f(m, ray);
         ray = m.s_addi(ray, 1);
         if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
             break;
@@ -399,16 +406,10 @@ pub fn trace2<M: Machine>(
     nrays: usize,
     tests: &mut Tests,
 ) {
-    let mut ray = m.int(0);
-    let nr = m.int(nrays as i64);
-    loop {
+    each_ray(m, nrays, |m, ray| {
         let root = m.int(i64::from(s.root));
         trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests);
-        ray = m.s_addi(ray, 1);
-        if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
-            break;
-        }
-    }
+    });
 }
 
 /// One ray through a BVH2 from node `start` (a node index or leaf ref;

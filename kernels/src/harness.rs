@@ -18,6 +18,12 @@ pub enum Kernel {
     Drs,
     /// Dynamic ray stream BVH2.
     Drs2,
+    /// 8-ray (LANES-ray) packets, BVH2.
+    Packet2,
+    /// 8-ray (LANES-ray) packets, BVH4.
+    Packet,
+    /// Packets switching to single rays, BVH4.
+    Hybrid,
 }
 
 /// A kernel over a ray stream of a scene; the output is (t, prim) per ray
@@ -39,8 +45,17 @@ pub struct Run<'a> {
 
 impl Kernel {
     /// Every kernel.
-    pub const ALL: [Kernel; 4] = [Kernel::Single2, Kernel::Single, Kernel::Drs2, Kernel::Drs];
-    /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh2`, `drs-bvh4`).
+    pub const ALL: [Kernel; 7] = [
+        Kernel::Drs2,
+        Kernel::Drs,
+        Kernel::Single2,
+        Kernel::Single,
+        Kernel::Packet2,
+        Kernel::Packet,
+        Kernel::Hybrid,
+    ];
+    /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh2`, `drs-bvh4`,
+    /// `packet-bvh2`, `packet-bvh4`, `hybrid-bvh4`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -48,13 +63,20 @@ impl Kernel {
             Kernel::Single => "single-bvh4",
             Kernel::Drs => "drs-bvh4",
             Kernel::Drs2 => "drs-bvh2",
+            Kernel::Packet2 => "packet-bvh2",
+            Kernel::Packet => "packet-bvh4",
+            Kernel::Hybrid => "hybrid-bvh4",
         }
     }
     /// Whether it runs on machines of `lanes` lanes.
     #[must_use]
     pub fn supports(self, lanes: usize) -> bool {
         match self {
-            Kernel::Single | Kernel::Single2 => true,
+            Kernel::Single
+            | Kernel::Single2
+            | Kernel::Packet
+            | Kernel::Packet2
+            | Kernel::Hybrid => true,
             Kernel::Drs | Kernel::Drs2 => matches!(lanes, 4 | 8),
         }
     }
@@ -107,6 +129,23 @@ impl Program for Run<'_> {
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
                 crate::drs2::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
                 tests = st.tests;
+            }
+            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => {
+                let mut pb = crate::packet::PacketBufs::new(
+                    m,
+                    &self.org,
+                    &self.dir,
+                    &vec![f32::INFINITY; n],
+                );
+                if self.kernel == Kernel::Packet2 {
+                    let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
+                    crate::packet::trace2(m, &s, &mut pb);
+                } else {
+                    let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
+                    crate::packet::trace4(m, &s, &mut pb, self.kernel == Kernel::Hybrid);
+                }
+                let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
+                return (out, pb.tests);
             }
         }
         let out = (0..n)

@@ -14,6 +14,7 @@ pub mod harness;
 pub mod layout;
 pub mod mesh;
 pub mod micro;
+pub mod packet;
 pub mod reference;
 pub mod scene;
 pub mod single;

@@ -89,6 +89,21 @@ pub fn trace_ray<M: Machine>(
     tests: &mut Tests,
 ) {
     let mut st = RayState::load(m, trav, isect, hits, ray);
+    walk4(m, s, &mut st, stack, start, tests);
+    // Write the hit record and the new t_far.
+    m.region(Region::SingleRay);
+    st.write(m, trav, hits);
+}
+
+/// The BVH4 stack loop of [`trace_ray`] for a loaded ray, from node `start`.
+pub(crate) fn walk4<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    st: &mut RayState<M>,
+    stack: &mut Buf,
+    start: M::S,
+    tests: &mut Tests,
+) {
     let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     // Push the start node.
     let mut sp = m.int(0);
@@ -180,14 +195,14 @@ pub fn trace_ray<M: Machine>(
         tests.leaf += 1;
         st.leaf(m, &s.tris, node);
     }
-    // Write the hit record and the new t_far.
-    m.region(Region::SingleRay);
-    st.write(m, trav, hits);
 }
 
 /// One ray's registers in the single-ray kernels: its data broadcast per
 /// component (vbroadcastss m32) and its best hit so far.
-struct RayState<M: Machine> {
+pub(crate) struct RayState<M: Machine> {
+    /// Lane of an SoA packet record the ray came from (hybrid kernel), or
+    /// `None` for the AoS ray records.
+    lane: Option<usize>,
     ro: M::S,
     ho: M::S,
     idir: [M::F; 3],
@@ -220,8 +235,49 @@ impl<M: Machine> RayState<M> {
         let best_v = m.x_load(hits, At::idx(ho, 1, 8));
         let best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
         RayState {
+            lane: None,
             ro,
             ho,
+            idir,
+            oid,
+            tnear,
+            org,
+            dir,
+            tfar_x,
+            tfar,
+            best_u,
+            best_v,
+            best_prim,
+        }
+    }
+
+    /// Load lane `k` of the SoA packet record at byte `pb` of `pk`
+    /// ([`crate::packet`] layout): broadcasts of its rows; the premultiplied
+    /// origin is computed (Embree's hybrid kernel does the same in registers).
+    pub(crate) fn load_packet(m: &mut M, pk: &Buf, pb: M::S, k: usize) -> Self {
+        use crate::packet::row;
+        m.region(Region::SingleRay);
+        let w = M::LANES;
+        let bc = |m: &mut M, r: usize| m.load_bcast(pk, At::idx(pb, 1, row(w, r) + 4 * k));
+        let org = [bc(m, row::ORG), bc(m, row::ORG + 1), bc(m, row::ORG + 2)];
+        let dir = [bc(m, row::DIR), bc(m, row::DIR + 1), bc(m, row::DIR + 2)];
+        let idir = [bc(m, row::IDIR), bc(m, row::IDIR + 1), bc(m, row::IDIR + 2)];
+        let oid = [
+            m.mul(org[0], idir[0]),
+            m.mul(org[1], idir[1]),
+            m.mul(org[2], idir[2]),
+        ];
+        let tnear = bc(m, row::TNEAR);
+        let x = |m: &mut M, r: usize| m.x_load(pk, At::idx(pb, 1, row(w, r) + 4 * k));
+        let tfar_x = x(m, row::TFAR);
+        let tfar = m.broadcast(tfar_x);
+        let best_u = x(m, row::U);
+        let best_v = x(m, row::V);
+        let best_prim = m.s_load(pk, At::idx(pb, 1, row(w, row::PRIM) + 4 * k), 4, true);
+        RayState {
+            lane: Some(k),
+            ro: pb,
+            ho: pb,
             idir,
             oid,
             tnear,
@@ -254,6 +310,17 @@ impl<M: Machine> RayState<M> {
                 self.best_prim = m.s_load(tris, At::idx(bb, 1, off), 4, true);
             }
         }
+    }
+
+    /// Write the hit (t_far, u, v, prim) back to lane `k` of its packet record.
+    pub(crate) fn write_packet(self, m: &mut M, pk: &mut Buf) {
+        use crate::packet::row;
+        let (w, k, pb) = (M::LANES, self.lane.expect("a packet lane"), self.ro);
+        let at = |r: usize| At::idx(pb, 1, row(w, r) + 4 * k);
+        m.x_store(pk, at(row::TFAR), self.tfar_x);
+        m.x_store(pk, at(row::U), self.best_u);
+        m.x_store(pk, at(row::V), self.best_v);
+        m.s_store(pk, at(row::PRIM), 4, self.best_prim);
     }
 
     /// Write the hit record and the new t_far.
@@ -313,17 +380,15 @@ pub struct BlockHit<M: Machine> {
     pub v: M::X,
 }
 
-/// 8-wide Moller-Trumbore of one ray (`org`, `dir` broadcast) against a
-/// block, hits with 0 < t < `tfar`; the closest, if any (a recorded branch).
-pub fn intersect<M: Machine>(
+/// Lane-wise Moller-Trumbore: rays `org`, `dir` against triangles `b`, either
+/// side broadcast (one ray vs 8 triangles, or a packet vs one triangle).
+pub fn moller<M: Machine>(
     m: &mut M,
     b: &Block<M>,
     org: &[M::F; 3],
     dir: &[M::F; 3],
     tfar: M::F,
-) -> Option<BlockHit<M>> {
-    let n = M::LANES;
-    let inf = m.splat(f32::INFINITY);
+) -> Moller<M> {
     let zero_v = m.splat(0.0);
     let one_v = m.splat(1.0);
     let cross = |m: &mut M, a: [M::F; 3], c: [M::F; 3]| {
@@ -368,6 +433,33 @@ pub fn intersect<M: Machine>(
     for k in [ok_v, ok_uv, ok_t0, ok_t1, ok_p] {
         valid = m.klogic(Logic::And, valid, k);
     }
+    Moller { t, u, v, valid }
+}
+
+/// Per-lane result of [`moller`].
+pub struct Moller<M: Machine> {
+    /// Distance.
+    pub t: M::F,
+    /// Barycentric u.
+    pub u: M::F,
+    /// Barycentric v.
+    pub v: M::F,
+    /// Lanes with a hit: det != 0, u, v >= 0, u + v <= 1, 0 < t < t_far, prim >= 0.
+    pub valid: M::K,
+}
+
+/// 8-wide Moller-Trumbore of one ray (`org`, `dir` broadcast) against a
+/// block, hits with 0 < t < `tfar`; the closest, if any (a recorded branch).
+pub fn intersect<M: Machine>(
+    m: &mut M,
+    b: &Block<M>,
+    org: &[M::F; 3],
+    dir: &[M::F; 3],
+    tfar: M::F,
+) -> Option<BlockHit<M>> {
+    let n = M::LANES;
+    let inf = m.splat(f32::INFINITY);
+    let Moller { t, u, v, mut valid } = moller(m, b, org, dir, tfar);
     if n > 8 {
         let low = m.mask(0xFF);
         valid = m.klogic(Logic::And, valid, low);

@@ -13,10 +13,10 @@ use crate::{AppError, AppResult};
 use clap::Args;
 use isa::Region;
 use kernels::bvh::{BuildConfig, Bvh2, Bvh4};
-use kernels::harness::{mismatches, Kernel, Run};
+use kernels::harness::{Kernel, Run};
 use kernels::reference::Reference;
 use kernels::scene::Scene;
-use kernels::workload::{path_trace_tile, StreamKind, Tile};
+use kernels::workload::{path_trace_tile, Tile};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -226,20 +226,10 @@ fn measure(
         };
         let streams = path_trace_tile(&scene, &b2, tile, spp, bounces, a.seed);
         let mut tile_sums = vec![(0u64, 0u64); kernels.len()];
-        for st in streams
-            .iter()
-            .filter(|s| !matches!(s.kind, StreamKind::Shadow(_)) && !s.is_empty())
-        {
-            let run_base = |k: Kernel| Run {
-                kernel: k,
-                scene: &scene,
-                b2: &b2,
-                b4: &b4,
-                org: st.org.clone(),
-                dir: st.dir.clone(),
-            };
+        for st in streams.iter().filter(|s| !s.is_empty()) {
             for (ki, &k) in kernels.iter().enumerate() {
-                let run = run_base(k);
+                let mut run = Run::new(k, &scene, &b2, &b4, st.clone());
+                run.packet_tile = Some((size, spp));
                 let (t, (hits, tests)) = isa::record(&run, fl, k.name());
                 let label = format!(
                     "{scene_name} tile ({}, {}) {:?} {}",
@@ -248,7 +238,7 @@ fn measure(
                     st.kind,
                     k.name()
                 );
-                let bad = mismatches(&label, &refi, &st.org, &st.dir, &hits);
+                let bad = run.mismatches(&label, &refi, &hits);
                 let s = sim::simulate(m, &[&t], &sim::SimOptions::default()).map_err(AppError)?;
                 let ac = &mut acc[ki];
                 ac.rays += st.len() as u64;

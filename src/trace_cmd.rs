@@ -24,7 +24,8 @@ pub struct RunArgs {
     /// Scene for the traversal kernels (`rtsim list scenes`, a .ron or a mesh file).
     #[arg(long, default_value = "sphere")]
     pub scene: String,
-    /// Ray stream for the traversal kernels: primary or bounce (the first bounce of the path tracer).
+    /// Ray stream for the traversal kernels: primary, bounce (the first bounce of the path
+    /// tracer) or shadow (shadow rays from the primary hits, any hit).
     #[arg(long, default_value = "primary")]
     pub stream: String,
     /// Tile side in pixels (traversal kernels): the stream is one tile at the image centre.
@@ -225,7 +226,8 @@ pub fn run(a: &RunArgs) -> AppResult<()> {
         k => match kernels::harness::Kernel::ALL.iter().find(|t| t.name() == k) {
             Some(&t) => run_traversal(a, t),
             None => Err(AppError(format!(
-                "--kernel: unknown kernel '{k}' (boxtest, single-bvh2, single-bvh4, drs-bvh2, drs-bvh4)"
+                "--kernel: unknown kernel '{k}' (boxtest, {})",
+                kernels::harness::Kernel::ALL.map(|k| k.name()).join(", ")
             ))),
         },
     }
@@ -272,9 +274,13 @@ fn run_traversal(a: &RunArgs, kernel: kernels::harness::Kernel) -> AppResult<()>
             .ok_or_else(|| {
                 AppError("--stream bounce: no path survives the first hit in this tile".into())
             })?,
+        "shadow" => path_trace_tile(&scene, &b2, tile, a.spp, 0, a.seed)
+            .into_iter()
+            .find(|s| s.kind == StreamKind::Shadow(0))
+            .ok_or_else(|| AppError("--stream shadow: no primary ray hits in this tile".into()))?,
         s => {
             return Err(AppError(format!(
-                "--stream: '{s}' is not primary or bounce"
+                "--stream: '{s}' is not primary, bounce or shadow"
             )))
         }
     };
@@ -284,14 +290,8 @@ fn run_traversal(a: &RunArgs, kernel: kernels::harness::Kernel) -> AppResult<()>
             stream.len()
         )));
     }
-    let run = kernels::harness::Run {
-        kernel,
-        scene: &scene,
-        b2: &b2,
-        b4: &b4,
-        org: stream.org.clone(),
-        dir: stream.dir.clone(),
-    };
+    let mut run = kernels::harness::Run::new(kernel, &scene, &b2, &b4, stream.clone());
+    run.packet_tile = Some((tile.size, a.spp));
     let (t, (traced, tests)) = isa::record(&run, fl, kernel.name());
     let (native, native_tests) = isa::run_native(&run, fl);
     if native_tests != tests {
@@ -301,7 +301,7 @@ fn run_traversal(a: &RunArgs, kernel: kernels::harness::Kernel) -> AppResult<()>
         )));
     }
     let refi = kernels::reference::Reference::with_bvh(&scene.mesh, &b2);
-    let bad = kernels::harness::mismatches(kernel.name(), &refi, &stream.org, &stream.dir, &traced);
+    let bad = run.mismatches(kernel.name(), &refi, &traced);
     let native_bad = traced.iter().zip(&native).filter(|(x, y)| x != y).count();
     let rays = stream.len() as u64;
     let mut rows = vec![

@@ -14,7 +14,10 @@
 //!   scalar stores, advancing each list by its condition (branch-free); the
 //!   last index of an item is duplicated as padding, and skipped on reading;
 //! - leaves test all of an item's rays against the leaf block, loaded once;
-//! - below [`FALLBACK`] active rays an item switches to single-ray traversal.
+//! - below [`FALLBACK`] active rays an item switches to single-ray traversal;
+//! - shadow rays (any hit) all take one path: one item per hit child (4
+//!   lists), the item with the most rays popped first; an occluded ray's
+//!   t_far becomes -1 so it drops out at its next box test.
 //!
 //! Deviations: runs on 4- and 8-lane flavours (the paper's Haswell kernel);
 //! list counters live in a small array in memory, loaded and stored once per
@@ -54,6 +57,8 @@ pub mod site {
     pub const ITEM: Site = Site(47);
     /// Ray loop of a leaf or fallback item.
     pub const RAYS: Site = Site(48);
+    /// Shadow items' push order (count compares).
+    pub const ORDER: Site = Site(49);
 }
 
 /// The ray stream's own buffers.
@@ -110,10 +115,11 @@ pub fn trace<M: Machine>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
+    shadow: bool,
 ) {
     match M::LANES {
-        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays),
-        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays),
+        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, shadow),
+        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, shadow),
         n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
     }
 }
@@ -127,6 +133,7 @@ fn trace_n<M: Machine, const N: usize>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
+    shadow: bool,
 ) {
     let r = N / 4;
     let cap2 = (st.cap * 2) as i64;
@@ -200,6 +207,7 @@ fn trace_n<M: Machine, const N: usize>(
                     ray,
                     node,
                     &mut st.tests,
+                    shadow,
                 )
             });
             continue;
@@ -209,11 +217,13 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch(site::LEAF, lf) {
             st.tests.leaf += count.get() as u64;
             leaf_item(
-                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count,
+                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, shadow,
             );
             continue;
         }
-        core_node::<M, N>(m, s, st, trav, &mut sp, node, oct, rays_at, count, inf);
+        core_node::<M, N>(
+            m, s, st, trav, &mut sp, node, oct, rays_at, count, inf, shadow,
+        );
     }
 }
 
@@ -284,6 +294,7 @@ pub(crate) fn leaf_item<M: Machine>(
     node: M::S,
     at: M::S,
     count: M::S,
+    shadow: bool,
 ) {
     m.region(Region::Leaf);
     let width = M::LANES.min(8);
@@ -318,9 +329,26 @@ pub(crate) fn leaf_item<M: Machine>(
             m.x_store(hits, At::idx(ho, 1, 4), h.u);
             m.x_store(hits, At::idx(ho, 1, 8), h.v);
             m.s_store(hits, At::idx(ho, 1, 12), 4, prim);
-            m.x_store(trav, At::idx(ro, 1, 28), h.t);
+            // A shadow ray is done: t_far = -1 fails every later box test.
+            let tf = if shadow { m.float(-1.0) } else { h.t };
+            m.x_store(trav, At::idx(ro, 1, 28), tf);
         }
     });
+}
+
+/// Push order of a shadow node's items: the item with the most rays is
+/// popped first (pushed last). `counts` are the items' ray counts; the
+/// comparisons of an insertion sort are recorded branches.
+pub(crate) fn larger_last<M: Machine>(m: &mut M, counts: &[M::S], site: isa::Site) -> Vec<usize> {
+    let mut order: Vec<usize> = Vec::with_capacity(counts.len());
+    for k in 0..counts.len() {
+        let mut at = order.len();
+        while at > 0 && m.branch_if(site, Cmp::Lt, counts[k], counts[order[at - 1]]) {
+            at -= 1;
+        }
+        order.insert(at, k);
+    }
+    order
 }
 
 /// One inner node: the core loop over the item's rays, then the new items.
@@ -336,6 +364,7 @@ fn core_node<M: Machine, const N: usize>(
     at: M::S,
     count: M::S,
     inf: M::F,
+    shadow: bool,
 ) {
     let r = N / 4;
     m.region(Region::Traversal);
@@ -358,7 +387,8 @@ fn core_node<M: Machine, const N: usize>(
         vmask = m.s_op(isa::SOp::Or, vmask, sh);
     }
     // List counters into registers: each new item starts where its list ends.
-    let starts: Vec<M::S> = (0..9)
+    let nlists = if shadow { 4 } else { 9 };
+    let starts: Vec<M::S> = (0..nlists)
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
@@ -382,6 +412,17 @@ fn core_node<M: Machine, const N: usize>(
         let hit = m.cmp(Cmp::Le, tn, tf);
         let hbits = m.movemask(hit);
         let hbits = m.s_and(hbits, vmask);
+        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+        if shadow {
+            // Shadow rays: one list per child, no order.
+            let conds = [hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
+            append(m, st, &idx, &conds, &mut cnt, site::PAD);
+            j = m.s_addi(j, r as i64);
+            if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
+                break;
+            }
+            continue;
+        }
         let nsel = m.select(hit, tn, inf);
         let sw = m.permute(nsel, swp);
         let lt = m.cmp(Cmp::Lt, nsel, sw);
@@ -392,7 +433,6 @@ fn core_node<M: Machine, const N: usize>(
         let gbits = m.movemask(le);
         // The 9 list conditions, bit-parallel for all r rays at once: ray q's
         // condition k is bit 4q of conds[k] (other bits are don't-care).
-        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
         let all = m.int(0xFFFF);
         let (h0, h1, h2, h3) = (hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3));
         let (a0, a2, g0) = (abits, shr(m, abits, 2), gbits);
@@ -418,8 +458,20 @@ fn core_node<M: Machine, const N: usize>(
             break;
         }
     }
-    // New items, pushed so that item 0 is popped first.
     m.region(Region::Traversal);
+    if shadow {
+        // List k holds child k's rays; the largest item is popped first.
+        let counts: Vec<M::S> = (0..4).map(|k| m.s_sub(cnt[k], starts[k])).collect();
+        for k in larger_last(m, &counts, site::ORDER) {
+            if !m.branch_if(site::ITEM, Cmp::Gt, cnt[k], starts[k]) {
+                continue;
+            }
+            let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * k), 4, false);
+            pad_and_push(m, st, sp, k, child, starts[k], cnt[k], oct, r);
+        }
+        return;
+    }
+    // New items, pushed so that item 0 is popped first.
     for k in (0..9).rev() {
         if !m.branch_if(site::ITEM, Cmp::Gt, cnt[k], starts[k]) {
             continue;

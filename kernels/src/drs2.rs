@@ -15,14 +15,17 @@
 //!   premultiplied origin, scalar appends to all 3 lists advanced by their
 //!   conditions, the last index duplicated as padding;
 //! - leaves test an item's rays against the block loaded once; below
-//!   [`FALLBACK2`] rays an item is traced ray by ray.
+//!   [`FALLBACK2`] rays an item is traced ray by ray;
+//! - shadow rays: one item per hit child, the larger popped first.
 //!
 //! Deviations: the paper folds near and far into one max by negating the far
 //! planes (`posNegMask`); this kernel takes a max for near and a min for far
 //! (one more op per axis); list counters live in memory between nodes.
 
 use crate::boxtest::Pat;
-use crate::drs::{append, for_each_ray, leaf_item, load_rays, pad_and_push, StreamBufs};
+use crate::drs::{
+    append, for_each_ray, larger_last, leaf_item, load_rays, pad_and_push, StreamBufs,
+};
 use crate::layout::SceneBufs2;
 use crate::single::trace_ray2;
 use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
@@ -49,6 +52,8 @@ pub mod site {
     pub const PAD: Site = Site(55);
     /// New item non-empty?
     pub const ITEM: Site = Site(56);
+    /// Shadow items' push order.
+    pub const ORDER: Site = Site(57);
 }
 
 /// Trace rays `[0, nrays)` through a BVH2 (records as for [`crate::single::trace`]).
@@ -61,10 +66,11 @@ pub fn trace<M: Machine>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
+    shadow: bool,
 ) {
     match M::LANES {
-        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays),
-        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays),
+        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, shadow),
+        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, shadow),
         n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
     }
 }
@@ -78,6 +84,7 @@ fn trace_n<M: Machine, const N: usize>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
+    shadow: bool,
 ) {
     let r = N / 4;
     let cap2 = (st.cap * 2) as i64;
@@ -127,6 +134,7 @@ fn trace_n<M: Machine, const N: usize>(
                     ray,
                     node,
                     &mut st.tests,
+                    shadow,
                 )
             });
             continue;
@@ -136,11 +144,11 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch(site::LEAF, lf) {
             st.tests.leaf += count.get() as u64;
             leaf_item(
-                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count,
+                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, shadow,
             );
             continue;
         }
-        core_node::<M, N>(m, s, st, trav, &mut sp, node, rays_at, count);
+        core_node::<M, N>(m, s, st, trav, &mut sp, node, rays_at, count, shadow);
     }
 }
 
@@ -155,6 +163,7 @@ fn core_node<M: Machine, const N: usize>(
     node: M::S,
     at: M::S,
     count: M::S,
+    shadow: bool,
 ) {
     let r = N / 4;
     m.region(Region::Traversal);
@@ -169,7 +178,8 @@ fn core_node<M: Machine, const N: usize>(
         swapped.push(m.permute(row, swg));
         rows.push(row);
     }
-    let starts: Vec<M::S> = (0..3)
+    let nlists = if shadow { 2 } else { 3 };
+    let starts: Vec<M::S> = (0..nlists)
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
@@ -193,11 +203,21 @@ fn core_node<M: Machine, const N: usize>(
         let exit = m.permute(tmin, swg);
         let hit = m.cmp(Cmp::Le, tmax, exit);
         let hbits = m.movemask(hit);
+        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+        if shadow {
+            // Shadow rays: list 0 left, list 1 right, no order.
+            let conds = [hbits, shr(m, hbits, 1)];
+            append(m, st, &idx, &conds, &mut cnt, site::PAD);
+            j = m.s_addi(j, r as i64);
+            if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
+                break;
+            }
+            continue;
+        }
         let other = m.permute(tmax, swp);
         let right_first = m.cmp(Cmp::Lt, other, tmax);
         let obits = m.movemask(right_first);
         // Ray q's conditions at bit 4q: left-first, right, left-second.
-        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
         let h1 = shr(m, hbits, 1);
         let order = m.s_and(obits, h1);
         let all = m.int(0xFFFF);
@@ -209,9 +229,21 @@ fn core_node<M: Machine, const N: usize>(
             break;
         }
     }
-    // New items, pushed so that item 0 is popped first.
     m.region(Region::Traversal);
     let zero = m.int(0);
+    if shadow {
+        // The larger of the two items is popped first.
+        let counts: Vec<M::S> = (0..2).map(|k| m.s_sub(cnt[k], starts[k])).collect();
+        for k in larger_last(m, &counts, site::ORDER) {
+            if !m.branch_if(site::ITEM, Cmp::Gt, cnt[k], starts[k]) {
+                continue;
+            }
+            let child = m.s_load(&s.nodes, At::idx(base, 1, 48 + 4 * k), 4, false);
+            pad_and_push(m, st, sp, k, child, starts[k], cnt[k], zero, r);
+        }
+        return;
+    }
+    // New items, pushed so that item 0 is popped first.
     for k in (0..3).rev() {
         if !m.branch_if(site::ITEM, Cmp::Gt, cnt[k], starts[k]) {
             continue;

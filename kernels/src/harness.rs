@@ -5,6 +5,7 @@ use crate::bvh::{Bvh2, Bvh4};
 use crate::layout::{hit_records, lay_out, ray_records};
 use crate::reference::{Ray, Reference};
 use crate::scene::Scene;
+use crate::workload::RayStream;
 use isa::{Machine, MemKind, Program};
 
 /// Which traversal kernel.
@@ -27,7 +28,7 @@ pub enum Kernel {
 }
 
 /// A kernel over a ray stream of a scene; the output is (t, prim) per ray
-/// and the kernel's test counts.
+/// (shadow streams: prim >= 0 when occluded) and the kernel's test counts.
 pub struct Run<'a> {
     /// The kernel.
     pub kernel: Kernel,
@@ -37,10 +38,44 @@ pub struct Run<'a> {
     pub b2: &'a Bvh2,
     /// The BVH4 collapsed from it.
     pub b4: &'a Bvh4,
-    /// Ray origins.
-    pub org: Vec<[f32; 3]>,
-    /// Ray directions.
-    pub dir: Vec<[f32; 3]>,
+    /// The rays (closest hit, or any hit for a shadow stream).
+    pub rays: RayStream,
+    /// For the packet kernels: the stream's tile (size in pixels, samples per
+    /// pixel), to form packets as a packet renderer does
+    /// ([`crate::workload::packet_slots`]); `None`: consecutive rays.
+    pub packet_tile: Option<(u32, u32)>,
+}
+
+impl<'a> Run<'a> {
+    /// `kernel` over `rays`, packets of consecutive rays.
+    #[must_use]
+    pub fn new(
+        kernel: Kernel,
+        scene: &'a Scene,
+        b2: &'a Bvh2,
+        b4: &'a Bvh4,
+        rays: RayStream,
+    ) -> Self {
+        Run {
+            kernel,
+            scene,
+            b2,
+            b4,
+            rays,
+            packet_tile: None,
+        }
+    }
+
+    /// Rays whose result differs from the reference's ([`mismatches`] for
+    /// closest hits, [`shadow_mismatches`] for shadow rays).
+    #[must_use]
+    pub fn mismatches(&self, label: &str, refi: &Reference, out: &[(f32, i32)]) -> usize {
+        if self.rays.is_shadow() {
+            shadow_mismatches(label, refi, &self.rays, out)
+        } else {
+            mismatches(label, refi, &self.rays.org, &self.rays.dir, out)
+        }
+    }
 }
 
 impl Kernel {
@@ -85,68 +120,71 @@ impl Kernel {
 impl Program for Run<'_> {
     type Out = (Vec<(f32, i32)>, crate::stats::Tests);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let n = self.org.len();
-        let (tr, is) = ray_records(&self.org, &self.dir, &vec![f32::INFINITY; n]);
+        let (org, dir, tmax) = (&self.rays.org, &self.rays.dir, &self.rays.tmax);
+        let shadow = self.rays.is_shadow();
+        let n = org.len();
+        let mut tests = crate::stats::Tests::default();
+        if matches!(
+            self.kernel,
+            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid
+        ) {
+            let slots = self
+                .packet_tile
+                .map(|(size, spp)| crate::workload::packet_slots(&self.rays, size, spp, M::LANES));
+            let mut pb = crate::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
+            if self.kernel == Kernel::Packet2 {
+                let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
+                crate::packet::trace2(m, &s, &mut pb, shadow);
+            } else {
+                let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
+                let hybrid = self.kernel == Kernel::Hybrid;
+                crate::packet::trace4(m, &s, &mut pb, hybrid, shadow);
+            }
+            let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
+            return (out, pb.tests);
+        }
+        let (tr, is) = ray_records(org, dir, tmax);
         let mut trav = m.space().alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
         let isect = m.space().alloc_f32(MemKind::Rays, "rays-isect", &is, 64);
         let mut hits = m
             .space()
             .alloc_bytes(MemKind::Hits, "hits", hit_records(n), 64);
-        let mut tests = crate::stats::Tests::default();
+        let single_stack = |m: &mut M| {
+            m.space().alloc(
+                MemKind::Stack,
+                "stack",
+                crate::single::STACK_ENTRIES * 8,
+                64,
+            )
+        };
         match self.kernel {
             Kernel::Single2 => {
                 let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
-                let mut stack = m.space().alloc(
-                    MemKind::Stack,
-                    "stack",
-                    crate::single::STACK_ENTRIES * 8,
-                    64,
-                );
+                let mut stack = single_stack(m);
                 crate::single::trace2(
-                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests,
+                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests, shadow,
                 );
             }
             Kernel::Single => {
                 let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
-                let mut stack = m.space().alloc(
-                    MemKind::Stack,
-                    "stack",
-                    crate::single::STACK_ENTRIES * 8,
-                    64,
-                );
+                let mut stack = single_stack(m);
                 crate::single::trace(
-                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests,
+                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests, shadow,
                 );
             }
             Kernel::Drs => {
                 let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
-                crate::drs::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
+                crate::drs::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n, shadow);
                 tests = st.tests;
             }
             Kernel::Drs2 => {
                 let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
-                crate::drs2::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n);
+                crate::drs2::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n, shadow);
                 tests = st.tests;
             }
-            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => {
-                let mut pb = crate::packet::PacketBufs::new(
-                    m,
-                    &self.org,
-                    &self.dir,
-                    &vec![f32::INFINITY; n],
-                );
-                if self.kernel == Kernel::Packet2 {
-                    let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
-                    crate::packet::trace2(m, &s, &mut pb);
-                } else {
-                    let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
-                    crate::packet::trace4(m, &s, &mut pb, self.kernel == Kernel::Hybrid);
-                }
-                let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
-                return (out, pb.tests);
-            }
+            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => unreachable!("handled above"),
         }
         let out = (0..n)
             .map(|i| (hits.f32_at(16 * i), hits.u32_at(16 * i + 12) as i32))
@@ -214,6 +252,39 @@ pub fn mismatches(
             bad += 1;
             if bad <= 3 {
                 eprintln!("{label} ray {i}: kernel ({t}, {prim}) reference {want:?}");
+            }
+        }
+    }
+    bad
+}
+
+/// Shadow rays whose occlusion (kernel: prim >= 0) differs from the
+/// reference's any-hit over (0, tmax]. Allowed: a miss where every blocker
+/// the reference finds grazes an edge within [`EDGE_EPS`] (an f32 crack),
+/// and a hit within 1e-4 relative of `tmax` (the light sample's end).
+#[must_use]
+pub fn shadow_mismatches(
+    label: &str,
+    refi: &Reference,
+    rays: &RayStream,
+    out: &[(f32, i32)],
+) -> usize {
+    let mut bad = 0;
+    for (i, &(_, prim)) in out.iter().enumerate() {
+        let ray = rays.ray(i);
+        let want = refi.any(&ray);
+        let got = prim >= 0;
+        let ok = want == got
+            || (want && refi.all(&ray).iter().all(grazing))
+            || (got && {
+                let mut longer = ray;
+                longer.tmax *= 1.0 + 1e-4;
+                refi.any(&longer)
+            });
+        if !ok {
+            bad += 1;
+            if bad <= 3 {
+                eprintln!("{label} shadow ray {i}: kernel occluded {got}, reference {want}");
             }
         }
     }

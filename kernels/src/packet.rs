@@ -103,17 +103,26 @@ pub mod site {
     pub const SWITCH: Site = Site(69);
     /// Next active ray of a switched packet?
     pub const SWITCH_RAY: Site = Site(70);
+    /// Shadow packet: any lane not yet occluded?
+    pub const ALIVE: Site = Site(71);
 }
 
-/// SoA packet records of rays (org, dir, t_far) for packets of `w` lanes.
+/// SoA packet records of rays (org, dir, t_far) for packets of `w` lanes;
+/// `slots[j]` is the ray in lane slot j (`u32::MAX`: an empty lane).
 #[must_use]
-pub fn packet_records(org: &[[f32; 3]], dir: &[[f32; 3]], tfar: &[f32], w: usize) -> Vec<f32> {
-    let np = org.len().div_ceil(w).max(1);
+pub fn packet_records(
+    org: &[[f32; 3]],
+    dir: &[[f32; 3]],
+    tfar: &[f32],
+    slots: &[u32],
+    w: usize,
+) -> Vec<f32> {
+    let np = slots.len().div_ceil(w).max(1);
     let mut v = vec![0f32; np * row::ROWS * w];
     for p in 0..np {
         let base = p * row::ROWS * w;
         for l in 0..w {
-            let i = p * w + l;
+            let i = slots.get(p * w + l).copied().unwrap_or(u32::MAX) as usize;
             let at = |r: usize| base + r * w + l;
             let (o, d, tf) = if i < org.len() {
                 (org[i], dir[i], tfar[i])
@@ -147,18 +156,41 @@ pub struct PacketBufs {
     pub single_stack: Buf,
     /// Ray-node and ray-leaf tests (active rays per packet test).
     pub tests: Tests,
+    /// Each ray's lane slot.
+    slot_of: Vec<usize>,
 }
 
 impl PacketBufs {
-    /// Packet records of the rays in `m`'s memory, and the stacks.
+    /// Packet records of the rays in `m`'s memory, and the stacks. `slots`
+    /// places rays in lanes (see [`crate::workload::packet_slots`]); `None`:
+    /// consecutive rays fill each packet.
     pub fn new<M: Machine>(
         m: &mut M,
         org: &[[f32; 3]],
         dir: &[[f32; 3]],
         tfar: &[f32],
+        slots: Option<&[u32]>,
     ) -> PacketBufs {
         let w = M::LANES;
-        let recs = packet_records(org, dir, tfar, w);
+        let seq: Vec<u32>;
+        let slots = match slots {
+            Some(s) => s,
+            None => {
+                seq = (0..org.len() as u32).collect();
+                &seq
+            }
+        };
+        let mut slot_of = vec![usize::MAX; org.len()];
+        for (j, &i) in slots.iter().enumerate() {
+            if (i as usize) < org.len() {
+                slot_of[i as usize] = j;
+            }
+        }
+        assert!(
+            slot_of.iter().all(|&j| j != usize::MAX),
+            "every ray has a lane"
+        );
+        let recs = packet_records(org, dir, tfar, slots, w);
         let packets = recs.len() / (row::ROWS * w);
         let sp = m.space();
         PacketBufs {
@@ -168,13 +200,15 @@ impl PacketBufs {
             stack_near: sp.alloc(MemKind::Stack, "stack-near", STACK_ENTRIES * 4 * w, 64),
             single_stack: sp.alloc(MemKind::Stack, "stack-single", STACK_ENTRIES * 8, 64),
             tests: Tests::default(),
+            slot_of,
         }
     }
 
     /// (t, prim) of ray `i` after a kernel ran.
     #[must_use]
     pub fn hit(&self, w: usize, i: usize) -> (f32, i32) {
-        let (p, l) = (i / w, i % w);
+        let j = self.slot_of[i];
+        let (p, l) = (j / w, j % w);
         let base = p * packet_bytes(w) + 4 * l;
         (
             self.rays.f32_at(base + row(w, row::TFAR)),
@@ -190,14 +224,21 @@ enum Tree<'a> {
     Bvh2(&'a SceneBufs2),
 }
 
-/// Packet BVH4 (`hybrid`: switch to single rays at few active rays).
-pub fn trace4<M: Machine>(m: &mut M, s: &SceneBufs, pb: &mut PacketBufs, hybrid: bool) {
-    trace(m, Tree::Bvh4(s), pb, hybrid);
+/// Packet BVH4 (`hybrid`: switch to single rays at few active rays;
+/// `shadow`: any hit, a lane stops at its first hit, the packet when all have).
+pub fn trace4<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    pb: &mut PacketBufs,
+    hybrid: bool,
+    shadow: bool,
+) {
+    trace(m, Tree::Bvh4(s), pb, hybrid, shadow);
 }
 
 /// Packet BVH2.
-pub fn trace2<M: Machine>(m: &mut M, s: &SceneBufs2, pb: &mut PacketBufs) {
-    trace(m, Tree::Bvh2(s), pb, false);
+pub fn trace2<M: Machine>(m: &mut M, s: &SceneBufs2, pb: &mut PacketBufs, shadow: bool) {
+    trace(m, Tree::Bvh2(s), pb, false, shadow);
 }
 
 /// One packet's vector registers.
@@ -210,14 +251,14 @@ struct Packet<M: Machine> {
     tfar: M::F,
 }
 
-fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool) {
+fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool, shadow: bool) {
     let w = M::LANES;
     let mut p = m.int(0);
     let np = m.int(pb.packets as i64);
     loop {
         m.region(Region::Traversal);
         let base = m.s_shift(Shift::Shl, p, packet_bytes(w).trailing_zeros());
-        trace_packet(m, tree, pb, base, hybrid);
+        trace_packet(m, tree, pb, base, hybrid, shadow);
         p = m.s_addi(p, 1);
         if !m.branch_if(site::PACKETS, Cmp::Lt, p, np) {
             break;
@@ -226,7 +267,14 @@ fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool) {
 }
 
 #[allow(clippy::too_many_lines)]
-fn trace_packet<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, base: M::S, hybrid: bool) {
+fn trace_packet<M: Machine>(
+    m: &mut M,
+    tree: Tree,
+    pb: &mut PacketBufs,
+    base: M::S,
+    hybrid: bool,
+    shadow: bool,
+) {
     let w = M::LANES;
     let ld = |m: &mut M, rays: &Buf, r: usize| m.load(rays, At::idx(base, 1, row(w, r)));
     let org = [0, 1, 2].map(|a| ld(m, &pb.rays, row::ORG + a));
@@ -287,7 +335,7 @@ fn trace_packet<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, base: M:
                     let lane = m.s_tzcnt(bits);
                     let k = lane.get() as usize;
                     let mut st = RayState::load_packet(m, &pb.rays, base, k);
-                    walk4(m, s, &mut st, &mut pb.single_stack, cur, tests);
+                    walk4(m, s, &mut st, &mut pb.single_stack, cur, tests, shadow);
                     m.region(Region::SingleRay);
                     st.write_packet(m, &mut pb.rays);
                     let lm1 = m.s_addi(bits, -1);
@@ -381,7 +429,25 @@ fn trace_packet<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, base: M:
             Tree::Bvh4(s) => &s.tris,
             Tree::Bvh2(s) => &s.tris,
         };
-        leaf(m, blocks, cur, valid_leaf, &mut pk, &mut pb.rays, base);
+        leaf(
+            m,
+            blocks,
+            cur,
+            valid_leaf,
+            &mut pk,
+            &mut pb.rays,
+            base,
+            shadow,
+        );
+        if shadow {
+            // Done when every lane is occluded (t_far = -1) or padding.
+            let zero_v = m.splat(0.0);
+            let alive = m.cmp(Cmp::Ge, pk.tfar, zero_v);
+            let any = m.any(alive);
+            if !m.branch(site::ALIVE, any) {
+                break;
+            }
+        }
     }
 }
 
@@ -412,7 +478,9 @@ fn box_test<M: Machine>(
 /// The packet against each triangle of leaf `node`'s block (8 rays vs one
 /// broadcast triangle per step), lanes `valid` only; hits are written to the
 /// packet record at byte `base` of `rays` with masked stores (memory holds
-/// the hits, as in Embree, so the hybrid kernel's single rays see them).
+/// the hits, as in Embree, so the hybrid kernel's single rays see them). A
+/// shadow lane that hits gets t_far = -1: it is done.
+#[allow(clippy::too_many_arguments)]
 fn leaf<M: Machine>(
     m: &mut M,
     tris: &Buf,
@@ -421,8 +489,10 @@ fn leaf<M: Machine>(
     pk: &mut Packet<M>,
     rays: &mut Buf,
     base: M::S,
+    shadow: bool,
 ) {
     let w = M::LANES;
+    let mut valid = valid;
     m.region(Region::Leaf);
     let mask_idx = m.int(i64::from(!LEAF));
     let blk = m.s_and(node, mask_idx);
@@ -450,8 +520,17 @@ fn leaf<M: Machine>(
         if !m.branch(site::TRI, any) {
             continue;
         }
-        pk.tfar = m.select(hit, t, pk.tfar);
         let at = |r: usize| At::idx(base, 1, row(w, r));
+        if shadow {
+            let done = m.splat(-1.0);
+            pk.tfar = m.select(hit, done, pk.tfar);
+            m.store_masked(hit, rays, at(row::TFAR), done);
+            m.store_masked(hit, rays, at(row::PRIM), pf);
+            let miss = m.knot(hit);
+            valid = m.kand(valid, miss);
+            continue;
+        }
+        pk.tfar = m.select(hit, t, pk.tfar);
         m.store_masked(hit, rays, at(row::TFAR), t);
         m.store_masked(hit, rays, at(row::U), tu);
         m.store_masked(hit, rays, at(row::V), tv);

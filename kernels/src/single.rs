@@ -53,10 +53,11 @@ pub fn trace<M: Machine>(
     stack: &mut Buf,
     nrays: usize,
     tests: &mut Tests,
+    shadow: bool,
 ) {
     let root = m.int(0);
     each_ray(m, nrays, |m, ray| {
-        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests);
+        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests, shadow);
     });
 }
 
@@ -87,15 +88,17 @@ pub fn trace_ray<M: Machine>(
     ray: M::S,
     start: M::S,
     tests: &mut Tests,
+    shadow: bool,
 ) {
     let mut st = RayState::load(m, trav, isect, hits, ray);
-    walk4(m, s, &mut st, stack, start, tests);
+    walk4(m, s, &mut st, stack, start, tests, shadow);
     // Write the hit record and the new t_far.
     m.region(Region::SingleRay);
     st.write(m, trav, hits);
 }
 
-/// The BVH4 stack loop of [`trace_ray`] for a loaded ray, from node `start`.
+/// The BVH4 stack loop of [`trace_ray`] for a loaded ray, from node `start`
+/// (`shadow`: stop at the first hit).
 pub(crate) fn walk4<M: Machine>(
     m: &mut M,
     s: &SceneBufs,
@@ -103,6 +106,7 @@ pub(crate) fn walk4<M: Machine>(
     stack: &mut Buf,
     start: M::S,
     tests: &mut Tests,
+    shadow: bool,
 ) {
     let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     // Push the start node.
@@ -193,7 +197,9 @@ pub(crate) fn walk4<M: Machine>(
         }
         // Leaf: one block of 8 triangles, in passes of the lanes there are.
         tests.leaf += 1;
-        st.leaf(m, &s.tris, node);
+        if st.leaf(m, &s.tris, node, shadow) && shadow {
+            break;
+        }
     }
 }
 
@@ -291,8 +297,11 @@ impl<M: Machine> RayState<M> {
         }
     }
 
-    /// Leaf `node`: one block of 8 triangles, in passes of the lanes there are.
-    fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S) {
+    /// Leaf `node`: one block of 8 triangles, in passes of the lanes there
+    /// are; whether a triangle was hit. A shadow ray's t_far becomes -1 on a
+    /// hit (it is done).
+    fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S, shadow: bool) -> bool {
+        let mut any = false;
         let width = M::LANES.min(8);
         m.region(Region::Leaf);
         let mask_idx = m.int(i64::from(!crate::bvh::LEAF));
@@ -308,8 +317,15 @@ impl<M: Machine> RayState<M> {
                 self.best_v = h.v;
                 let off = 32 * 9 + 4 * (width * p + h.lane);
                 self.best_prim = m.s_load(tris, At::idx(bb, 1, off), 4, true);
+                any = true;
+                if shadow {
+                    self.tfar_x = m.float(-1.0);
+                    self.tfar = m.splat(-1.0);
+                    return true;
+                }
             }
         }
+        any
     }
 
     /// Write the hit (t_far, u, v, prim) back to lane `k` of its packet record.
@@ -497,10 +513,11 @@ pub fn trace2<M: Machine>(
     stack: &mut Buf,
     nrays: usize,
     tests: &mut Tests,
+    shadow: bool,
 ) {
     each_ray(m, nrays, |m, ray| {
         let root = m.int(i64::from(s.root));
-        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests);
+        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests, shadow);
     });
 }
 
@@ -524,6 +541,7 @@ pub fn trace_ray2<M: Machine>(
     ray: M::S,
     start: M::S,
     tests: &mut Tests,
+    shadow: bool,
 ) {
     let n = M::LANES;
     let swap: Vec<u8> = (0..n).map(|i| (i ^ 2) as u8).collect();
@@ -607,7 +625,9 @@ pub fn trace_ray2<M: Machine>(
             continue;
         }
         tests.leaf += 1;
-        st.leaf(m, &s.tris, node);
+        if st.leaf(m, &s.tris, node, shadow) && shadow {
+            break;
+        }
     }
     m.region(Region::SingleRay);
     st.write(m, trav, hits);

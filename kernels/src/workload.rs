@@ -46,6 +46,10 @@ pub struct RayStream {
     pub dir: Vec<[f32; 3]>,
     /// Far limits (1 - epsilon for shadow rays, infinity otherwise).
     pub tmax: Vec<f32>,
+    /// The path each ray belongs to: the index of its camera sample in the
+    /// tile, `(py * size + px) * spp + k` (visibility rays: the pixel index),
+    /// so a packet renderer can keep a path in its lane.
+    pub path: Vec<u32>,
 }
 
 impl RayStream {
@@ -55,7 +59,37 @@ impl RayStream {
             org: Vec::new(),
             dir: Vec::new(),
             tmax: Vec::new(),
+            path: Vec::new(),
         }
+    }
+    /// A stream of given rays (path i for ray i; t_far `tmax`).
+    #[must_use]
+    pub fn from_rays(
+        kind: StreamKind,
+        org: Vec<[f32; 3]>,
+        dir: Vec<[f32; 3]>,
+        tmax: Vec<f32>,
+    ) -> RayStream {
+        assert!(org.len() == dir.len() && org.len() == tmax.len());
+        let path = (0..org.len() as u32).collect();
+        RayStream {
+            kind,
+            org,
+            dir,
+            tmax,
+            path,
+        }
+    }
+    /// Closest-hit rays over (0, inf).
+    #[must_use]
+    pub fn closest(org: Vec<[f32; 3]>, dir: Vec<[f32; 3]>) -> RayStream {
+        let n = org.len();
+        RayStream::from_rays(StreamKind::Primary, org, dir, vec![f32::INFINITY; n])
+    }
+    /// Whether the rays are shadow rays (any hit).
+    #[must_use]
+    pub fn is_shadow(&self) -> bool {
+        matches!(self.kind, StreamKind::Shadow(_))
     }
     /// Number of rays.
     #[must_use]
@@ -67,10 +101,11 @@ impl RayStream {
     pub fn is_empty(&self) -> bool {
         self.org.is_empty()
     }
-    fn push(&mut self, o: [f64; 3], d: [f64; 3], tmax: f32) {
+    fn push(&mut self, o: [f64; 3], d: [f64; 3], tmax: f32, path: u32) {
         self.org.push(o.map(|x| x as f32));
         self.dir.push(d.map(|x| x as f32));
         self.tmax.push(tmax);
+        self.path.push(path);
     }
     /// Ray `i` in f64 for the reference.
     #[must_use]
@@ -111,7 +146,7 @@ fn for_each_sample(
     t: u32,
     spp: u32,
     seed: u64,
-    mut f: impl FnMut([f64; 3], [f64; 3], Rng),
+    mut f: impl FnMut([f64; 3], [f64; 3], Rng, u32),
 ) {
     for py in 0..t {
         for px in 0..t {
@@ -125,7 +160,7 @@ fn for_each_sample(
                     f64::from(x) + f64::from(r.f32()),
                     f64::from(y) + f64::from(r.f32()),
                 );
-                f(o, d, r);
+                f(o, d, r, (py * t + px) * spp + k);
             }
         }
     }
@@ -135,8 +170,8 @@ fn for_each_sample(
 #[must_use]
 pub fn primary_tile(cam: &Camera, tx: u32, ty: u32, t: u32, spp: u32, seed: u64) -> RayStream {
     let mut s = RayStream::new(StreamKind::Primary);
-    for_each_sample(cam, tx, ty, t, spp, seed, |o, d, _| {
-        s.push(o, d, f32::INFINITY)
+    for_each_sample(cam, tx, ty, t, spp, seed, |o, d, _, path| {
+        s.push(o, d, f32::INFINITY, path)
     });
     s
 }
@@ -262,7 +297,7 @@ pub fn path_trace_tile(
             let o = offset(p, n, size);
             let r = &mut rngs[i];
             if let Some(l) = light_point(scene, f64::from(r.f32()), f64::from(r.f32())) {
-                shadows.push(o, sub(l, o), 1.0 - 1e-4);
+                shadows.push(o, sub(l, o), 1.0 - 1e-4, current.path[i]);
                 if shadows.len() == stream_size {
                     out.push(std::mem::replace(
                         &mut shadows,
@@ -287,7 +322,7 @@ pub fn path_trace_tile(
                     }
                 }
             };
-            next.push(o, nd, f32::INFINITY);
+            next.push(o, nd, f32::INFINITY, current.path[i]);
             next_rngs.push(r.clone());
         }
         if !shadows.is_empty() {
@@ -337,7 +372,7 @@ pub fn distribution_tile(
     let fwd = norm(centre);
     let right = norm(cross(fwd, cam.up.map(f64::from)));
     let up = cross(right, fwd);
-    for_each_sample(cam, tx, ty, t, paths, seed, |o, d, mut r| {
+    for_each_sample(cam, tx, ty, t, paths, seed, |o, d, mut r, path| {
         // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
         let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
         let (a, phi) = (
@@ -348,7 +383,7 @@ pub fn distribution_tile(
             eye,
             add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
         );
-        primary.push(lo, sub(focal, lo), f32::INFINITY);
+        primary.push(lo, sub(focal, lo), f32::INFINITY, path);
         rngs.push(r);
     });
     let mut out = vec![primary.clone()];
@@ -366,13 +401,14 @@ pub fn distribution_tile(
             let o = offset(add(ray.org, scale(ray.dir, hit.t)), n, size);
             let r = &mut rngs[i];
             if let Some(l) = light_point(scene, f64::from(r.f32()), f64::from(r.f32())) {
-                shadows.push(o, sub(l, o), 1.0 - 1e-4);
+                shadows.push(o, sub(l, o), 1.0 - 1e-4, current.path[i]);
             }
             if bounce == 0 {
                 let d = norm(ray.dir);
                 let refl = sub(d, scale(n, 2.0 * dot(d, n)));
                 let g = lobe(refl, 20.0, r);
-                glossy.push(o, if dot(g, n) > 0.0 { g } else { refl }, f32::INFINITY);
+                let gd = if dot(g, n) > 0.0 { g } else { refl };
+                glossy.push(o, gd, f32::INFINITY, current.path[i]);
                 next_rngs.push(r.clone());
             }
         }
@@ -458,10 +494,38 @@ pub fn visibility_rays(cam: &Camera) -> RayStream {
     for y in 0..cam.height {
         for x in 0..cam.width {
             let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-            s.push(o, d, f32::INFINITY);
+            s.push(o, d, f32::INFINITY, y * cam.width + x);
         }
     }
     s
+}
+
+/// Packet lanes of a tile's stream as an SoA packet renderer (Embree's ISPC
+/// path tracer) forms them: one packet per camera sample index and block of
+/// `w` pixels (4 x 2 for 8 lanes, 2 x 2 for 4, 4 x 4 for 16), a path keeps its
+/// lane for all its bounces and shadow rays, and lanes whose path has no ray
+/// in this stream are empty (`u32::MAX`); packets with no ray are dropped.
+/// Returns, per lane slot, the stream index of its ray.
+#[must_use]
+pub fn packet_slots(stream: &RayStream, size: u32, spp: u32, w: usize) -> Vec<u32> {
+    let bw = if w >= 8 { 4 } else { 2 }.min(w as u32);
+    let bh = (w as u32 / bw).max(1);
+    let (nbx, nby) = (size.div_ceil(bw), size.div_ceil(bh));
+    let npk = (spp * nbx * nby) as usize;
+    let mut slots = vec![u32::MAX; npk * w];
+    for (i, &p) in stream.path.iter().enumerate() {
+        let (pixel, k) = (p / spp, p % spp);
+        let (px, py) = (pixel % size, pixel / size);
+        let pk = (k * nby + py / bh) * nbx + px / bw;
+        let lane = (py % bh) * bw + px % bw;
+        slots[pk as usize * w + lane as usize] = i as u32;
+    }
+    slots
+        .chunks(w)
+        .filter(|c| c.iter().any(|&s| s != u32::MAX))
+        .flatten()
+        .copied()
+        .collect()
 }
 
 #[cfg(test)]

@@ -25,14 +25,7 @@ fn check(scene_name: &str, streams: &[RayStream], flavours: &[FlavourId]) {
     let refi = Reference::with_bvh(&scene.mesh, &b2);
     for st in streams {
         for kernel in [Kernel::Packet, Kernel::Packet2, Kernel::Hybrid] {
-            let run = Run {
-                kernel,
-                scene: &scene,
-                b2: &b2,
-                b4: &b4,
-                org: st.org.clone(),
-                dir: st.dir.clone(),
-            };
+            let run = Run::new(kernel, &scene, &b2, &b4, st.clone());
             for &fl in flavours {
                 let label = format!("{} {scene_name} {fl} {:?}", kernel.name(), st.kind);
                 let (traced, tests) = isa::record(&run, fl, kernel.name()).1;

@@ -8,7 +8,7 @@ use isa::FlavourId;
 use kernels::bvh::{BuildConfig, Bvh2, Bvh4};
 use kernels::reference::{Ray, Reference};
 use kernels::scene::Scene;
-use kernels::workload::primary_tile;
+use kernels::workload::{primary_tile, RayStream};
 
 fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
     let scene = Scene::load(scene_name).unwrap();
@@ -47,14 +47,13 @@ fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
         "{scene_name}: a mix of hits ({hits}/{})",
         org.len()
     );
-    let run = Run {
+    let run = Run::new(
         kernel,
-        scene: &scene,
-        b2: &b2,
-        b4: &b4,
-        org: org.clone(),
-        dir: dir.clone(),
-    };
+        &scene,
+        &b2,
+        &b4,
+        RayStream::closest(org.clone(), dir.clone()),
+    );
     for &fl in flavours {
         let (traced, tests) = isa::record(&run, fl, "single").1;
         assert_eq!(

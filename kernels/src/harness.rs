@@ -193,20 +193,84 @@ impl Program for Run<'_> {
     }
 }
 
-/// Barycentric distance to an edge within which an f32 kernel may miss a
-/// triangle the f64 watertight reference hits.
+/// Least barycentric distance to an edge within which an f32 kernel may
+/// miss a triangle the f64 watertight reference hits (or hit one it misses).
 pub const EDGE_EPS: f64 = 1e-5;
 
-fn grazing(h: &crate::reference::Hit) -> bool {
-    h.u.min(h.v).min(1.0 - h.u - h.v) <= EDGE_EPS
+/// The barycentric tolerance of f32 Moller-Trumbore on triangle `prim` for a
+/// ray from `org`: [`EDGE_EPS`], or more for small or thin triangles far from
+/// the origin, where the f32 rounding of the edges and of the origin offset
+/// (about 2^-24 of the largest coordinate each) is a larger fraction of the
+/// triangle's least altitude.
+#[must_use]
+pub fn tri_eps(mesh: &crate::mesh::Mesh, prim: u32, org: [f64; 3]) -> f64 {
+    let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
+    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let len = |p: [f64; 3]| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
+    let (e1, e2) = (sub(b, a), sub(c, a));
+    let cr = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let longest = len(e1).max(len(e2)).max(len(sub(c, b)));
+    let altitude = len(cr) / longest.max(1e-300);
+    let reach = a
+        .iter()
+        .chain(&b)
+        .chain(&c)
+        .chain(&org)
+        .fold(0.0f64, |m, x| m.max(x.abs()));
+    let f32_err = 16.0 * f64::from(f32::EPSILON) * reach / altitude.max(1e-300);
+    EDGE_EPS.max(f32_err).min(0.5)
+}
+
+/// Whether the reference hit `h` of a ray from `org` lies within the f32
+/// tolerance of an edge of its triangle.
+fn grazing(mesh: &crate::mesh::Mesh, org: [f64; 3], h: &crate::reference::Hit) -> bool {
+    h.u.min(h.v).min(1.0 - h.u - h.v) <= tri_eps(mesh, h.prim, org)
+}
+
+/// Whether triangle `prim` is hit at about `t` (`None`: anywhere in
+/// (0, tmax]) by `ray` in f64 with its edges widened by the f32 tolerance (a
+/// hit the reference calls a near miss).
+fn near_hit(mesh: &crate::mesh::Mesh, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
+    let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
+    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let cross = |p: [f64; 3], q: [f64; 3]| {
+        [
+            p[1] * q[2] - p[2] * q[1],
+            p[2] * q[0] - p[0] * q[2],
+            p[0] * q[1] - p[1] * q[0],
+        ]
+    };
+    let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    let (e1, e2) = (sub(b, a), sub(c, a));
+    let p = cross(ray.dir, e2);
+    let det = dot(e1, p);
+    if det == 0.0 || !det.is_finite() {
+        return false;
+    }
+    let s = sub(ray.org, a);
+    let u = dot(s, p) / det;
+    let q = cross(s, e1);
+    let v = dot(ray.dir, q) / det;
+    let th = dot(e2, q) / det;
+    let eps = tri_eps(mesh, prim, ray.org);
+    let at_t = match t {
+        Some(t) => (th - t).abs() <= 1e-4 * t.abs().max(1.0),
+        None => th > 0.0 && th <= ray.tmax * (1.0 + 1e-4),
+    };
+    u >= -eps && v >= -eps && u + v <= 1.0 + eps && at_t
 }
 
 /// Rays whose kernel hit differs from the reference's closest hit. Agreement:
 /// both miss; or both hit with t within 1e-4 relative and the same triangle —
 /// or, at a shared edge where two triangles tie, a triangle the reference also
-/// hits at that t; or the reference's hit lies within [`EDGE_EPS`] of an edge
-/// (a crack for f32 Moller-Trumbore) and the kernel returns the next hit the
-/// reference finds behind it (or a miss when every later hit grazes too).
+/// hits at that t, or one it misses by less than the f32 tolerance
+/// ([`tri_eps`]); or the reference's hit lies within the tolerance of an
+/// edge (a crack for f32 Moller-Trumbore) and the kernel returns the next hit
+/// the reference finds behind it (or a miss when every later hit grazes too).
 pub fn mismatches(
     label: &str,
     refi: &Reference,
@@ -214,38 +278,38 @@ pub fn mismatches(
     dir: &[[f32; 3]],
     out: &[(f32, i32)],
 ) -> usize {
+    let mesh = refi.mesh();
     let mut bad = 0;
     for i in 0..org.len() {
         let ray = Ray::new(org[i].map(f64::from), dir[i].map(f64::from));
         let want = refi.closest(&ray);
         let (t, prim) = out[i];
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1.0);
+        let kt = if prim < 0 {
+            f64::INFINITY
+        } else {
+            f64::from(t)
+        };
+        // The kernel's hit is real: the reference hits that triangle there,
+        // or misses it by less than the f32 tolerance.
+        let real = |all: &[crate::reference::Hit]| {
+            prim < 0
+                || all.iter().any(|a| a.prim == prim as u32 && close(a.t, kt))
+                || near_hit(mesh, &ray, prim as u32, Some(kt))
+        };
         let ok = match want {
-            None => prim < 0,
+            None => prim < 0 || near_hit(mesh, &ray, prim as u32, Some(kt)),
             Some(h) => {
                 let all = refi.all(&ray);
-                let exact = prim >= 0
-                    && close(f64::from(t), h.t)
-                    && (prim as u32 == h.prim
-                        || all.iter().any(|a| a.prim == prim as u32 && close(a.t, h.t)));
-                // f32 Moller-Trumbore is not watertight: a hit within
-                // EDGE_EPS of an edge may fall into the crack between two
-                // triangles; then the kernel sees the next surface behind it.
-                let graze = grazing(&h);
-                // Every hit the kernel skipped grazes an edge, and what it
-                // returned (if anything) is a real hit.
-                let kt = if prim < 0 {
-                    f64::INFINITY
-                } else {
-                    f64::from(t)
-                };
+                let exact = prim >= 0 && close(kt, h.t) && real(&all);
+                // f32 Moller-Trumbore is not watertight: a hit near an edge
+                // may fall into the crack between two triangles; then the
+                // kernel sees the next surface behind it.
                 let skipped_graze = all
                     .iter()
                     .filter(|a| prim < 0 || (a.t < kt && !close(a.t, kt)))
-                    .all(grazing);
-                let real = prim < 0 || all.iter().any(|a| a.prim == prim as u32 && close(a.t, kt));
-                let next = skipped_graze && real;
-                exact || (graze && next)
+                    .all(|a| grazing(mesh, ray.org, a));
+                exact || (grazing(mesh, ray.org, &h) && skipped_graze && real(&all))
             }
         };
         if !ok {
@@ -260,7 +324,7 @@ pub fn mismatches(
 
 /// Shadow rays whose occlusion (kernel: prim >= 0) differs from the
 /// reference's any-hit over (0, tmax]. Allowed: a miss where every blocker
-/// the reference finds grazes an edge within [`EDGE_EPS`] (an f32 crack),
+/// the reference finds grazes an edge within [`tri_eps`] (an f32 crack),
 /// and a hit within 1e-4 relative of `tmax` (the light sample's end).
 #[must_use]
 pub fn shadow_mismatches(
@@ -275,11 +339,15 @@ pub fn shadow_mismatches(
         let want = refi.any(&ray);
         let got = prim >= 0;
         let ok = want == got
-            || (want && refi.all(&ray).iter().all(grazing))
+            || (want
+                && refi
+                    .all(&ray)
+                    .iter()
+                    .all(|h| grazing(refi.mesh(), ray.org, h)))
             || (got && {
                 let mut longer = ray;
                 longer.tmax *= 1.0 + 1e-4;
-                refi.any(&longer)
+                refi.any(&longer) || near_hit(refi.mesh(), &ray, prim as u32, None)
             });
         if !ok {
             bad += 1;

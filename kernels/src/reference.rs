@@ -209,6 +209,12 @@ pub struct Reference<'a> {
 }
 
 impl<'a> Reference<'a> {
+    /// The mesh.
+    #[must_use]
+    pub fn mesh(&self) -> &'a Mesh {
+        self.mesh
+    }
+
     /// Brute force over every triangle (small scenes, and the check of the BVH path).
     #[must_use]
     pub fn brute(mesh: &'a Mesh) -> Reference<'a> {

@@ -388,7 +388,7 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
 }
 
 #[test]
-fn reproduce_drs_table1_computes_the_rows_it_has_kernels_for() {
+fn reproduce_drs_table1_computes_all_seven_rows() {
     let j = json(&rtsim(&[
         "reproduce",
         "drs-table1",
@@ -401,11 +401,22 @@ fn reproduce_drs_table1_computes_the_rows_it_has_kernels_for() {
     ]));
     let rows = j["rows"].as_array().unwrap();
     for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
-        for method in ["drs-bvh2", "drs-bvh4", "single-bvh2", "single-bvh4"] {
+        for method in [
+            "drs-bvh2",
+            "drs-bvh4",
+            "single-bvh2",
+            "single-bvh4",
+            "packet-bvh2",
+            "packet-bvh4",
+            "hybrid-bvh4",
+        ] {
             let of = |metric: &str| -> Vec<&serde_json::Value> {
                 rows.iter()
                     .filter(|r| {
-                        r["scene"] == scene && r["method"] == method && r["metric"] == metric
+                        r["scene"] == scene
+                            && r["method"] == method
+                            && r["metric"] == metric
+                            && r.get("stream").is_none()
                     })
                     .collect()
             };
@@ -424,12 +435,84 @@ fn reproduce_drs_table1_computes_the_rows_it_has_kernels_for() {
             "{scene}"
         );
     }
+    // Shadow rays are traced by every kernel wherever the sampled tile has hits.
+    for method in ["drs-bvh4", "single-bvh4", "packet-bvh4", "hybrid-bvh4"] {
+        assert!(
+            rows.iter()
+                .any(|r| r["method"] == method && r["stream"] == "shadow"),
+            "{method}: shadow rays traced"
+        );
+    }
     let notes = j["notes"].as_array().unwrap();
     assert!(
-        notes.iter().any(|n| n
-            .as_str()
-            .unwrap()
-            .contains("Hybrid BVH4 rows are not computed")),
-        "the missing rows are said: {notes:?}"
+        notes
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("packets are formed")),
+        "how packets are formed is said: {notes:?}"
     );
+}
+
+#[test]
+fn reproduce_drs_figures_write_their_table_and_plot() {
+    let dir = std::env::temp_dir().join(format!("rtsim-figs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_str().unwrap();
+    let j = json(&rtsim(&[
+        "reproduce",
+        "drs-fig6",
+        "--quick",
+        "--tiles",
+        "1",
+        "--spp",
+        "1",
+        "--format",
+        "json",
+        "--out",
+        d,
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    for method in ["drs-bvh4", "single-bvh4", "hybrid-bvh4"] {
+        let n = rows
+            .iter()
+            .filter(|r| r["method"] == method && r["metric"] == "mray_per_s")
+            .filter(|r| r["value"].as_f64().unwrap() > 0.0)
+            .count();
+        assert_eq!(n, 8, "{method}: one rate per FOV");
+    }
+    let png = std::fs::read(dir.join("drs-fig6.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    assert!(dir.join("drs-fig6.json").exists());
+    let j = json(&rtsim(&[
+        "reproduce",
+        "drs-fig5",
+        "--quick",
+        "--tiles",
+        "1",
+        "--spp",
+        "1",
+        "--format",
+        "json",
+        "--out",
+        d,
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+        let tiles: Vec<&str> = rows
+            .iter()
+            .filter(|r| r["scene"] == scene && r["metric"] == "bytes_per_ray")
+            .map(|r| r["tile"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            tiles,
+            ["4x4", "8x8", "12x12", "16x16", "20x20", "24x24", "28x28"]
+        );
+    }
+    assert!(rows
+        .iter()
+        .filter(|r| r["metric"] == "hit_mismatches")
+        .all(|r| r["value"] == 0.0));
+    assert!(std::fs::read(dir.join("drs-fig5.png"))
+        .unwrap()
+        .starts_with(b"\x89PNG"));
+    let _ = std::fs::remove_dir_all(&dir);
 }

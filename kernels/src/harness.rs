@@ -120,7 +120,48 @@ impl Kernel {
 impl Program for Run<'_> {
     type Out = (Vec<(f32, i32)>, crate::stats::Tests);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        let laid = self.lay_out(m);
+        self.trace(m, &laid)
+    }
+}
+
+/// A scene laid out in a machine's memory for one kernel: the BVH4 or BVH2
+/// records it reads.
+pub struct Laid {
+    /// BVH4 layout (BVH4 kernels).
+    pub bvh4: Option<crate::layout::SceneBufs>,
+    /// BVH2 layout (BVH2 kernels).
+    pub bvh2: Option<crate::layout::SceneBufs2>,
+}
+
+impl Run<'_> {
+    /// Lay out the tree the kernel reads (once per machine; see [`Run::trace`]).
+    pub fn lay_out<M: Machine>(&self, m: &mut M) -> Laid {
+        if matches!(
+            self.kernel,
+            Kernel::Single2 | Kernel::Drs2 | Kernel::Packet2
+        ) {
+            Laid {
+                bvh4: None,
+                bvh2: Some(crate::layout::lay_out2(m, &self.scene.mesh, self.b2)),
+            }
+        } else {
+            Laid {
+                bvh4: Some(lay_out(m, &self.scene.mesh, self.b2, self.b4)),
+                bvh2: None,
+            }
+        }
+    }
+
+    /// Trace the rays over a layout from [`Run::lay_out`] on the same machine.
+    pub fn trace<M: Machine>(
+        &self,
+        m: &mut M,
+        laid: &Laid,
+    ) -> (Vec<(f32, i32)>, crate::stats::Tests) {
         let (org, dir, tmax) = (&self.rays.org, &self.rays.dir, &self.rays.tmax);
+        let s4 = || laid.bvh4.as_ref().expect("a BVH4 layout");
+        let s2 = || laid.bvh2.as_ref().expect("a BVH2 layout");
         let shadow = self.rays.is_shadow();
         let n = org.len();
         let mut tests = crate::stats::Tests::default();
@@ -133,12 +174,11 @@ impl Program for Run<'_> {
                 .map(|(size, spp)| crate::workload::packet_slots(&self.rays, size, spp, M::LANES));
             let mut pb = crate::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
             if self.kernel == Kernel::Packet2 {
-                let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
-                crate::packet::trace2(m, &s, &mut pb, shadow);
+                crate::packet::trace2(m, s2(), &mut pb, shadow);
             } else {
-                let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
+                let s = s4();
                 let hybrid = self.kernel == Kernel::Hybrid;
-                crate::packet::trace4(m, &s, &mut pb, hybrid, shadow);
+                crate::packet::trace4(m, s, &mut pb, hybrid, shadow);
             }
             let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
             return (out, pb.tests);
@@ -159,29 +199,41 @@ impl Program for Run<'_> {
         };
         match self.kernel {
             Kernel::Single2 => {
-                let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
                 let mut stack = single_stack(m);
                 crate::single::trace2(
-                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests, shadow,
+                    m,
+                    s2(),
+                    &mut trav,
+                    &isect,
+                    &mut hits,
+                    &mut stack,
+                    n,
+                    &mut tests,
+                    shadow,
                 );
             }
             Kernel::Single => {
-                let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut stack = single_stack(m);
                 crate::single::trace(
-                    m, &s, &mut trav, &isect, &mut hits, &mut stack, n, &mut tests, shadow,
+                    m,
+                    s4(),
+                    &mut trav,
+                    &isect,
+                    &mut hits,
+                    &mut stack,
+                    n,
+                    &mut tests,
+                    shadow,
                 );
             }
             Kernel::Drs => {
-                let s = lay_out(m, &self.scene.mesh, self.b2, self.b4);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
-                crate::drs::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n, shadow);
+                crate::drs::trace(m, s4(), &mut st, &mut trav, &isect, &mut hits, n, shadow);
                 tests = st.tests;
             }
             Kernel::Drs2 => {
-                let s = crate::layout::lay_out2(m, &self.scene.mesh, self.b2);
                 let mut st = crate::drs::StreamBufs::new(m, n, self.b2.depth());
-                crate::drs2::trace(m, &s, &mut st, &mut trav, &isect, &mut hits, n, shadow);
+                crate::drs2::trace(m, s2(), &mut st, &mut trav, &isect, &mut hits, n, shadow);
                 tests = st.tests;
             }
             Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => unreachable!("handled above"),

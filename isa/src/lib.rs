@@ -32,7 +32,7 @@ pub use class::OpClass;
 pub use flavour::{Avx2, Avx512, Flavour, FlavourId, Lrb16, Sse4};
 pub use lanes::{BinOp, Cmp, Fma, IOp, Shift};
 pub use machine::{Float, Int, Logic, Machine, SOp};
-pub use mem::{AddrSpace, At, Buf, MemRegion};
+pub use mem::{AddrSpace, At, Buf, MemRegion, SpaceMark};
 pub use native::Native;
 pub use program::{record, run_native, Program};
 pub use trace::{Op, Trace};

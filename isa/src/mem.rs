@@ -39,6 +39,13 @@ impl MemRegion {
     }
 }
 
+/// A point in an [`AddrSpace`]'s allocation history.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SpaceMark {
+    regions: usize,
+    next: u64,
+}
+
 /// The simulated address space of one run.
 #[derive(Clone, Debug)]
 pub struct AddrSpace {
@@ -93,6 +100,23 @@ impl AddrSpace {
         };
         self.regions.push(r.clone());
         r
+    }
+
+    /// A point to roll the space back to with [`AddrSpace::release`].
+    #[must_use]
+    pub fn mark(&self) -> SpaceMark {
+        SpaceMark {
+            regions: self.regions.len(),
+            next: self.next,
+        }
+    }
+
+    /// Forget every region registered after `mark` (their buffers must not be
+    /// used again), e.g. a benchmark iteration's ray buffers.
+    pub fn release(&mut self, mark: SpaceMark) {
+        assert!(mark.regions <= self.regions.len(), "a mark of this space");
+        self.regions.truncate(mark.regions);
+        self.next = mark.next;
     }
 
     /// Register a zero-filled region of `size` bytes at `align` (power of two).

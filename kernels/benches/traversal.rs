@@ -2,14 +2,15 @@
 //! backend) on one scene's primary, bounce and shadow streams of one 16 x 16
 //! pixel x 16 spp tile, so their real speed on this machine can be set beside
 //! the simulated ranking of `rtsim reproduce drs-table1`. The scene is laid
-//! out once per kernel; each iteration allocates the ray records and traces.
+//! out once per kernel; each iteration allocates the ray records, traces, and
+//! releases the records.
 //!
 //! Run: `cargo bench -p kernels --bench traversal` (needs `../shared/data`;
 //! `RTSIM_BENCH_SCENE` picks another stand-in than `crown`). Results, with the
 //! machine they ran on, are in `kernels/benches/RESULTS.md`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use isa::{Avx2, Native};
+use isa::{Avx2, Machine, Native};
 use kernels::bvh::{BuildConfig, Bvh2, Bvh4};
 use kernels::harness::{Kernel, Run};
 use kernels::scene::Scene;
@@ -50,8 +51,13 @@ fn traversal(c: &mut Criterion) {
             run.packet_tile = Some((tile.size, 16));
             let mut m = Native::<Avx2, 8>::new();
             let laid = run.lay_out(&mut m);
+            let mark = m.space().mark();
             g.bench_function(format!("{}/{label}", kernel.name()), |b| {
-                b.iter(|| run.trace(&mut m, &laid));
+                b.iter(|| {
+                    let out = run.trace(&mut m, &laid);
+                    m.space().release(mark);
+                    out
+                });
             });
         }
     }

@@ -286,7 +286,11 @@ fn grazing(mesh: &crate::mesh::Mesh, org: [f64; 3], h: &crate::reference::Hit) -
 /// Whether triangle `prim` is hit at about `t` (`None`: anywhere in
 /// (0, tmax]) by `ray` in f64 with its edges widened by the f32 tolerance (a
 /// hit the reference calls a near miss).
-fn near_hit(mesh: &crate::mesh::Mesh, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
+fn near_hit(refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
+    let mesh = refi.mesh();
+    if !refi.faces(prim, ray.dir) {
+        return false;
+    }
     let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
     let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
     let cross = |p: [f64; 3], q: [f64; 3]| {
@@ -347,10 +351,10 @@ pub fn mismatches(
         let real = |all: &[crate::reference::Hit]| {
             prim < 0
                 || all.iter().any(|a| a.prim == prim as u32 && close(a.t, kt))
-                || near_hit(mesh, &ray, prim as u32, Some(kt))
+                || near_hit(refi, &ray, prim as u32, Some(kt))
         };
         let ok = match want {
-            None => prim < 0 || near_hit(mesh, &ray, prim as u32, Some(kt)),
+            None => prim < 0 || near_hit(refi, &ray, prim as u32, Some(kt)),
             Some(h) => {
                 let all = refi.all(&ray);
                 let exact = prim >= 0 && close(kt, h.t) && real(&all);
@@ -399,7 +403,7 @@ pub fn shadow_mismatches(
             || (got && {
                 let mut longer = ray;
                 longer.tmax *= 1.0 + 1e-4;
-                refi.any(&longer) || near_hit(refi.mesh(), &ray, prim as u32, None)
+                refi.any(&longer) || near_hit(refi, &ray, prim as u32, None)
             });
         if !ok {
             bad += 1;

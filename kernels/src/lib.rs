@@ -13,6 +13,7 @@ pub mod drs2;
 pub mod harness;
 pub mod layout;
 pub mod mesh;
+pub mod mft;
 pub mod micro;
 pub mod packet;
 pub mod reference;

@@ -206,6 +206,10 @@ pub fn moller_trumbore(
 pub struct Reference<'a> {
     mesh: &'a Mesh,
     bvh: Option<&'a Bvh2>,
+    /// Front faces only: a triangle counts only when the ray meets the side
+    /// its winding's normal `(v1 - v0) x (v2 - v0)` points to (`n . dir < 0`),
+    /// as kernels with back-face culling see it (the MFT paper's kernels).
+    one_sided: bool,
 }
 
 impl<'a> Reference<'a> {
@@ -218,7 +222,11 @@ impl<'a> Reference<'a> {
     /// Brute force over every triangle (small scenes, and the check of the BVH path).
     #[must_use]
     pub fn brute(mesh: &'a Mesh) -> Reference<'a> {
-        Reference { mesh, bvh: None }
+        Reference {
+            mesh,
+            bvh: None,
+            one_sided: false,
+        }
     }
     /// Over a BVH2 of `mesh`.
     #[must_use]
@@ -226,7 +234,35 @@ impl<'a> Reference<'a> {
         Reference {
             mesh,
             bvh: Some(bvh),
+            one_sided: false,
         }
+    }
+
+    /// The same reference seeing front faces only (back-face culling).
+    #[must_use]
+    pub fn front_faces_only(mut self) -> Reference<'a> {
+        self.one_sided = true;
+        self
+    }
+
+    /// Whether triangle `p` counts for a ray along `dir` (always, unless
+    /// [`Reference::front_faces_only`]).
+    #[must_use]
+    pub fn faces(&self, p: u32, dir: [f64; 3]) -> bool {
+        if !self.one_sided {
+            return true;
+        }
+        let [a, b, c] = self.mesh.tri(p as usize).map(|v| v.map(f64::from));
+        let (e1, e2) = (
+            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+        );
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2] < 0.0
     }
 
     /// Visit candidate triangles whose boxes the ray overlaps within (tmin, tmax()).
@@ -271,6 +307,9 @@ impl<'a> Reference<'a> {
         let mut best: Option<Hit> = None;
         self.visit(r, |p| {
             let tmax = best.map_or(r.tmax, |b| b.t);
+            if !self.faces(p, r.dir) {
+                return None;
+            }
             let (t, u, v) = w.hit(self.mesh.tri(p as usize), r.tmin, tmax)?;
             let better = best.is_none_or(|b| t < b.t || (t == b.t && p < b.prim));
             if better {
@@ -296,6 +335,9 @@ impl<'a> Reference<'a> {
         let w = Watertight::new(r);
         let mut hits = Vec::new();
         self.visit(r, |p| {
+            if !self.faces(p, r.dir) {
+                return None;
+            }
             if let Some((t, u, v)) = w.hit(self.mesh.tri(p as usize), r.tmin, r.tmax) {
                 hits.push(Hit { t, u, v, prim: p });
             }

@@ -1,0 +1,649 @@
+//! Multi-frusta tracing (Benthin and Wald 2009, "Efficient Ray Traced Soft
+//! Shadows using Multi-Frusta Tracing"): 16 frusta traced in parallel, one per
+//! SIMD lane, through a BVH2 by interval-arithmetic slab culling only; at
+//! leaves back-face and corner-ray culling for all frusta at once, then for
+//! each surviving frustum (bitscan) one 16-wide ray-triangle test of its rays,
+//! generated on demand from a start and a delta vector.
+//!
+//! This module holds the primary-ray case (16 frusta of 4 x 4 pixels = a
+//! 16 x 16 pixel block, one common origin); closest hit per ray.
+//!
+//! Frusta record (16 lanes = 16 frusta, rows of 64 B):
+//!
+//! | rows | field |
+//! |---|---|
+//! | 0-2 | origin x, y, z |
+//! | 3-5 | reciprocal direction interval, low end (x, y, z) |
+//! | 6-8 | reciprocal direction interval, high end |
+//! | 9-11 | direction interval, low end (for the zero-interval fix) |
+//! | 12-14 | direction interval, high end |
+//! | 15-26 | corner rays 0-3 (x, y, z each): corner c axis a at row 15 + 3c + a |
+//! | 27-29 | start vector (ray 0 of each frustum) |
+//! | 30-32 | delta vector (offset of ray k in lane k; shared by primary frusta) |
+//! | 33 | origin as 4 x `[x y z 0]`... laid out per BVH2 node row (`[ox x4, oy x4, oz x4, 0 x4]`) |
+//! | 34 | per-frustum distance bound (all rays' farthest hit, +inf while any ray misses) |
+//!
+//! Hits: per frustum 2 rows, t then prim (i32, -1: none), 2 KB for 256 rays.
+//!
+//! Deviations from the paper: triangles come from our 8-wide blocks (v0 and
+//! two edges precomputed; the paper reads three vertex indices); the stack
+//! keeps a frustum mask as a u32 and rebuilds the mask register with a
+//! broadcast load, an and and a compare (LRBni moves a GPR to a mask register
+//! in one op); per-triangle per-frustum values are stored once and read back
+//! with broadcast loads; a node is tested with per-lane signs (the paper picks
+//! the planes once per frusta set from the first frustum's signs).
+
+use crate::bvh::LEAF;
+use crate::layout::{SceneBufs2, BLOCK, BLOCK_BYTES};
+use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shift};
+
+/// Frusta traced together (the SIMD width of the kernel).
+pub const FRUSTA: usize = 16;
+
+/// Rows of the frusta record.
+pub mod row {
+    /// Origin x (y, z follow).
+    pub const ORG: usize = 0;
+    /// Reciprocal direction interval low end x (y, z follow).
+    pub const RCP_LO: usize = 3;
+    /// Reciprocal direction interval high end x.
+    pub const RCP_HI: usize = 6;
+    /// Direction interval low end x.
+    pub const DIR_LO: usize = 9;
+    /// Direction interval high end x.
+    pub const DIR_HI: usize = 12;
+    /// Corner ray 0, x (corner c axis a at `CORNER + 3c + a`).
+    pub const CORNER: usize = 15;
+    /// Start vector x.
+    pub const START: usize = 27;
+    /// Delta vector x.
+    pub const DELTA: usize = 30;
+    /// The common origin laid out like a BVH2 node's rows.
+    pub const ORG_NODE: usize = 33;
+    /// Distance bound per frustum.
+    pub const DIST: usize = 34;
+    /// Rows.
+    pub const ROWS: usize = 35;
+}
+
+/// Byte offset of row `r`.
+const fn at_row(r: usize) -> usize {
+    64 * r
+}
+
+/// Branch sites.
+pub mod site {
+    use isa::Site;
+    /// Stack empty?
+    pub const STACK: Site = Site(80);
+    /// Leaf?
+    pub const LEAF: Site = Site(81);
+    /// Which children are hit (both / one / none)?
+    pub const CHILDREN: Site = Site(82);
+    /// Left first?
+    pub const ORDER: Site = Site(83);
+    /// Empty triangle slot?
+    pub const SLOT: Site = Site(84);
+    /// Any frustum front-facing?
+    pub const FRONT: Site = Site(85);
+    /// Any frustum left after corner culling?
+    pub const CORNER: Site = Site(86);
+    /// Next active frustum?
+    pub const FRUSTUM: Site = Site(87);
+    /// Any ray hits?
+    pub const RAY_HIT: Site = Site(88);
+    /// Any frustum whose direction interval holds zero?
+    pub const ZERO: Site = Site(89);
+    /// Next updated frustum?
+    pub const UPDATE: Site = Site(90);
+}
+
+/// MFT counters, as the paper's Table 1.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MftStats {
+    /// 16-wide AABB tests (one per child box per visited node).
+    pub aabb_tests: u64,
+    /// Triangles fetched at leaves (once per leaf visit for all frusta).
+    pub tris_accessed: u64,
+    /// Triangles left for intersection after back-face and corner culling.
+    pub tris_after_culling: u64,
+    /// 16-wide ray-triangle tests (one per frustum per surviving triangle).
+    pub isec_tests: u64,
+}
+
+/// 16 primary frusta of a 16 x 16 pixel block: each frustum a 4 x 4 pixel
+/// grid, rays through the pixel centres, generated as `start + delta` in f32.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frusta {
+    /// Common origin.
+    pub org: [f32; 3],
+    /// Ray 0 (top-left pixel) of each frustum.
+    pub start: [[f32; 3]; FRUSTA],
+    /// Offset of ray k from ray 0 (the same for every frustum).
+    pub delta: [[f32; 3]; FRUSTA],
+    /// Top-left pixel of the block.
+    pub pixel: (u32, u32),
+}
+
+impl Frusta {
+    /// The frusta of block (`bx`, `by`) (pixels `16 bx ..`, `16 by ..`).
+    #[must_use]
+    pub fn primary(cam: &crate::scene::Camera, bx: u32, by: u32) -> Frusta {
+        let (x0, y0) = (16 * bx, 16 * by);
+        let dir = |x: u32, y: u32| cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5).1;
+        let (o, _) = cam.ray(0.5, 0.5);
+        let d00 = dir(x0, y0);
+        let start = std::array::from_fn(|n| {
+            let (fx, fy) = (x0 + 4 * (n as u32 % 4), y0 + 4 * (n as u32 / 4));
+            dir(fx, fy).map(|c| c as f32)
+        });
+        // The direction is affine in the pixel, so one delta serves all frusta.
+        let delta = std::array::from_fn(|k| {
+            let d = dir(x0 + k as u32 % 4, y0 + k as u32 / 4);
+            [0, 1, 2].map(|a| (d[a] - d00[a]) as f32)
+        });
+        Frusta {
+            org: o.map(|c| c as f32),
+            start,
+            delta,
+            pixel: (x0, y0),
+        }
+    }
+
+    /// Ray `k` of frustum `n` exactly as the kernel generates it.
+    #[must_use]
+    pub fn ray(&self, n: usize, k: usize) -> ([f32; 3], [f32; 3]) {
+        let d = [0, 1, 2].map(|a| self.start[n][a] + self.delta[k][a]);
+        (self.org, d)
+    }
+
+    /// The pixel of ray `k` of frustum `n`.
+    #[must_use]
+    pub fn ray_pixel(&self, n: usize, k: usize) -> (u32, u32) {
+        (
+            self.pixel.0 + 4 * (n as u32 % 4) + k as u32 % 4,
+            self.pixel.1 + 4 * (n as u32 / 4) + k as u32 / 4,
+        )
+    }
+
+    /// The frusta record (see the module table).
+    #[must_use]
+    pub fn record(&self) -> Vec<f32> {
+        let mut v = vec![0f32; row::ROWS * FRUSTA];
+        let mut set = |r: usize, n: usize, x: f32| v[r * FRUSTA + n] = x;
+        for n in 0..FRUSTA {
+            let rays: Vec<[f32; 3]> = (0..16).map(|k| self.ray(n, k).1).collect();
+            for a in 0..3 {
+                set(row::ORG + a, n, self.org[a]);
+                let lo = rays.iter().map(|d| d[a]).fold(f32::INFINITY, f32::min);
+                let hi = rays.iter().map(|d| d[a]).fold(f32::NEG_INFINITY, f32::max);
+                set(row::DIR_LO + a, n, lo);
+                set(row::DIR_HI + a, n, hi);
+                // Reciprocal interval, widened by 2^-20 relative on each side so
+                // the f32 products of the slab test stay conservative.
+                let (rlo, rhi) = if lo > 0.0 || hi < 0.0 {
+                    let (p, q) = (1.0 / hi, 1.0 / lo);
+                    let w = |x: f32, up: bool| {
+                        let e = x.abs() * (1.0 / 1_048_576.0);
+                        if up {
+                            x + e
+                        } else {
+                            x - e
+                        }
+                    };
+                    (w(p.min(q), false), w(p.max(q), true))
+                } else {
+                    (f32::NEG_INFINITY, f32::INFINITY)
+                };
+                set(row::RCP_LO + a, n, rlo);
+                set(row::RCP_HI + a, n, rhi);
+                set(row::START + a, n, self.start[n][a]);
+                set(row::DELTA + a, n, self.delta[n][a]);
+                for (c, k) in [0usize, 3, 12, 15].into_iter().enumerate() {
+                    set(row::CORNER + 3 * c + a, n, rays[k][a]);
+                }
+                for q in 0..4 {
+                    set(row::ORG_NODE, 4 * a + q, self.org[a]);
+                }
+            }
+            set(row::DIST, n, f32::INFINITY);
+        }
+        v
+    }
+}
+
+/// The MFT kernel's buffers for one frusta set.
+pub struct MftBufs {
+    /// The frusta record.
+    pub frusta: Buf,
+    /// Hits: per frustum a t row and a prim row.
+    pub hits: Buf,
+    /// Traversal stack: (node u32, frustum mask u32) entries.
+    pub stack: Buf,
+    /// Per-triangle values read back by broadcast (10 rows).
+    pub scratch: Buf,
+    /// Counters.
+    pub stats: MftStats,
+}
+
+impl MftBufs {
+    /// Buffers for frusta `f`.
+    pub fn new<M: Machine>(m: &mut M, f: &Frusta) -> MftBufs {
+        let mut hits = Vec::with_capacity(2 * FRUSTA * FRUSTA);
+        for _ in 0..FRUSTA {
+            hits.extend(std::iter::repeat_n(f32::INFINITY, FRUSTA));
+            hits.extend(std::iter::repeat_n(f32::from_bits(u32::MAX), FRUSTA));
+        }
+        let sp = m.space();
+        MftBufs {
+            frusta: sp.alloc_f32(MemKind::Rays, "frusta", &f.record(), 64),
+            hits: sp.alloc_f32(MemKind::Hits, "frusta-hits", &hits, 64),
+            stack: sp.alloc(MemKind::Stack, "frusta-stack", 8 * 256, 64),
+            scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 10, 64),
+            stats: MftStats::default(),
+        }
+    }
+
+    /// (t, prim) of ray `k` of frustum `n`.
+    #[must_use]
+    pub fn hit(&self, n: usize, k: usize) -> (f32, i32) {
+        let base = 128 * n + 4 * k;
+        (self.hits.f32_at(base), self.hits.u32_at(base + 64) as i32)
+    }
+}
+
+/// Trace 16 primary frusta (closest hit per ray) through a BVH2 laid out by
+/// [`crate::layout::lay_out2`]; `cull_back`: back-face culling (the paper's;
+/// hits are then front faces only).
+///
+/// # Panics
+/// On machines without 16 lanes.
+pub fn trace_primary<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: bool) {
+    assert_eq!(M::LANES, FRUSTA, "MFT runs 16 frusta on 16 lanes");
+    m.region(Region::Setup);
+    let fr = &b.frusta;
+    let ld = |m: &mut M, r: usize| m.load(fr, At::off(at_row(r)));
+    let rlo = [0, 1, 2].map(|a| ld(m, row::RCP_LO + a));
+    let rhi = [0, 1, 2].map(|a| ld(m, row::RCP_HI + a));
+    let dlo = [0, 1, 2].map(|a| ld(m, row::DIR_LO + a));
+    let dhi = [0, 1, 2].map(|a| ld(m, row::DIR_HI + a));
+    let org = [0, 1, 2].map(|a| ld(m, row::ORG + a));
+    let org_node = ld(m, row::ORG_NODE);
+    let delta = [0, 1, 2].map(|a| ld(m, row::DELTA + a));
+    let corner: Vec<[M::F; 3]> = (0..4)
+        .map(|c| [0, 1, 2].map(|a| ld(m, row::CORNER + 3 * c + a)))
+        .collect();
+    let mut dist = ld(m, row::DIST);
+    let zero_v = m.splat(0.0);
+    let neg = [0, 1, 2].map(|a| m.cmp(Cmp::Lt, dhi[a], zero_v));
+    let zero_axis = [0, 1, 2].map(|a| {
+        let l = m.cmp(Cmp::Le, dlo[a], zero_v);
+        let h = m.cmp(Cmp::Ge, dhi[a], zero_v);
+        m.kand(l, h)
+    });
+    let zx = m.kor(zero_axis[0], zero_axis[1]);
+    let any_zero_k = m.kor(zx, zero_axis[2]);
+    let any_zero = m.any(any_zero_k);
+    let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
+    let lane_bits = m.consts_i(&lane_bits);
+    let zero_i = m.splat_i(0);
+    let (ninf, pinf) = (m.splat(f32::NEG_INFINITY), m.splat(f32::INFINITY));
+    let fmax = m.splat(f32::MAX);
+    // Stack: the root with every frustum active.
+    let root = m.int(i64::from(s.root));
+    let all = m.int(0xFFFF);
+    m.s_store(&mut b.stack, At::off(0), 4, root);
+    m.s_store(&mut b.stack, At::off(4), 4, all);
+    let mut sp = m.int(1);
+    let zero = m.int(0);
+    let leaf_flag = m.int(i64::from(LEAF));
+    loop {
+        m.region(Region::Traversal);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
+            break;
+        }
+        sp = m.s_addi(sp, -1);
+        let mut node = m.s_load(&b.stack, At::idx(sp, 8, 0), 4, false);
+        // Mask register from the stored bits.
+        let bits = m.load_bcast(&b.stack, At::idx(sp, 8, 4));
+        let bits = m.bits_to_i(bits);
+        let sel = m.iop(IOp::And, bits, lane_bits);
+        let mut mask = m.icmp(Cmp::Ne, sel, zero_i);
+        let mut missed = false;
+        loop {
+            let lf = m.s_and(node, leaf_flag);
+            if m.branch(site::LEAF, lf) {
+                break;
+            }
+            b.stats.aabb_tests += 2;
+            let nb = m.s_shift(Shift::Shl, node, 6);
+            // Both children's boxes minus the common origin: one load, one sub.
+            let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
+            let rel = m.sub(boxes, org_node);
+            let plane = |m: &mut M, a: usize, max: bool, child: usize| {
+                let lane = 4 * a + 2 * usize::from(max) + child;
+                m.permute(rel, &[lane as u8; FRUSTA])
+            };
+            let test = |m: &mut M, child: usize| {
+                let mut near = zero_v;
+                let mut far = dist;
+                let mut parts = Vec::with_capacity(3);
+                for a in 0..3 {
+                    let lo = plane(m, a, false, child);
+                    let hi = plane(m, a, true, child);
+                    // Entry plane and exit plane by the direction's sign.
+                    let en = m.select(neg[a], hi, lo);
+                    let ex = m.select(neg[a], lo, hi);
+                    let n0 = m.mul(en, rlo[a]);
+                    let n1 = m.mul(en, rhi[a]);
+                    let x0 = m.mul(ex, rlo[a]);
+                    let x1 = m.mul(ex, rhi[a]);
+                    let mut na = m.min(n0, n1);
+                    let mut xa = m.max(x0, x1);
+                    // A direction interval holding zero culls nothing on its axis.
+                    na = m.select(zero_axis[a], ninf, na);
+                    xa = m.select(zero_axis[a], pinf, xa);
+                    near = m.max(near, na);
+                    far = m.min(far, xa);
+                    parts.push((lo, hi));
+                }
+                let mut hit = m.cmp(Cmp::Le, near, far);
+                hit = m.kand(hit, mask);
+                (near, far, hit, parts)
+            };
+            let (nl, fl_, mut hl, pl) = test(m, 0);
+            let (nr, fr_, mut hr, pr) = test(m, 1);
+            // The zero-interval fix: on an axis whose direction interval holds
+            // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
+            if m.branch(site::ZERO, any_zero) {
+                for (near, far, hit, parts) in [(nl, fl_, &mut hl, &pl), (nr, fr_, &mut hr, &pr)] {
+                    let far_c = m.min(far, fmax);
+                    for a in 0..3 {
+                        let (lo, hi) = parts[a];
+                        let p0 = m.mul(near, dlo[a]);
+                        let p1 = m.mul(far_c, dlo[a]);
+                        let q0 = m.mul(near, dhi[a]);
+                        let q1 = m.mul(far_c, dhi[a]);
+                        let pmin = m.min(p0, p1);
+                        let qmax = m.max(q0, q1);
+                        let below = m.cmp(Cmp::Le, pmin, hi);
+                        let above = m.cmp(Cmp::Ge, qmax, lo);
+                        let ok = m.kand(below, above);
+                        let not_zero = m.knot(zero_axis[a]);
+                        let ok = m.kor(ok, not_zero);
+                        *hit = m.kand(*hit, ok);
+                    }
+                }
+            }
+            let lb = m.movemask(hl);
+            let rb = m.movemask(hr);
+            let l = m.s_load(&s.nodes, At::idx(nb, 1, 48), 4, false);
+            let r = m.s_load(&s.nodes, At::idx(nb, 1, 52), 4, false);
+            let lnz = m.s_cmp(Cmp::Ne, lb, zero);
+            let rnz = m.s_cmp(Cmp::Ne, rb, zero);
+            let two = m.int(2);
+            let rnz2 = m.s_op(isa::SOp::Mul, rnz, two);
+            let which = m.s_add(lnz, rnz2);
+            let which_v = which.get();
+            m.branch(site::CHILDREN, which);
+            match which_v {
+                0 => {
+                    missed = true;
+                    break;
+                }
+                3 => {
+                    // Both: the child any frustum enters first goes first.
+                    let lt = m.cmp(Cmp::Lt, nl, nr);
+                    let both = m.kand(hl, hr);
+                    let lt = m.kand(lt, both);
+                    let left_first = m.any(lt);
+                    let (first, fmask, second, sbits) = if m.branch(site::ORDER, left_first) {
+                        (l, hl, r, rb)
+                    } else {
+                        (r, hr, l, lb)
+                    };
+                    m.s_store(&mut b.stack, At::idx(sp, 8, 0), 4, second);
+                    m.s_store(&mut b.stack, At::idx(sp, 8, 4), 4, sbits);
+                    sp = m.s_addi(sp, 1);
+                    node = first;
+                    mask = fmask;
+                }
+                1 => {
+                    node = l;
+                    mask = hl;
+                }
+                _ => {
+                    node = r;
+                    mask = hr;
+                }
+            }
+        }
+        if missed {
+            continue;
+        }
+        leaf(
+            m, s, b, node, mask, &org, &delta, &corner, &mut dist, cull_back,
+        );
+    }
+}
+
+/// Every triangle of leaf `node` against the frusta in `mask`.
+#[allow(clippy::too_many_arguments)]
+fn leaf<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    b: &mut MftBufs,
+    node: M::S,
+    mask: M::K,
+    org: &[M::F; 3],
+    delta: &[M::F; 3],
+    corner: &[[M::F; 3]],
+    dist: &mut M::F,
+    cull_back: bool,
+) {
+    m.region(Region::Leaf);
+    let tris = &s.tris;
+    let idx = m.int(i64::from(!LEAF));
+    let blk = m.s_and(node, idx);
+    let bytes = m.int(BLOCK_BYTES as i64);
+    let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+    let zero_v = m.splat(0.0);
+    let mut updated = m.int(0);
+    for j in 0..BLOCK {
+        let id = m.s_load(tris, At::idx(bb, 1, 32 * 9 + 4 * j), 4, true);
+        let zero = m.int(0);
+        if m.branch_if(site::SLOT, Cmp::Lt, id, zero) {
+            break;
+        }
+        b.stats.tris_accessed += 1;
+        let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
+        let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
+        let prim_f = r(9);
+        // Vertices relative to each frustum's origin.
+        let a = [0, 1, 2].map(|i| m.sub(v0[i], org[i]));
+        let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
+        let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
+        let cross = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
+            let x0 = m.mul(p[2], q[1]);
+            let x = m.fmsub(p[1], q[2], x0);
+            let y0 = m.mul(p[0], q[2]);
+            let y = m.fmsub(p[2], q[0], y0);
+            let z0 = m.mul(p[1], q[0]);
+            let z = m.fmsub(p[0], q[1], z0);
+            [x, y, z]
+        };
+        let dot = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
+            let d0 = m.mul(p[0], q[0]);
+            let d1 = m.fmadd(p[1], q[1], d0);
+            m.fmadd(p[2], q[2], d1)
+        };
+        let nrm = cross(m, e1, e2);
+        let an = dot(m, a, nrm);
+        // Orientation: front faces (origin on the normal's side) have a.n < 0.
+        let front = m.cmp(Cmp::Lt, an, zero_v);
+        let back = m.cmp(Cmp::Gt, an, zero_v);
+        let facing = if cull_back { front } else { m.kor(front, back) };
+        let mut tmask = m.kand(mask, facing);
+        let anyf = m.any(tmask);
+        if !m.branch(site::FRONT, anyf) {
+            continue;
+        }
+        // Edge normals; inside a front face: d . e <= 0 for all three.
+        let mut edges = [cross(m, a, bv), cross(m, bv, cv), cross(m, cv, a)];
+        if !cull_back {
+            // Back faces seen from the origin: flip the edge normals.
+            let flip = m.splat(-1.0);
+            for e in &mut edges {
+                for c in e.iter_mut() {
+                    let f = m.mul(*c, flip);
+                    *c = m.select(back, f, *c);
+                }
+            }
+        }
+        // Corner-ray culling: a frustum whose 4 corner rays are all outside
+        // one edge misses the triangle.
+        for e in &edges {
+            let mut out = None;
+            for c in corner {
+                let d = dot(m, *c, *e);
+                let o = m.cmp(Cmp::Gt, d, zero_v);
+                out = Some(match out {
+                    None => o,
+                    Some(p) => m.kand(p, o),
+                });
+            }
+            let keep = m.knot(out.expect("4 corners"));
+            tmask = m.kand(tmask, keep);
+        }
+        let anyc = m.any(tmask);
+        if !m.branch(site::CORNER, anyc) {
+            continue;
+        }
+        b.stats.tris_after_culling += 1;
+        // Per-frustum values for the broadcasts below.
+        let mut slot = 0;
+        let mut keep = |m: &mut M, buf: &mut Buf, v: M::F| {
+            m.store(buf, At::off(64 * slot), v);
+            slot += 1;
+        };
+        for e in &edges {
+            for &c in e {
+                keep(m, &mut b.scratch, c);
+            }
+        }
+        keep(m, &mut b.scratch, an);
+        let mut bits = m.movemask(tmask);
+        b.stats.isec_tests += u64::from(bits.get().count_ones());
+        loop {
+            let lane = m.s_tzcnt(bits);
+            let n = lane.get() as usize;
+            let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
+            // Rays of frustum n: start[n] + delta.
+            let d = [0, 1, 2].map(|i| {
+                let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
+                m.add(st, delta[i])
+            });
+            let mut inside = None;
+            for (i, _) in edges.iter().enumerate() {
+                let e = [0, 1, 2].map(|c| bc(m, &b.scratch, 64 * (3 * i + c) + 4 * n));
+                let sdot = dot(m, d, e);
+                let ok = m.cmp(Cmp::Le, sdot, zero_v);
+                inside = Some(match inside {
+                    None => ok,
+                    Some(p) => m.kand(p, ok),
+                });
+            }
+            let an_n = bc(m, &b.scratch, 64 * 9 + 4 * n);
+            let dn = dot(m, d, nrm);
+            let t = m.div(an_n, dn);
+            let ht = 128 * n;
+            let tcur = m.load(&b.hits, At::off(ht));
+            let pos = m.cmp(Cmp::Gt, t, zero_v);
+            let closer = m.cmp(Cmp::Lt, t, tcur);
+            let mut hit = m.kand(inside.expect("3 edges"), pos);
+            hit = m.kand(hit, closer);
+            let any = m.any(hit);
+            if m.branch(site::RAY_HIT, any) {
+                m.store_masked(hit, &mut b.hits, At::off(ht), t);
+                m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
+                let bit = m.int(1 << n);
+                updated = m.s_op(isa::SOp::Or, updated, bit);
+            }
+            let lm1 = m.s_addi(bits, -1);
+            bits = m.s_and(bits, lm1);
+            let zero = m.int(0);
+            if !m.branch_if(site::FRUSTUM, Cmp::Ne, bits, zero) {
+                break;
+            }
+        }
+    }
+    // Distance bound of each updated frustum: its farthest ray hit.
+    let zero = m.int(0);
+    let mut bits = updated;
+    while m.branch_if(site::UPDATE, Cmp::Ne, bits, zero) {
+        let lane = m.s_tzcnt(bits);
+        let n = lane.get() as usize;
+        let tr = m.load(&b.hits, At::off(128 * n));
+        let far = m.reduce(BinOp::Max, tr);
+        let farv = m.broadcast(far);
+        let k = m.mask(1 << n);
+        *dist = m.select(k, farv, *dist);
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+    }
+}
+
+/// MFT over primary frusta sets of a scene (a [`Program`]): every set's rays'
+/// (t, prim) in (set, frustum, ray) order, and the counters summed.
+pub struct PrimaryRun<'a> {
+    /// The scene.
+    pub scene: &'a crate::scene::Scene,
+    /// Its BVH2 (the shallow one of the MFT comparison).
+    pub bvh: &'a crate::bvh::Bvh2,
+    /// The frusta sets.
+    pub sets: Vec<Frusta>,
+    /// Back-face culling.
+    pub cull_back: bool,
+}
+
+impl Program for PrimaryRun<'_> {
+    type Out = (Vec<(f32, i32)>, MftStats);
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        let s = crate::layout::lay_out2(m, &self.scene.mesh, self.bvh);
+        let mut out = Vec::with_capacity(self.sets.len() * 256);
+        let mut stats = MftStats::default();
+        for f in &self.sets {
+            let mut b = MftBufs::new(m, f);
+            trace_primary(m, &s, &mut b, self.cull_back);
+            for n in 0..FRUSTA {
+                for k in 0..FRUSTA {
+                    out.push(b.hit(n, k));
+                }
+            }
+            stats.aabb_tests += b.stats.aabb_tests;
+            stats.tris_accessed += b.stats.tris_accessed;
+            stats.tris_after_culling += b.stats.tris_after_culling;
+            stats.isec_tests += b.stats.isec_tests;
+        }
+        (out, stats)
+    }
+}
+
+impl PrimaryRun<'_> {
+    /// The rays in output order (origins, directions), as the kernel forms them.
+    #[must_use]
+    pub fn rays(&self) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let mut o = Vec::new();
+        let mut d = Vec::new();
+        for f in &self.sets {
+            for n in 0..FRUSTA {
+                for k in 0..FRUSTA {
+                    let (a, b) = f.ray(n, k);
+                    o.push(a);
+                    d.push(b);
+                }
+            }
+        }
+        (o, d)
+    }
+}

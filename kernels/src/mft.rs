@@ -647,3 +647,43 @@ impl PrimaryRun<'_> {
         (o, d)
     }
 }
+
+/// The 16-ray packet baseline over the same rays (one packet = one frustum's
+/// 4 x 4 pixels): Embree-style masked packet traversal of a (deep) BVH2 and
+/// packet Moller-Trumbore, [`crate::packet`] on 16 lanes.
+pub struct PacketPrimaryRun<'a> {
+    /// The scene.
+    pub scene: &'a crate::scene::Scene,
+    /// Its (deep) BVH2.
+    pub bvh: &'a crate::bvh::Bvh2,
+    /// The frusta sets whose rays are traced.
+    pub sets: Vec<Frusta>,
+    /// Back-face culling (front faces only).
+    pub cull_back: bool,
+}
+
+impl Program for PacketPrimaryRun<'_> {
+    type Out = (Vec<(f32, i32)>, MftStats);
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        assert_eq!(M::LANES, FRUSTA, "16-ray packets on 16 lanes");
+        let s = crate::layout::lay_out2(m, &self.scene.mesh, self.bvh);
+        let mut out = Vec::with_capacity(self.sets.len() * 256);
+        let mut stats = MftStats::default();
+        for f in &self.sets {
+            let (org, dir): (Vec<_>, Vec<_>) = (0..FRUSTA)
+                .flat_map(|n| (0..FRUSTA).map(move |k| f.ray(n, k)))
+                .unzip();
+            let tfar = vec![f32::INFINITY; org.len()];
+            let mut pb = crate::packet::PacketBufs::new(m, &org, &dir, &tfar, None);
+            pb.one_sided = self.cull_back;
+            crate::packet::trace2(m, &s, &mut pb, false);
+            out.extend((0..org.len()).map(|i| pb.hit(FRUSTA, i)));
+            let p = pb.frusta_stats;
+            stats.aabb_tests += p.aabb_tests;
+            stats.tris_accessed += p.tris_accessed;
+            stats.tris_after_culling += p.tris_after_culling;
+            stats.isec_tests += p.isec_tests;
+        }
+        (out, stats)
+    }
+}

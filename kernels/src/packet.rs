@@ -36,7 +36,7 @@
 
 use crate::bvh::{EMPTY_SLOT, LEAF};
 use crate::layout::{SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
-use crate::single::{moller, walk4, Block, Moller, RayState, STACK_ENTRIES};
+use crate::single::{moller_sided, walk4, Block, Moller, RayState, STACK_ENTRIES};
 use crate::stats::Tests;
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 
@@ -158,6 +158,13 @@ pub struct PacketBufs {
     pub tests: Tests,
     /// Each ray's lane slot.
     slot_of: Vec<usize>,
+    /// Back-face culling at leaves (front faces only), for the MFT
+    /// comparison's packet baseline.
+    pub one_sided: bool,
+    /// The MFT paper's counters for the packet baseline: box tests (one per
+    /// child box per packet), triangles tested per packet (all of them are
+    /// 16-wide intersection tests; no culling).
+    pub frusta_stats: crate::mft::MftStats,
 }
 
 impl PacketBufs {
@@ -201,6 +208,8 @@ impl PacketBufs {
             single_stack: sp.alloc(MemKind::Stack, "stack-single", STACK_ENTRIES * 8, 64),
             tests: Tests::default(),
             slot_of,
+            one_sided: false,
+            frusta_stats: crate::mft::MftStats::default(),
         }
     }
 
@@ -305,6 +314,8 @@ fn trace_packet<M: Machine>(
     m.store(snear, At::off(4 * w), pk.tnear);
     let mut sp = m.int(2);
     let tests = &mut pb.tests;
+    let (mut aabb, mut tri_tests) = (0u64, 0u64);
+    let one_sided = pb.one_sided;
     let leaf_flag = m.int(i64::from(LEAF));
     loop {
         m.region(Region::Traversal);
@@ -397,6 +408,7 @@ fn trace_packet<M: Machine>(
                         (child, lnear, lhit)
                     }
                 };
+                aabb += 1;
                 let any = m.any(lhit);
                 if !m.branch(site::HIT, any) {
                     continue;
@@ -437,7 +449,8 @@ fn trace_packet<M: Machine>(
             &mut pk,
             &mut pb.rays,
             base,
-            shadow,
+            (shadow, one_sided),
+            &mut tri_tests,
         );
         if shadow {
             // Done when every lane is occluded (t_far = -1) or padding.
@@ -449,6 +462,10 @@ fn trace_packet<M: Machine>(
             }
         }
     }
+    pb.frusta_stats.aabb_tests += aabb;
+    pb.frusta_stats.tris_accessed += tri_tests;
+    pb.frusta_stats.tris_after_culling += tri_tests;
+    pb.frusta_stats.isec_tests += tri_tests;
 }
 
 /// One child box against every ray of the packet: (entry distances, hit
@@ -489,7 +506,8 @@ fn leaf<M: Machine>(
     pk: &mut Packet<M>,
     rays: &mut Buf,
     base: M::S,
-    shadow: bool,
+    (shadow, one_sided): (bool, bool),
+    tri_tests: &mut u64,
 ) {
     let w = M::LANES;
     let mut valid = valid;
@@ -514,7 +532,8 @@ fn leaf<M: Machine>(
             u: tu,
             v: tv,
             valid: hit,
-        } = moller(m, &blk, &pk.org, &pk.dir, pk.tfar);
+        } = moller_sided(m, &blk, &pk.org, &pk.dir, pk.tfar, one_sided);
+        *tri_tests += 1;
         let hit = m.kand(hit, valid);
         let any = m.any(hit);
         if !m.branch(site::TRI, any) {

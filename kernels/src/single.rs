@@ -405,6 +405,19 @@ pub fn moller<M: Machine>(
     dir: &[M::F; 3],
     tfar: M::F,
 ) -> Moller<M> {
+    moller_sided(m, b, org, dir, tfar, false)
+}
+
+/// [`moller`], with `front_only`: front faces only (det > 0, i.e. the ray
+/// meets the side the winding's normal points to), as back-face culling.
+pub fn moller_sided<M: Machine>(
+    m: &mut M,
+    b: &Block<M>,
+    org: &[M::F; 3],
+    dir: &[M::F; 3],
+    tfar: M::F,
+    front_only: bool,
+) -> Moller<M> {
     let zero_v = m.splat(0.0);
     let one_v = m.splat(1.0);
     let cross = |m: &mut M, a: [M::F; 3], c: [M::F; 3]| {
@@ -437,7 +450,7 @@ pub fn moller<M: Machine>(
     let t0 = dot(m, b.e2, qv);
     let t = m.mul(t0, inv);
     let uv = m.add(u, v);
-    let ok_det = m.cmp(Cmp::Ne, det, zero_v);
+    let ok_det = m.cmp(if front_only { Cmp::Gt } else { Cmp::Ne }, det, zero_v);
     let ok_u = m.cmp(Cmp::Ge, u, zero_v);
     let ok_v = m.cmp(Cmp::Ge, v, zero_v);
     let ok_uv = m.cmp(Cmp::Le, uv, one_v);

@@ -5,16 +5,21 @@
 use isa::FlavourId;
 use kernels::bvh::{BuildConfig, Bvh2};
 use kernels::harness::mismatches;
-use kernels::mft::{Frusta, PrimaryRun};
+use kernels::mft::{Frusta, PacketPrimaryRun, PrimaryRun};
 use kernels::reference::Reference;
 use kernels::scene::Scene;
 
-fn check(scene_name: &str, blocks: &[(u32, u32)]) -> kernels::mft::MftStats {
+fn check(
+    scene_name: &str,
+    blocks: &[(u32, u32)],
+) -> (kernels::mft::MftStats, kernels::mft::MftStats) {
     let scene = Scene::load(scene_name).unwrap();
+    // A shallow BVH for the frusta (large leaves), a deep one for packets.
     let bvh = Bvh2::build(
         &scene.mesh,
         &BuildConfig {
             max_leaf: 8,
+            c_trav: 8.0,
             ..BuildConfig::default()
         },
     )
@@ -51,6 +56,7 @@ fn check(scene_name: &str, blocks: &[(u32, u32)]) -> kernels::mft::MftStats {
         })
         .expect("a frustum straddling an axis direction");
     sets.push(zero_block);
+    let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
     let mut last = None;
     for cull_back in [true, false] {
         let run = PrimaryRun {
@@ -79,14 +85,34 @@ fn check(scene_name: &str, blocks: &[(u32, u32)]) -> kernels::mft::MftStats {
         assert!(hits > org.len() / 8, "{label}: some hits ({hits})");
         assert!(stats.aabb_tests > 0 && stats.isec_tests > 0, "{stats:?}");
         assert!(stats.tris_after_culling <= stats.tris_accessed);
-        last = Some(stats);
+        // The 16-ray packet baseline on the same rays, deep BVH.
+        let pr = PacketPrimaryRun {
+            scene: &scene,
+            bvh: &deep,
+            sets: sets.clone(),
+            cull_back,
+        };
+        let (ptraced, pstats) = isa::record(&pr, FlavourId::Lrb16, "p16").1;
+        assert_eq!(
+            (ptraced.clone(), pstats),
+            isa::run_native(&pr, FlavourId::Lrb16)
+        );
+        let bad = mismatches(&format!("packet {label}"), &refi, &org, &dir, &ptraced);
+        assert_eq!(bad, 0, "packet {label}: {bad} rays differ");
+        last = Some((stats, pstats));
     }
     last.unwrap()
 }
 
 #[test]
 fn mft_primary_frusta_match_the_reference() {
-    let s = check("trex", &[(30, 30), (32, 28), (25, 35)]);
+    let (s, p) = check("trex", &[(30, 30), (32, 28), (25, 35)]);
+    eprintln!("trex: frusta {s:?} packets {p:?}");
     assert!(s.isec_tests >= s.tris_after_culling, "{s:?}");
+    // The paper's headline: frusta need far fewer box tests than packets.
+    assert!(
+        p.aabb_tests >= 10 * s.aabb_tests,
+        "packets {p:?} vs frusta {s:?}"
+    );
     check("fern", &[(30, 30), (20, 40)]);
 }

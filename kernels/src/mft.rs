@@ -5,8 +5,11 @@
 //! each surviving frustum (bitscan) one 16-wide ray-triangle test of its rays,
 //! generated on demand from a start and a delta vector.
 //!
-//! This module holds the primary-ray case (16 frusta of 4 x 4 pixels = a
-//! 16 x 16 pixel block, one common origin); closest hit per ray.
+//! Primary frusta: 16 frusta of 4 x 4 pixels = a 16 x 16 pixel block, one
+//! common origin, closest hit per ray. Shadow frusta: the 16 hit points of a
+//! 4 x 4 pixel group, each with 16 rays to its own interleaved light samples
+//! (per-frustum origins and delta vectors), occlusion bits per ray, a frustum
+//! terminated once all its rays are occluded.
 //!
 //! Frusta record (16 lanes = 16 frusta, rows of 64 B):
 //!
@@ -21,7 +24,9 @@
 //! | 27-29 | start vector (ray 0 of each frustum) |
 //! | 30-32 | delta vector (offset of ray k in lane k; shared by primary frusta) |
 //! | 33 | origin as 4 x `[x y z 0]`... laid out per BVH2 node row (`[ox x4, oy x4, oz x4, 0 x4]`) |
-//! | 34 | per-frustum distance bound (all rays' farthest hit, +inf while any ray misses) |
+//! | 34 | per-frustum distance bound (all rays' farthest hit, +inf while any ray misses; shadow: the rays' t limit) |
+//! | 35 | active frusta (bits, lane 0) |
+//! | 36-83 | shadow frusta only: frustum n's delta vectors at rows 36 + 3n .. 38 + 3n |
 //!
 //! Hits: per frustum 2 rows, t then prim (i32, -1: none), 2 KB for 256 rays.
 //!
@@ -62,8 +67,14 @@ pub mod row {
     pub const ORG_NODE: usize = 33;
     /// Distance bound per frustum.
     pub const DIST: usize = 34;
-    /// Rows.
-    pub const ROWS: usize = 35;
+    /// Active frusta (u32 bits in lane 0).
+    pub const ACTIVE: usize = 35;
+    /// Shadow frusta: frustum n's own delta vector x at `DELTA_SETS + 3n` (y, z follow).
+    pub const DELTA_SETS: usize = 36;
+    /// Rows of a primary record.
+    pub const ROWS: usize = 36;
+    /// Rows of a shadow record.
+    pub const ROWS_SHADOW: usize = 36 + 48;
 }
 
 /// Byte offset of row `r`.
@@ -96,6 +107,8 @@ pub mod site {
     pub const ZERO: Site = Site(89);
     /// Next updated frustum?
     pub const UPDATE: Site = Site(90);
+    /// Shadow frustum fully occluded?
+    pub const DONE: Site = Site(91);
 }
 
 /// MFT counters, as the paper's Table 1.
@@ -111,53 +124,125 @@ pub struct MftStats {
     pub isec_tests: u64,
 }
 
-/// 16 primary frusta of a 16 x 16 pixel block: each frustum a 4 x 4 pixel
-/// grid, rays through the pixel centres, generated as `start + delta` in f32.
+/// 16 frusta: primary (a 16 x 16 pixel block, each frustum a 4 x 4 pixel
+/// grid, rays through the pixel centres) or shadow (a 4 x 4 pixel group's hit
+/// points, 16 light samples each). Rays are `start + delta` in f32.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frusta {
-    /// Common origin.
-    pub org: [f32; 3],
-    /// Ray 0 (top-left pixel) of each frustum.
+    /// Origin of each frustum (one common origin for primary frusta).
+    pub org: [[f32; 3]; FRUSTA],
+    /// Ray 0 of each frustum.
     pub start: [[f32; 3]; FRUSTA],
-    /// Offset of ray k from ray 0 (the same for every frustum).
-    pub delta: [[f32; 3]; FRUSTA],
-    /// Top-left pixel of the block.
+    /// Offsets of ray k from ray 0: one set shared by all frusta (primary)
+    /// or one set per frustum (shadow).
+    pub delta: Vec<[[f32; 3]; FRUSTA]>,
+    /// The 4 corner rays bounding each frustum's rays.
+    pub corners: [[[f32; 3]; 4]; FRUSTA],
+    /// The rays' t limit (shadow rays stop before the light sample).
+    pub tmax: f32,
+    /// Frusta with rays (bit n); a shadow frustum needs a primary hit.
+    pub active: u16,
+    /// Shadow frusta (any hit, occlusion bits) rather than primary.
+    pub shadow: bool,
+    /// Top-left pixel (of the block or the group).
     pub pixel: (u32, u32),
 }
 
 impl Frusta {
-    /// The frusta of block (`bx`, `by`) (pixels `16 bx ..`, `16 by ..`).
+    /// The primary frusta of block (`bx`, `by`) (pixels `16 bx ..`, `16 by ..`).
     #[must_use]
     pub fn primary(cam: &crate::scene::Camera, bx: u32, by: u32) -> Frusta {
         let (x0, y0) = (16 * bx, 16 * by);
         let dir = |x: u32, y: u32| cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5).1;
         let (o, _) = cam.ray(0.5, 0.5);
         let d00 = dir(x0, y0);
-        let start = std::array::from_fn(|n| {
+        let start: [[f32; 3]; FRUSTA] = std::array::from_fn(|n| {
             let (fx, fy) = (x0 + 4 * (n as u32 % 4), y0 + 4 * (n as u32 / 4));
             dir(fx, fy).map(|c| c as f32)
         });
         // The direction is affine in the pixel, so one delta serves all frusta.
-        let delta = std::array::from_fn(|k| {
+        let delta: [[f32; 3]; FRUSTA] = std::array::from_fn(|k| {
             let d = dir(x0 + k as u32 % 4, y0 + k as u32 / 4);
             [0, 1, 2].map(|a| (d[a] - d00[a]) as f32)
         });
-        Frusta {
-            org: o.map(|c| c as f32),
+        let mut f = Frusta {
+            org: [o.map(|c| c as f32); FRUSTA],
             start,
-            delta,
+            delta: vec![delta],
+            corners: [[[0.0; 3]; 4]; FRUSTA],
+            tmax: f32::INFINITY,
+            active: 0xFFFF,
+            shadow: false,
             pixel: (x0, y0),
+        };
+        // Corner rays: the grid's corner pixels' rays themselves.
+        for n in 0..FRUSTA {
+            for (c, k) in [0usize, 3, 12, 15].into_iter().enumerate() {
+                f.corners[n][c] = f.ray(n, k).1;
+            }
         }
+        f
+    }
+
+    /// The shadow frusta of a 4 x 4 pixel group toward a quad light
+    /// (`corner`, `e1`, `e2`): frustum n starts at pixel n's hit point and
+    /// holds the rays to its 16 light samples; its corner rays go to the
+    /// corners of the samples' 2D bounds on the light, widened by 1e-3 of the
+    /// light's extent so the f32 rays stay inside.
+    #[must_use]
+    pub fn shadow(input: &crate::workload::FrustumInput, light: [[f32; 3]; 3]) -> Frusta {
+        let [c0, e1, e2] = light.map(|v| v.map(f64::from));
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let mut f = Frusta {
+            org: [[0.0; 3]; FRUSTA],
+            start: [[1.0; 3]; FRUSTA],
+            delta: vec![[[0.0; 3]; FRUSTA]; FRUSTA],
+            corners: [[[1.0; 3]; 4]; FRUSTA],
+            tmax: 1.0 - 1e-4,
+            active: 0,
+            shadow: true,
+            pixel: input.pixel,
+        };
+        for n in 0..FRUSTA {
+            let Some(o) = input.hits[n] else { continue };
+            f.active |= 1 << n;
+            let smp = &input.samples[n];
+            f.org[n] = o;
+            f.start[n] = [0, 1, 2].map(|a| smp[0][a] - o[a]);
+            for k in 0..FRUSTA {
+                f.delta[n][k] = [0, 1, 2].map(|a| smp[k][a] - smp[0][a]);
+            }
+            // The samples' (u, v) on the light and their bounds.
+            let uv = |p: [f32; 3]| {
+                let q = [0, 1, 2].map(|a| f64::from(p[a]) - c0[a]);
+                (dot(q, e1) / dot(e1, e1), dot(q, e2) / dot(e2, e2))
+            };
+            let (mut ul, mut uh, mut vl, mut vh) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
+            for p in smp {
+                let (u, v) = uv(*p);
+                (ul, uh, vl, vh) = (ul.min(u), uh.max(u), vl.min(v), vh.max(v));
+            }
+            let (ul, uh, vl, vh) = (ul - 1e-3, uh + 1e-3, vl - 1e-3, vh + 1e-3);
+            for (c, (u, v)) in [(ul, vl), (uh, vl), (ul, vh), (uh, vh)]
+                .into_iter()
+                .enumerate()
+            {
+                let p = [0, 1, 2].map(|a| c0[a] + u * e1[a] + v * e2[a]);
+                f.corners[n][c] = [0, 1, 2].map(|a| (p[a] - f64::from(o[a])) as f32);
+            }
+        }
+        f
     }
 
     /// Ray `k` of frustum `n` exactly as the kernel generates it.
     #[must_use]
     pub fn ray(&self, n: usize, k: usize) -> ([f32; 3], [f32; 3]) {
-        let d = [0, 1, 2].map(|a| self.start[n][a] + self.delta[k][a]);
-        (self.org, d)
+        let set = if self.delta.len() == 1 { 0 } else { n };
+        let d = [0, 1, 2].map(|a| self.start[n][a] + self.delta[set][k][a]);
+        (self.org[n], d)
     }
 
-    /// The pixel of ray `k` of frustum `n`.
+    /// The pixel of ray `k` of frustum `n` (primary frusta).
     #[must_use]
     pub fn ray_pixel(&self, n: usize, k: usize) -> (u32, u32) {
         (
@@ -169,12 +254,17 @@ impl Frusta {
     /// The frusta record (see the module table).
     #[must_use]
     pub fn record(&self) -> Vec<f32> {
-        let mut v = vec![0f32; row::ROWS * FRUSTA];
+        let rows = if self.shadow {
+            row::ROWS_SHADOW
+        } else {
+            row::ROWS
+        };
+        let mut v = vec![0f32; rows * FRUSTA];
         let mut set = |r: usize, n: usize, x: f32| v[r * FRUSTA + n] = x;
         for n in 0..FRUSTA {
             let rays: Vec<[f32; 3]> = (0..16).map(|k| self.ray(n, k).1).collect();
             for a in 0..3 {
-                set(row::ORG + a, n, self.org[a]);
+                set(row::ORG + a, n, self.org[n][a]);
                 let lo = rays.iter().map(|d| d[a]).fold(f32::INFINITY, f32::min);
                 let hi = rays.iter().map(|d| d[a]).fold(f32::NEG_INFINITY, f32::max);
                 set(row::DIR_LO + a, n, lo);
@@ -198,16 +288,24 @@ impl Frusta {
                 set(row::RCP_LO + a, n, rlo);
                 set(row::RCP_HI + a, n, rhi);
                 set(row::START + a, n, self.start[n][a]);
-                set(row::DELTA + a, n, self.delta[n][a]);
-                for (c, k) in [0usize, 3, 12, 15].into_iter().enumerate() {
-                    set(row::CORNER + 3 * c + a, n, rays[k][a]);
+                set(row::DELTA + a, n, self.delta[0][n][a]);
+                for c in 0..4 {
+                    set(row::CORNER + 3 * c + a, n, self.corners[n][c][a]);
                 }
-                for q in 0..4 {
-                    set(row::ORG_NODE, 4 * a + q, self.org[a]);
+                if self.shadow {
+                    for k in 0..FRUSTA {
+                        set(row::DELTA_SETS + 3 * n + a, k, self.delta[n][k][a]);
+                    }
                 }
             }
-            set(row::DIST, n, f32::INFINITY);
+            set(row::DIST, n, self.tmax);
         }
+        for a in 0..3 {
+            for q in 0..4 {
+                set(row::ORG_NODE, 4 * a + q, self.org[0][a]);
+            }
+        }
+        set(row::ACTIVE, 0, f32::from_bits(u32::from(self.active)));
         v
     }
 }
@@ -222,6 +320,12 @@ pub struct MftBufs {
     pub stack: Buf,
     /// Per-triangle values read back by broadcast (10 rows).
     pub scratch: Buf,
+    /// Shadow frusta: occlusion bits of each frustum's rays (u32 each).
+    pub occl: Buf,
+    /// Shadow frusta (any hit) rather than primary.
+    pub shadow: bool,
+    /// Frusta terminated because all their rays were occluded.
+    pub terminated: u64,
     /// Counters.
     pub stats: MftStats,
 }
@@ -240,6 +344,9 @@ impl MftBufs {
             hits: sp.alloc_f32(MemKind::Hits, "frusta-hits", &hits, 64),
             stack: sp.alloc(MemKind::Stack, "frusta-stack", 8 * 256, 64),
             scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 10, 64),
+            occl: sp.alloc(MemKind::Hits, "frusta-occlusion", 64, 64),
+            shadow: f.shadow,
+            terminated: 0,
             stats: MftStats::default(),
         }
     }
@@ -252,13 +359,14 @@ impl MftBufs {
     }
 }
 
-/// Trace 16 primary frusta (closest hit per ray) through a BVH2 laid out by
-/// [`crate::layout::lay_out2`]; `cull_back`: back-face culling (the paper's;
-/// hits are then front faces only).
+/// Trace 16 frusta through a BVH2 laid out by [`crate::layout::lay_out2`]:
+/// primary frusta to their closest hits, shadow frusta to the occlusion of
+/// each ray; `cull_back`: back-face culling (the paper's; front faces only).
 ///
 /// # Panics
 /// On machines without 16 lanes.
-pub fn trace_primary<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: bool) {
+pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: bool) {
+    let shadow = b.shadow;
     assert_eq!(M::LANES, FRUSTA, "MFT runs 16 frusta on 16 lanes");
     m.region(Region::Setup);
     let fr = &b.frusta;
@@ -289,9 +397,15 @@ pub fn trace_primary<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cul
     let zero_i = m.splat_i(0);
     let (ninf, pinf) = (m.splat(f32::NEG_INFINITY), m.splat(f32::INFINITY));
     let fmax = m.splat(f32::MAX);
-    // Stack: the root with every frustum active.
+    // Stack: the root with every active frustum.
     let root = m.int(i64::from(s.root));
-    let all = m.int(0xFFFF);
+    let all = m.s_load(fr, At::off(at_row(row::ACTIVE)), 4, false);
+    let mut alive = {
+        let bits = m.load_bcast(fr, At::off(at_row(row::ACTIVE)));
+        let bits = m.bits_to_i(bits);
+        let sel = m.iop(IOp::And, bits, lane_bits);
+        m.icmp(Cmp::Ne, sel, zero_i)
+    };
     m.s_store(&mut b.stack, At::off(0), 4, root);
     m.s_store(&mut b.stack, At::off(4), 4, all);
     let mut sp = m.int(1);
@@ -309,6 +423,10 @@ pub fn trace_primary<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cul
         let bits = m.bits_to_i(bits);
         let sel = m.iop(IOp::And, bits, lane_bits);
         let mut mask = m.icmp(Cmp::Ne, sel, zero_i);
+        if shadow {
+            // Terminated frusta drop out.
+            mask = m.kand(mask, alive);
+        }
         let mut missed = false;
         loop {
             let lf = m.s_and(node, leaf_flag);
@@ -317,12 +435,25 @@ pub fn trace_primary<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cul
             }
             b.stats.aabb_tests += 2;
             let nb = m.s_shift(Shift::Shl, node, 6);
-            // Both children's boxes minus the common origin: one load, one sub.
-            let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
-            let rel = m.sub(boxes, org_node);
+            // Primary: both children's boxes minus the common origin with one
+            // load and one sub, planes swizzled out; shadow: each plane
+            // broadcast and minus each frustum's origin.
+            let rel = if shadow {
+                None
+            } else {
+                let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
+                Some(m.sub(boxes, org_node))
+            };
+            let nodes = &s.nodes;
             let plane = |m: &mut M, a: usize, max: bool, child: usize| {
                 let lane = 4 * a + 2 * usize::from(max) + child;
-                m.permute(rel, &[lane as u8; FRUSTA])
+                match rel {
+                    Some(rel) => m.permute(rel, &[lane as u8; FRUSTA]),
+                    None => {
+                        let p = m.load_bcast(nodes, At::idx(nb, 1, 4 * lane));
+                        m.sub(p, org[a])
+                    }
+                }
             };
             let test = |m: &mut M, child: usize| {
                 let mut near = zero_v;
@@ -422,7 +553,16 @@ pub fn trace_primary<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cul
             continue;
         }
         leaf(
-            m, s, b, node, mask, &org, &delta, &corner, &mut dist, cull_back,
+            m,
+            s,
+            b,
+            node,
+            mask,
+            &org,
+            &delta,
+            &corner,
+            (&mut dist, &mut alive),
+            cull_back,
         );
     }
 }
@@ -438,10 +578,14 @@ fn leaf<M: Machine>(
     org: &[M::F; 3],
     delta: &[M::F; 3],
     corner: &[[M::F; 3]],
-    dist: &mut M::F,
+    (dist, alive): (&mut M::F, &mut M::K),
     cull_back: bool,
 ) {
+    let shadow = b.shadow;
     m.region(Region::Leaf);
+    let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
+    let lane_bits = m.consts_i(&lane_bits);
+    let zero_i = m.splat_i(0);
     let tris = &s.tris;
     let idx = m.int(i64::from(!LEAF));
     let blk = m.s_and(node, idx);
@@ -484,6 +628,9 @@ fn leaf<M: Machine>(
         let back = m.cmp(Cmp::Gt, an, zero_v);
         let facing = if cull_back { front } else { m.kor(front, back) };
         let mut tmask = m.kand(mask, facing);
+        if shadow {
+            tmask = m.kand(tmask, *alive);
+        }
         let anyf = m.any(tmask);
         if !m.branch(site::FRONT, anyf) {
             continue;
@@ -538,10 +685,15 @@ fn leaf<M: Machine>(
             let lane = m.s_tzcnt(bits);
             let n = lane.get() as usize;
             let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
-            // Rays of frustum n: start[n] + delta.
+            // Rays of frustum n: start[n] + delta (shadow: frustum n's own deltas).
             let d = [0, 1, 2].map(|i| {
                 let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
-                m.add(st, delta[i])
+                let dl = if shadow {
+                    m.load(&b.frusta, At::off(at_row(row::DELTA_SETS + 3 * n + i)))
+                } else {
+                    delta[i]
+                };
+                m.add(st, dl)
             });
             let mut inside = None;
             for (i, _) in edges.iter().enumerate() {
@@ -557,17 +709,44 @@ fn leaf<M: Machine>(
             let dn = dot(m, d, nrm);
             let t = m.div(an_n, dn);
             let ht = 128 * n;
-            let tcur = m.load(&b.hits, At::off(ht));
             let pos = m.cmp(Cmp::Gt, t, zero_v);
-            let closer = m.cmp(Cmp::Lt, t, tcur);
             let mut hit = m.kand(inside.expect("3 edges"), pos);
-            hit = m.kand(hit, closer);
-            let any = m.any(hit);
-            if m.branch(site::RAY_HIT, any) {
-                m.store_masked(hit, &mut b.hits, At::off(ht), t);
-                m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
-                let bit = m.int(1 << n);
-                updated = m.s_op(isa::SOp::Or, updated, bit);
+            if shadow {
+                // Rays not yet occluded, t below the limit.
+                let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
+                let below = m.cmp(Cmp::Lt, t, lim);
+                let ob = bc(m, &b.occl, 4 * n);
+                let ob = m.bits_to_i(ob);
+                let sel = m.iop(IOp::And, ob, lane_bits);
+                let live = m.icmp(Cmp::Eq, sel, zero_i);
+                hit = m.kand(hit, below);
+                hit = m.kand(hit, live);
+                let any = m.any(hit);
+                if m.branch(site::RAY_HIT, any) {
+                    m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
+                    let new = m.movemask(hit);
+                    let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
+                    let now = m.s_op(isa::SOp::Or, old, new);
+                    m.s_store(&mut b.occl, At::off(4 * n), 4, now);
+                    let full = m.int(0xFFFF);
+                    if m.branch_if(site::DONE, Cmp::Eq, now, full) {
+                        // All 16 rays occluded: the frustum is done.
+                        let gone = m.mask(!(1u32 << n) & 0xFFFF);
+                        *alive = m.kand(*alive, gone);
+                        b.terminated += 1;
+                    }
+                }
+            } else {
+                let tcur = m.load(&b.hits, At::off(ht));
+                let closer = m.cmp(Cmp::Lt, t, tcur);
+                hit = m.kand(hit, closer);
+                let any = m.any(hit);
+                if m.branch(site::RAY_HIT, any) {
+                    m.store_masked(hit, &mut b.hits, At::off(ht), t);
+                    m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
+                    let bit = m.int(1 << n);
+                    updated = m.s_op(isa::SOp::Or, updated, bit);
+                }
             }
             let lm1 = m.s_addi(bits, -1);
             bits = m.s_and(bits, lm1);
@@ -593,9 +772,10 @@ fn leaf<M: Machine>(
     }
 }
 
-/// MFT over primary frusta sets of a scene (a [`Program`]): every set's rays'
-/// (t, prim) in (set, frustum, ray) order, and the counters summed.
-pub struct PrimaryRun<'a> {
+/// MFT over frusta sets of a scene (a [`Program`]): every set's rays'
+/// (t, prim) in (set, frustum, ray) order (prim >= 0: hit, or occluded for
+/// shadow frusta; inactive frusta give misses), and the counters summed.
+pub struct FrustaRun<'a> {
     /// The scene.
     pub scene: &'a crate::scene::Scene,
     /// Its BVH2 (the shallow one of the MFT comparison).
@@ -606,7 +786,7 @@ pub struct PrimaryRun<'a> {
     pub cull_back: bool,
 }
 
-impl Program for PrimaryRun<'_> {
+impl Program for FrustaRun<'_> {
     type Out = (Vec<(f32, i32)>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let s = crate::layout::lay_out2(m, &self.scene.mesh, self.bvh);
@@ -614,7 +794,7 @@ impl Program for PrimaryRun<'_> {
         let mut stats = MftStats::default();
         for f in &self.sets {
             let mut b = MftBufs::new(m, f);
-            trace_primary(m, &s, &mut b, self.cull_back);
+            trace(m, &s, &mut b, self.cull_back);
             for n in 0..FRUSTA {
                 for k in 0..FRUSTA {
                     out.push(b.hit(n, k));
@@ -629,27 +809,41 @@ impl Program for PrimaryRun<'_> {
     }
 }
 
-impl PrimaryRun<'_> {
-    /// The rays in output order (origins, directions), as the kernel forms them.
+impl FrustaRun<'_> {
+    /// The rays in output order as the kernel forms them (with each ray's t
+    /// limit), and whether each belongs to an active frustum.
     #[must_use]
-    pub fn rays(&self) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-        let mut o = Vec::new();
-        let mut d = Vec::new();
-        for f in &self.sets {
-            for n in 0..FRUSTA {
-                for k in 0..FRUSTA {
-                    let (a, b) = f.ray(n, k);
-                    o.push(a);
-                    d.push(b);
-                }
-            }
-        }
-        (o, d)
+    pub fn rays(&self) -> (crate::workload::RayStream, Vec<bool>) {
+        rays_of(&self.sets)
     }
 }
 
+/// The rays of frusta sets in (set, frustum, ray) order, as a stream (a
+/// shadow stream for shadow frusta), and whether each ray's frustum is active.
+#[must_use]
+pub fn rays_of(sets: &[Frusta]) -> (crate::workload::RayStream, Vec<bool>) {
+    let (mut o, mut d, mut t, mut act) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for f in sets {
+        for n in 0..FRUSTA {
+            for k in 0..FRUSTA {
+                let (a, b) = f.ray(n, k);
+                o.push(a);
+                d.push(b);
+                t.push(f.tmax);
+                act.push(f.active & (1 << n) != 0);
+            }
+        }
+    }
+    let kind = if sets.first().is_some_and(|f| f.shadow) {
+        crate::workload::StreamKind::Shadow(0)
+    } else {
+        crate::workload::StreamKind::Primary
+    };
+    (crate::workload::RayStream::from_rays(kind, o, d, t), act)
+}
+
 /// The 16-ray packet baseline over the same rays (one packet = one frustum's
-/// 4 x 4 pixels): Embree-style masked packet traversal of a (deep) BVH2 and
+/// 16 rays: 4 x 4 pixels, or one hit point's 16 shadow rays): Embree-style masked packet traversal of a (deep) BVH2 and
 /// packet Moller-Trumbore, [`crate::packet`] on 16 lanes.
 pub struct PacketPrimaryRun<'a> {
     /// The scene.
@@ -670,19 +864,30 @@ impl Program for PacketPrimaryRun<'_> {
         let mut out = Vec::with_capacity(self.sets.len() * 256);
         let mut stats = MftStats::default();
         for f in &self.sets {
-            let (org, dir): (Vec<_>, Vec<_>) = (0..FRUSTA)
-                .flat_map(|n| (0..FRUSTA).map(move |k| f.ray(n, k)))
+            // One packet per active frustum.
+            let live: Vec<usize> = (0..FRUSTA).filter(|&n| f.active & (1 << n) != 0).collect();
+            let (org, dir): (Vec<_>, Vec<_>) = live
+                .iter()
+                .flat_map(|&n| (0..FRUSTA).map(move |k| f.ray(n, k)))
                 .unzip();
-            let tfar = vec![f32::INFINITY; org.len()];
-            let mut pb = crate::packet::PacketBufs::new(m, &org, &dir, &tfar, None);
-            pb.one_sided = self.cull_back;
-            crate::packet::trace2(m, &s, &mut pb, false);
-            out.extend((0..org.len()).map(|i| pb.hit(FRUSTA, i)));
-            let p = pb.frusta_stats;
-            stats.aabb_tests += p.aabb_tests;
-            stats.tris_accessed += p.tris_accessed;
-            stats.tris_after_culling += p.tris_after_culling;
-            stats.isec_tests += p.isec_tests;
+            let mut hits = vec![(f32::INFINITY, -1); FRUSTA * FRUSTA];
+            if !org.is_empty() {
+                let tfar = vec![f.tmax; org.len()];
+                let mut pb = crate::packet::PacketBufs::new(m, &org, &dir, &tfar, None);
+                pb.one_sided = self.cull_back;
+                crate::packet::trace2(m, &s, &mut pb, f.shadow);
+                for (j, &n) in live.iter().enumerate() {
+                    for k in 0..FRUSTA {
+                        hits[n * FRUSTA + k] = pb.hit(FRUSTA, j * FRUSTA + k);
+                    }
+                }
+                let p = pb.frusta_stats;
+                stats.aabb_tests += p.aabb_tests;
+                stats.tris_accessed += p.tris_accessed;
+                stats.tris_after_culling += p.tris_after_culling;
+                stats.isec_tests += p.isec_tests;
+            }
+            out.extend(hits);
         }
         (out, stats)
     }

@@ -455,36 +455,44 @@ pub struct FrustumInput {
 pub fn soft_shadow_frusta(scene: &Scene, bvh: &Bvh2) -> Vec<FrustumInput> {
     let refi = Reference::with_bvh(&scene.mesh, bvh);
     let cam = &scene.config.camera;
-    let size = scene_size(scene);
-    let sets: Vec<[[f64; 2]; 16]> = (0..16).map(hammersley_set).collect();
     let mut out = Vec::new();
     for gy in (0..cam.height).step_by(4) {
         for gx in (0..cam.width).step_by(4) {
-            let mut f = FrustumInput {
-                pixel: (gx, gy),
-                hits: [None; 16],
-                samples: [[[0.0; 3]; 16]; 16],
-            };
-            for k in 0..16u32 {
-                let (x, y) = (gx + k % 4, gy + k / 4);
-                if x < cam.width && y < cam.height {
-                    let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                    if let Some(h) = refi.closest(&Ray::new(o, d)) {
-                        let p = add(o, scale(d, h.t));
-                        let n = facing_normal(&scene.mesh, h.prim, d);
-                        f.hits[k as usize] = Some(offset(p, n, size).map(|c| c as f32));
-                    }
-                }
-                for (j, uv) in sets[k as usize].iter().enumerate() {
-                    if let Some(l) = light_point(scene, uv[0], uv[1]) {
-                        f.samples[k as usize][j] = l.map(|c| c as f32);
-                    }
-                }
-            }
-            out.push(f);
+            out.push(soft_shadow_group(scene, &refi, gx, gy));
         }
     }
     out
+}
+
+/// The MFT soft-shadow input of the 4 x 4 pixel group whose top-left pixel
+/// is (`gx`, `gy`): primary hits by `refi`, offset along the facing normal,
+/// and pixel k's 16 light samples from Hammersley set k.
+#[must_use]
+pub fn soft_shadow_group(scene: &Scene, refi: &Reference, gx: u32, gy: u32) -> FrustumInput {
+    let cam = &scene.config.camera;
+    let size = scene_size(scene);
+    let mut f = FrustumInput {
+        pixel: (gx, gy),
+        hits: [None; 16],
+        samples: [[[0.0; 3]; 16]; 16],
+    };
+    for k in 0..16u32 {
+        let (x, y) = (gx + k % 4, gy + k / 4);
+        if x < cam.width && y < cam.height {
+            let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            if let Some(h) = refi.closest(&Ray::new(o, d)) {
+                let p = add(o, scale(d, h.t));
+                let n = facing_normal(&scene.mesh, h.prim, d);
+                f.hits[k as usize] = Some(offset(p, n, size).map(|c| c as f32));
+            }
+        }
+        for (j, uv) in hammersley_set(k).iter().enumerate() {
+            if let Some(l) = light_point(scene, uv[0], uv[1]) {
+                f.samples[k as usize][j] = l.map(|c| c as f32);
+            }
+        }
+    }
+    f
 }
 
 /// One primary ray per pixel center over the camera's image (multi-hit visibility).

@@ -1,21 +1,41 @@
-//! Multi-frusta tracing returns the reference's closest hit for every ray it
-//! generates: with back-face culling against the front-faces-only reference,
-//! without it against the two-sided one; traced and native agree.
+//! Multi-frusta tracing returns the reference's answer for every ray it
+//! generates — closest hits of primary frusta, occlusion of shadow frusta —
+//! with back-face culling against the front-faces-only reference and without
+//! it against the two-sided one; so does the 16-ray packet baseline on the
+//! same rays; traced and native agree.
 
 use isa::FlavourId;
 use kernels::bvh::{BuildConfig, Bvh2};
-use kernels::harness::mismatches;
-use kernels::mft::{Frusta, PacketPrimaryRun, PrimaryRun};
-use kernels::reference::Reference;
-use kernels::scene::Scene;
+use kernels::harness::{mismatches, shadow_mismatches};
+use kernels::mft::{rays_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun};
+use kernels::reference::{Ray, Reference};
+use kernels::scene::{Light, Scene};
+use kernels::workload::{soft_shadow_group, RayStream};
 
-fn check(
-    scene_name: &str,
-    blocks: &[(u32, u32)],
-) -> (kernels::mft::MftStats, kernels::mft::MftStats) {
-    let scene = Scene::load(scene_name).unwrap();
-    // A shallow BVH for the frusta (large leaves), a deep one for packets.
-    let bvh = Bvh2::build(
+/// Rays of active frusta whose answer differs from the reference's.
+fn bad(label: &str, refi: &Reference, sets: &[Frusta], out: &[(f32, i32)]) -> usize {
+    let (st, act) = rays_of(sets);
+    let keep: Vec<usize> = (0..st.len()).filter(|&i| act[i]).collect();
+    let pick = |v: &[[f32; 3]]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
+    let sub = RayStream::from_rays(
+        st.kind,
+        pick(&st.org),
+        pick(&st.dir),
+        keep.iter().map(|&i| st.tmax[i]).collect(),
+    );
+    let o: Vec<(f32, i32)> = keep.iter().map(|&i| out[i]).collect();
+    if sub.is_shadow() {
+        shadow_mismatches(label, refi, &sub, &o)
+    } else {
+        mismatches(label, refi, &sub.org, &sub.dir, &o)
+    }
+}
+
+/// Run MFT (shallow BVH) and 16-ray packets (deep BVH) on `sets`, both
+/// culling modes; the counters of the two-sided run.
+fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
+    let name = &scene.config.name;
+    let shallow = Bvh2::build(
         &scene.mesh,
         &BuildConfig {
             max_leaf: 8,
@@ -24,13 +44,56 @@ fn check(
         },
     )
     .unwrap();
+    let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
+    let mut last = None;
+    for cull_back in [true, false] {
+        let refi = Reference::with_bvh(&scene.mesh, &shallow);
+        let refi = if cull_back {
+            refi.front_faces_only()
+        } else {
+            refi
+        };
+        let label = format!("{name} cull_back {cull_back}");
+        let run = FrustaRun {
+            scene,
+            bvh: &shallow,
+            sets: sets.to_vec(),
+            cull_back,
+        };
+        let (traced, stats) = isa::record(&run, FlavourId::Lrb16, "mft").1;
+        assert_eq!(
+            (traced.clone(), stats),
+            isa::run_native(&run, FlavourId::Lrb16),
+            "{label}: traced and native agree"
+        );
+        let n = bad(&format!("mft {label}"), &refi, sets, &traced);
+        assert_eq!(n, 0, "mft {label}: {n} rays differ");
+        let hits = traced.iter().filter(|h| h.1 >= 0).count();
+        assert!(hits > traced.len() / 16, "{label}: some hits ({hits})");
+        assert!(stats.aabb_tests > 0 && stats.isec_tests > 0, "{stats:?}");
+        assert!(stats.tris_after_culling <= stats.tris_accessed);
+        let pr = PacketPrimaryRun {
+            scene,
+            bvh: &deep,
+            sets: sets.to_vec(),
+            cull_back,
+        };
+        let (ptraced, pstats) = isa::record(&pr, FlavourId::Lrb16, "p16").1;
+        assert_eq!(
+            (ptraced.clone(), pstats),
+            isa::run_native(&pr, FlavourId::Lrb16)
+        );
+        let n = bad(&format!("packet {label}"), &refi, sets, &ptraced);
+        assert_eq!(n, 0, "packet {label}: {n} rays differ");
+        last = Some((stats, pstats));
+    }
+    last.unwrap()
+}
+
+/// A primary block where some frustum's direction interval holds zero (the
+/// zero-interval fix) and its centre ray sees geometry.
+fn zero_block(scene: &Scene, refi: &Reference) -> Frusta {
     let cam = &scene.config.camera;
-    let mut sets: Vec<Frusta> = blocks
-        .iter()
-        .map(|&(x, y)| Frusta::primary(cam, x, y))
-        .collect();
-    // And a block where some frustum's direction interval holds zero (the
-    // zero-interval fix), among those whose centre pixel sees geometry.
     let holds_zero = |f: &Frusta| {
         let rec = f.record();
         (0..16).any(|n| {
@@ -40,79 +103,63 @@ fn check(
             })
         })
     };
-    let zero_block = (0..cam.height / 16)
+    (0..cam.height / 16)
         .flat_map(|y| (0..cam.width / 16).map(move |x| (x, y)))
         .map(|(x, y)| Frusta::primary(cam, x, y))
         .find(|f| {
-            let refi = Reference::with_bvh(&scene.mesh, &bvh);
             let (o, d) = f.ray(5, 5);
             holds_zero(f)
                 && refi
-                    .closest(&kernels::reference::Ray::new(
-                        o.map(f64::from),
-                        d.map(f64::from),
-                    ))
+                    .closest(&Ray::new(o.map(f64::from), d.map(f64::from)))
                     .is_some()
         })
-        .expect("a frustum straddling an axis direction");
-    sets.push(zero_block);
-    let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
-    let mut last = None;
-    for cull_back in [true, false] {
-        let run = PrimaryRun {
-            scene: &scene,
-            bvh: &bvh,
-            sets: sets.clone(),
-            cull_back,
-        };
-        let (org, dir) = run.rays();
-        let (traced, stats) = isa::record(&run, FlavourId::Lrb16, "mft").1;
-        assert_eq!(
-            (traced.clone(), stats),
-            isa::run_native(&run, FlavourId::Lrb16),
-            "{scene_name}: traced and native agree"
-        );
-        let refi = Reference::with_bvh(&scene.mesh, &bvh);
-        let refi = if cull_back {
-            refi.front_faces_only()
-        } else {
-            refi
-        };
-        let label = format!("mft {scene_name} cull_back {cull_back}");
-        let bad = mismatches(&label, &refi, &org, &dir, &traced);
-        assert_eq!(bad, 0, "{label}: {bad} of {} rays differ", org.len());
-        let hits = traced.iter().filter(|h| h.1 >= 0).count();
-        assert!(hits > org.len() / 8, "{label}: some hits ({hits})");
-        assert!(stats.aabb_tests > 0 && stats.isec_tests > 0, "{stats:?}");
-        assert!(stats.tris_after_culling <= stats.tris_accessed);
-        // The 16-ray packet baseline on the same rays, deep BVH.
-        let pr = PacketPrimaryRun {
-            scene: &scene,
-            bvh: &deep,
-            sets: sets.clone(),
-            cull_back,
-        };
-        let (ptraced, pstats) = isa::record(&pr, FlavourId::Lrb16, "p16").1;
-        assert_eq!(
-            (ptraced.clone(), pstats),
-            isa::run_native(&pr, FlavourId::Lrb16)
-        );
-        let bad = mismatches(&format!("packet {label}"), &refi, &org, &dir, &ptraced);
-        assert_eq!(bad, 0, "packet {label}: {bad} rays differ");
-        last = Some((stats, pstats));
-    }
-    last.unwrap()
+        .expect("a frustum straddling an axis direction")
 }
 
 #[test]
 fn mft_primary_frusta_match_the_reference() {
-    let (s, p) = check("trex", &[(30, 30), (32, 28), (25, 35)]);
-    eprintln!("trex: frusta {s:?} packets {p:?}");
+    let scene = Scene::load("trex").unwrap();
+    let bvh = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
+    let refi = Reference::with_bvh(&scene.mesh, &bvh);
+    let cam = &scene.config.camera;
+    let mut sets: Vec<Frusta> = [(30, 30), (32, 28), (25, 35)]
+        .iter()
+        .map(|&(x, y)| Frusta::primary(cam, x, y))
+        .collect();
+    sets.push(zero_block(&scene, &refi));
+    let (s, p) = check(&scene, &sets);
     assert!(s.isec_tests >= s.tris_after_culling, "{s:?}");
     // The paper's headline: frusta need far fewer box tests than packets.
     assert!(
         p.aabb_tests >= 10 * s.aabb_tests,
         "packets {p:?} vs frusta {s:?}"
     );
-    check("fern", &[(30, 30), (20, 40)]);
+    let fern = Scene::load("fern").unwrap();
+    let cam = &fern.config.camera;
+    let sets: Vec<Frusta> = [(30, 30), (20, 40)]
+        .iter()
+        .map(|&(x, y)| Frusta::primary(cam, x, y))
+        .collect();
+    check(&fern, &sets);
+}
+
+#[test]
+fn mft_shadow_frusta_match_the_reference() {
+    let scene = Scene::load("trex").unwrap();
+    let bvh = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
+    let refi = Reference::with_bvh(&scene.mesh, &bvh);
+    let Some(Light::Quad(c, e1, e2, _)) = scene.config.lights.first().cloned() else {
+        panic!("trex has a quad light");
+    };
+    // 4 x 4 pixel groups around the T-Rex's feet: lit, penumbra and umbra.
+    let sets: Vec<Frusta> = [(500, 760), (540, 780), (460, 800), (600, 740)]
+        .iter()
+        .map(|&(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+        .collect();
+    assert!(
+        sets.iter().all(|f| f.active != 0),
+        "the groups see geometry"
+    );
+    let (s, p) = check(&scene, &sets);
+    assert!(p.aabb_tests > s.aabb_tests, "packets {p:?} vs frusta {s:?}");
 }

@@ -24,7 +24,7 @@ use std::time::Instant;
 /// `rtsim reproduce` arguments.
 #[derive(Args)]
 pub struct ReproduceArgs {
-    /// Report: drs-table1, drs-table2, drs-fig5 or drs-fig6.
+    /// Report: drs-table1, drs-table2, drs-fig5, drs-fig6 or mft-table1.
     pub name: String,
     /// Smaller sample (2 tiles per scene, 1 bounce) for a run of about a minute.
     #[arg(long)]
@@ -142,8 +142,9 @@ pub fn reproduce(a: &ReproduceArgs) -> AppResult<()> {
         "drs-table2" => drs_table2(a),
         "drs-fig5" => drs_fig5(a),
         "drs-fig6" => drs_fig6(a),
+        "mft-table1" => crate::mft_report::mft_table1(a),
         n => Err(AppError(format!(
-            "reproduce: unknown report '{n}' (drs-table1, drs-table2, drs-fig5, drs-fig6)"
+            "reproduce: unknown report '{n}' (drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1)"
         ))),
     }
 }
@@ -167,7 +168,7 @@ struct Acc {
 }
 
 /// splitmix64: the tile sample's generator.
-fn mix(mut z: u64) -> u64 {
+pub(crate) fn mix(mut z: u64) -> u64 {
     z = z.wrapping_add(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
@@ -178,7 +179,7 @@ fn mix(mut z: u64) -> u64 {
 /// (delta method, normal approximation); `None` below 2 tiles. A tile's own
 /// ratio is not averaged: tiles whose rays all miss are very fast and would
 /// dominate a mean of per-tile rates.
-fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
+pub(crate) fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
     if v.len() < 2 {
         return None;
     }
@@ -854,6 +855,12 @@ fn finish(
         rows,
         notes,
     };
+    emit(a, name, &rep, bad)
+}
+
+/// Print a report (and with `--out`, write it to DIR/NAME.ext); an error if
+/// `bad` rays differed from the reference.
+pub(crate) fn emit(a: &ReproduceArgs, name: &str, rep: &Report, bad: f64) -> AppResult<()> {
     let text = rep.render(a.format);
     if let Some(dir) = &a.out {
         std::fs::create_dir_all(dir).map_err(|e| AppError(format!("{}: {e}", dir.display())))?;

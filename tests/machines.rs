@@ -516,3 +516,45 @@ fn reproduce_drs_figures_write_their_table_and_plot() {
         .starts_with(b"\x89PNG"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
+    let j = json(&rtsim(&[
+        "reproduce",
+        "mft-table1",
+        "--quick",
+        "--tiles",
+        "1",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(j["machine"], "larrabee", "defaults to the 16-lane machine");
+    let rows = j["rows"].as_array().unwrap();
+    let get = |scene: &str, method: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["scene"] == scene && r["method"] == method && r["metric"] == metric)
+            .collect();
+        assert_eq!(r.len(), 1, "{scene} {method} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for scene in ["trex", "fern", "saloon", "fairy"] {
+        for method in ["p-packet", "p-frusta", "s-packet", "s-frusta"] {
+            assert_eq!(
+                get(scene, method, "hit_mismatches"),
+                0.0,
+                "{scene} {method}"
+            );
+            for metric in ["tris_accessed", "aabb_tests", "isec_tests", "cycles"] {
+                assert!(
+                    get(scene, method, metric) > 0.0,
+                    "{scene} {method} {metric}"
+                );
+            }
+        }
+        assert!(
+            get(scene, "p-packet", "aabb_tests") > 4.0 * get(scene, "p-frusta", "aabb_tests"),
+            "{scene}: frusta cut box tests"
+        );
+    }
+}

@@ -256,6 +256,30 @@ pub const EDGE_EPS: f64 = 1e-5;
 /// triangle's least altitude.
 #[must_use]
 pub fn tri_eps(mesh: &crate::mesh::Mesh, prim: u32, org: [f64; 3]) -> f64 {
+    tri_eps_for(F32Test::MollerTrumbore, mesh, prim, org, [0.0; 3])
+}
+
+/// Which f32 ray-triangle test a kernel runs: it sets how far from an edge
+/// the kernel may disagree with the f64 reference.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum F32Test {
+    /// Moller-Trumbore relative to v0 (single, packet, DRS kernels).
+    MollerTrumbore,
+    /// Edge normals of origin-relative vertices (the MFT paper's common-origin
+    /// Pluecker test): cross products of two long, nearly parallel vectors,
+    /// so the error grows with the squared distance over the triangle's area.
+    Pluecker,
+}
+
+/// [`tri_eps`] for a test, and (Pluecker) a ray direction `dir`.
+#[must_use]
+pub fn tri_eps_for(
+    test: F32Test,
+    mesh: &crate::mesh::Mesh,
+    prim: u32,
+    org: [f64; 3],
+    dir: [f64; 3],
+) -> f64 {
     let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
     let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
     let len = |p: [f64; 3]| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
@@ -274,21 +298,40 @@ pub fn tri_eps(mesh: &crate::mesh::Mesh, prim: u32, org: [f64; 3]) -> f64 {
         .chain(&org)
         .fold(0.0f64, |m, x| m.max(x.abs()));
     let f32_err = 16.0 * f64::from(f32::EPSILON) * reach / altitude.max(1e-300);
-    EDGE_EPS.max(f32_err).min(0.5)
+    let eps = EDGE_EPS.max(f32_err);
+    let eps = if test == F32Test::Pluecker {
+        // |d . E| carries about eps * |d| * reach^2 of rounding; the signal
+        // is lambda * |d . n| (n = e1 x e2).
+        let dl = len(dir);
+        let dn = (cr[0] * dir[0] + cr[1] * dir[1] + cr[2] * dir[2]).abs();
+        let r = reach.max(len(sub(a, org)));
+        eps.max(16.0 * f64::from(f32::EPSILON) * dl * r * r / dn.max(1e-300))
+    } else {
+        eps
+    };
+    eps.min(0.5)
 }
 
 /// Whether the reference hit `h` of a ray from `org` lies within the f32
 /// tolerance of an edge of its triangle.
-fn grazing(mesh: &crate::mesh::Mesh, org: [f64; 3], h: &crate::reference::Hit) -> bool {
-    h.u.min(h.v).min(1.0 - h.u - h.v) <= tri_eps(mesh, h.prim, org)
+fn grazing(test: F32Test, mesh: &crate::mesh::Mesh, ray: &Ray, h: &crate::reference::Hit) -> bool {
+    h.u.min(h.v).min(1.0 - h.u - h.v) <= tri_eps_for(test, mesh, h.prim, ray.org, ray.dir)
+}
+
+/// [`grazing`], or (one-sided reference) met nearly edge-on, where a
+/// back-face culling kernel may drop it.
+fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &crate::reference::Hit) -> bool {
+    grazing(test, refi.mesh(), ray, h) || (refi.is_one_sided() && refi.edge_on(h.prim, ray.dir))
 }
 
 /// Whether triangle `prim` is hit at about `t` (`None`: anywhere in
 /// (0, tmax]) by `ray` in f64 with its edges widened by the f32 tolerance (a
 /// hit the reference calls a near miss).
-fn near_hit(refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
+fn near_hit(test: F32Test, refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
     let mesh = refi.mesh();
-    if !refi.faces(prim, ray.dir) {
+    // One-sided: a back face counts only when nearly edge-on, where the
+    // kernel's f32 orientation test may go either way.
+    if !refi.faces(prim, ray.dir) && !refi.edge_on(prim, ray.dir) {
         return false;
     }
     let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
@@ -312,7 +355,7 @@ fn near_hit(refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
     let q = cross(s, e1);
     let v = dot(ray.dir, q) / det;
     let th = dot(e2, q) / det;
-    let eps = tri_eps(mesh, prim, ray.org);
+    let eps = tri_eps_for(test, mesh, prim, ray.org, ray.dir);
     let at_t = match t {
         Some(t) => (th - t).abs() <= 1e-4 * t.abs().max(1.0),
         None => th > 0.0 && th <= ray.tmax * (1.0 + 1e-4),
@@ -334,7 +377,18 @@ pub fn mismatches(
     dir: &[[f32; 3]],
     out: &[(f32, i32)],
 ) -> usize {
-    let mesh = refi.mesh();
+    mismatches_for(F32Test::MollerTrumbore, label, refi, org, dir, out)
+}
+
+/// [`mismatches`] with the tolerance of triangle test `test`.
+pub fn mismatches_for(
+    test: F32Test,
+    label: &str,
+    refi: &Reference,
+    org: &[[f32; 3]],
+    dir: &[[f32; 3]],
+    out: &[(f32, i32)],
+) -> usize {
     let mut bad = 0;
     for i in 0..org.len() {
         let ray = Ray::new(org[i].map(f64::from), dir[i].map(f64::from));
@@ -351,10 +405,10 @@ pub fn mismatches(
         let real = |all: &[crate::reference::Hit]| {
             prim < 0
                 || all.iter().any(|a| a.prim == prim as u32 && close(a.t, kt))
-                || near_hit(refi, &ray, prim as u32, Some(kt))
+                || near_hit(test, refi, &ray, prim as u32, Some(kt))
         };
         let ok = match want {
-            None => prim < 0 || near_hit(refi, &ray, prim as u32, Some(kt)),
+            None => prim < 0 || near_hit(test, refi, &ray, prim as u32, Some(kt)),
             Some(h) => {
                 let all = refi.all(&ray);
                 let exact = prim >= 0 && close(kt, h.t) && real(&all);
@@ -364,8 +418,8 @@ pub fn mismatches(
                 let skipped_graze = all
                     .iter()
                     .filter(|a| prim < 0 || (a.t < kt && !close(a.t, kt)))
-                    .all(|a| grazing(mesh, ray.org, a));
-                exact || (grazing(mesh, ray.org, &h) && skipped_graze && real(&all))
+                    .all(|a| may_skip(test, refi, &ray, a));
+                exact || (may_skip(test, refi, &ray, &h) && skipped_graze && real(&all))
             }
         };
         if !ok {
@@ -389,21 +443,29 @@ pub fn shadow_mismatches(
     rays: &RayStream,
     out: &[(f32, i32)],
 ) -> usize {
+    shadow_mismatches_for(F32Test::MollerTrumbore, label, refi, rays, out)
+}
+
+/// [`shadow_mismatches`] with the tolerance of triangle test `test`.
+#[must_use]
+pub fn shadow_mismatches_for(
+    test: F32Test,
+    label: &str,
+    refi: &Reference,
+    rays: &RayStream,
+    out: &[(f32, i32)],
+) -> usize {
     let mut bad = 0;
     for (i, &(_, prim)) in out.iter().enumerate() {
         let ray = rays.ray(i);
         let want = refi.any(&ray);
         let got = prim >= 0;
         let ok = want == got
-            || (want
-                && refi
-                    .all(&ray)
-                    .iter()
-                    .all(|h| grazing(refi.mesh(), ray.org, h)))
+            || (want && refi.all(&ray).iter().all(|h| may_skip(test, refi, &ray, h)))
             || (got && {
                 let mut longer = ray;
                 longer.tmax *= 1.0 + 1e-4;
-                refi.any(&longer) || near_hit(refi, &ray, prim as u32, None)
+                refi.any(&longer) || near_hit(test, refi, &ray, prim as u32, None)
             });
         if !ok {
             bad += 1;

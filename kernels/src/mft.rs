@@ -842,6 +842,36 @@ pub fn rays_of(sets: &[Frusta]) -> (crate::workload::RayStream, Vec<bool>) {
     (crate::workload::RayStream::from_rays(kind, o, d, t), act)
 }
 
+/// Rays of active frusta in `sets` whose kernel answer `out` (in
+/// [`rays_of`] order) differs from the reference's: closest hits by
+/// [`crate::harness::mismatches_for`], shadow rays by
+/// [`crate::harness::shadow_mismatches_for`], with the tolerance of `test`
+/// (the MFT kernel's Pluecker test, the packet baseline's Moller-Trumbore).
+#[must_use]
+pub fn mismatches_of(
+    test: crate::harness::F32Test,
+    label: &str,
+    refi: &crate::reference::Reference,
+    sets: &[Frusta],
+    out: &[(f32, i32)],
+) -> usize {
+    let (st, act) = rays_of(sets);
+    let keep: Vec<usize> = (0..st.len()).filter(|&i| act[i]).collect();
+    let pick = |v: &[[f32; 3]]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
+    let sub = crate::workload::RayStream::from_rays(
+        st.kind,
+        pick(&st.org),
+        pick(&st.dir),
+        keep.iter().map(|&i| st.tmax[i]).collect(),
+    );
+    let o: Vec<(f32, i32)> = keep.iter().map(|&i| out[i]).collect();
+    if sub.is_shadow() {
+        crate::harness::shadow_mismatches_for(test, label, refi, &sub, &o)
+    } else {
+        crate::harness::mismatches_for(test, label, refi, &sub.org, &sub.dir, &o)
+    }
+}
+
 /// The 16-ray packet baseline over the same rays (one packet = one frustum's
 /// 16 rays: 4 x 4 pixels, or one hit point's 16 shadow rays): Embree-style masked packet traversal of a (deep) BVH2 and
 /// packet Moller-Trumbore, [`crate::packet`] on 16 lanes.

@@ -245,6 +245,31 @@ impl<'a> Reference<'a> {
         self
     }
 
+    /// Whether this reference sees front faces only.
+    #[must_use]
+    pub fn is_one_sided(&self) -> bool {
+        self.one_sided
+    }
+
+    /// Whether `dir` meets triangle `p` nearly edge-on (|cos| < 1e-3), where
+    /// f32 kernels may decide its orientation either way.
+    #[must_use]
+    pub fn edge_on(&self, p: u32, dir: [f64; 3]) -> bool {
+        let [a, b, c] = self.mesh.tri(p as usize).map(|v| v.map(f64::from));
+        let (e1, e2) = (
+            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
+            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
+        );
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+        let d = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
+        d.abs() <= 1e-3 * len(n) * len(dir)
+    }
+
     /// Whether triangle `p` counts for a ray along `dir` (always, unless
     /// [`Reference::front_faces_only`]).
     #[must_use]

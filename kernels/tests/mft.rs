@@ -6,29 +6,21 @@
 
 use isa::FlavourId;
 use kernels::bvh::{BuildConfig, Bvh2};
-use kernels::harness::{mismatches, shadow_mismatches};
-use kernels::mft::{rays_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun};
+use kernels::harness::F32Test;
+use kernels::mft::{mismatches_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun};
 use kernels::reference::{Ray, Reference};
 use kernels::scene::{Light, Scene};
-use kernels::workload::{soft_shadow_group, RayStream};
+use kernels::workload::soft_shadow_group;
 
-/// Rays of active frusta whose answer differs from the reference's.
+/// Rays of active frusta whose answer differs from the reference's (the
+/// MFT kernel's tolerance is its Pluecker test's, the packets' Moller-Trumbore's).
 fn bad(label: &str, refi: &Reference, sets: &[Frusta], out: &[(f32, i32)]) -> usize {
-    let (st, act) = rays_of(sets);
-    let keep: Vec<usize> = (0..st.len()).filter(|&i| act[i]).collect();
-    let pick = |v: &[[f32; 3]]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
-    let sub = RayStream::from_rays(
-        st.kind,
-        pick(&st.org),
-        pick(&st.dir),
-        keep.iter().map(|&i| st.tmax[i]).collect(),
-    );
-    let o: Vec<(f32, i32)> = keep.iter().map(|&i| out[i]).collect();
-    if sub.is_shadow() {
-        shadow_mismatches(label, refi, &sub, &o)
+    let test = if label.starts_with("mft") {
+        F32Test::Pluecker
     } else {
-        mismatches(label, refi, &sub.org, &sub.dir, &o)
-    }
+        F32Test::MollerTrumbore
+    };
+    mismatches_of(test, label, refi, sets, out)
 }
 
 /// Run MFT (shallow BVH) and 16-ray packets (deep BVH) on `sets`, both

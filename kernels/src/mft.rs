@@ -340,7 +340,11 @@ impl MftBufs {
         }
         let sp = m.space();
         MftBufs {
-            frusta: sp.alloc_f32(MemKind::Rays, "frusta", &f.record(), 64),
+            frusta: {
+                let mut rec = f.record();
+                rec.resize(row::ROWS_SHADOW * FRUSTA, 0.0);
+                sp.alloc_f32(MemKind::Rays, "frusta", &rec, 64)
+            },
             hits: sp.alloc_f32(MemKind::Hits, "frusta-hits", &hits, 64),
             stack: sp.alloc(MemKind::Stack, "frusta-stack", 8 * 256, 64),
             scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 10, 64),
@@ -349,6 +353,21 @@ impl MftBufs {
             terminated: 0,
             stats: MftStats::default(),
         }
+    }
+
+    /// Reuse the buffers for frusta `f` (contents rewritten in place, host
+    /// side, like the initial contents); the counters are kept.
+    pub fn reload(&mut self, f: &Frusta) {
+        let rec: Vec<u8> = f.record().iter().flat_map(|x| x.to_le_bytes()).collect();
+        self.frusta.write(0, &rec);
+        let mut hits = Vec::with_capacity(2 * FRUSTA * FRUSTA * 4);
+        for _ in 0..FRUSTA {
+            hits.extend(std::iter::repeat_n(f32::INFINITY.to_le_bytes(), FRUSTA).flatten());
+            hits.extend(std::iter::repeat_n(u32::MAX.to_le_bytes(), FRUSTA).flatten());
+        }
+        self.hits.write(0, &hits);
+        self.occl.write(0, &[0u8; 64]);
+        self.shadow = f.shadow;
     }
 
     /// (t, prim) of ray `k` of frustum `n`.
@@ -792,18 +811,24 @@ impl Program for FrustaRun<'_> {
         let s = crate::layout::lay_out2(m, &self.scene.mesh, self.bvh);
         let mut out = Vec::with_capacity(self.sets.len() * 256);
         let mut stats = MftStats::default();
+        let mut bufs: Option<MftBufs> = None;
         for f in &self.sets {
-            let mut b = MftBufs::new(m, f);
-            trace(m, &s, &mut b, self.cull_back);
+            let b = match &mut bufs {
+                Some(b) => {
+                    b.reload(f);
+                    b
+                }
+                None => bufs.insert(MftBufs::new(m, f)),
+            };
+            trace(m, &s, b, self.cull_back);
             for n in 0..FRUSTA {
                 for k in 0..FRUSTA {
                     out.push(b.hit(n, k));
                 }
             }
-            stats.aabb_tests += b.stats.aabb_tests;
-            stats.tris_accessed += b.stats.tris_accessed;
-            stats.tris_after_culling += b.stats.tris_after_culling;
-            stats.isec_tests += b.stats.isec_tests;
+        }
+        if let Some(b) = bufs {
+            stats = b.stats;
         }
         (out, stats)
     }
@@ -893,6 +918,7 @@ impl Program for PacketPrimaryRun<'_> {
         let s = crate::layout::lay_out2(m, &self.scene.mesh, self.bvh);
         let mut out = Vec::with_capacity(self.sets.len() * 256);
         let mut stats = MftStats::default();
+        let mut bufs: Option<crate::packet::PacketBufs> = None;
         for f in &self.sets {
             // One packet per active frustum.
             let live: Vec<usize> = (0..FRUSTA).filter(|&n| f.active & (1 << n) != 0).collect();
@@ -903,21 +929,32 @@ impl Program for PacketPrimaryRun<'_> {
             let mut hits = vec![(f32::INFINITY, -1); FRUSTA * FRUSTA];
             if !org.is_empty() {
                 let tfar = vec![f.tmax; org.len()];
-                let mut pb = crate::packet::PacketBufs::new(m, &org, &dir, &tfar, None);
-                pb.one_sided = self.cull_back;
-                crate::packet::trace2(m, &s, &mut pb, f.shadow);
+                let pb = match &mut bufs {
+                    Some(pb) => {
+                        pb.reload(FRUSTA, &org, &dir, &tfar, None);
+                        pb
+                    }
+                    None => {
+                        // Room for 16 packets, then filled with this set's rays.
+                        let full = vec![[0.0f32; 3]; FRUSTA * FRUSTA];
+                        let tf = vec![0.0f32; FRUSTA * FRUSTA];
+                        let mut pb = crate::packet::PacketBufs::new(m, &full, &full, &tf, None);
+                        pb.reload(FRUSTA, &org, &dir, &tfar, None);
+                        pb.one_sided = self.cull_back;
+                        bufs.insert(pb)
+                    }
+                };
+                crate::packet::trace2(m, &s, pb, f.shadow);
                 for (j, &n) in live.iter().enumerate() {
                     for k in 0..FRUSTA {
                         hits[n * FRUSTA + k] = pb.hit(FRUSTA, j * FRUSTA + k);
                     }
                 }
-                let p = pb.frusta_stats;
-                stats.aabb_tests += p.aabb_tests;
-                stats.tris_accessed += p.tris_accessed;
-                stats.tris_after_culling += p.tris_after_culling;
-                stats.isec_tests += p.isec_tests;
             }
             out.extend(hits);
+        }
+        if let Some(pb) = bufs {
+            stats = pb.frusta_stats;
         }
         (out, stats)
     }

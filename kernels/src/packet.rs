@@ -213,6 +213,41 @@ impl PacketBufs {
         }
     }
 
+    /// Reuse the buffers for other rays (at most as many packets as they
+    /// were made for): the records are rewritten in place (host side, like
+    /// the initial contents) and the counters kept.
+    ///
+    /// # Panics
+    /// If the rays need more packets than the buffer holds.
+    pub fn reload(
+        &mut self,
+        w: usize,
+        org: &[[f32; 3]],
+        dir: &[[f32; 3]],
+        tfar: &[f32],
+        slots: Option<&[u32]>,
+    ) {
+        let seq: Vec<u32>;
+        let slots = match slots {
+            Some(s) => s,
+            None => {
+                seq = (0..org.len() as u32).collect();
+                &seq
+            }
+        };
+        let recs = packet_records(org, dir, tfar, slots, w);
+        let bytes: Vec<u8> = recs.iter().flat_map(|x| x.to_le_bytes()).collect();
+        assert!(bytes.len() <= self.rays.len(), "rays fit the packet buffer");
+        self.rays.write(0, &bytes);
+        self.packets = recs.len() / (row::ROWS * w);
+        self.slot_of = vec![usize::MAX; org.len()];
+        for (j, &i) in slots.iter().enumerate() {
+            if (i as usize) < org.len() {
+                self.slot_of[i as usize] = j;
+            }
+        }
+    }
+
     /// (t, prim) of ray `i` after a kernel ran.
     #[must_use]
     pub fn hit(&self, w: usize, i: usize) -> (f32, i32) {

@@ -321,7 +321,27 @@ fn grazing(test: F32Test, mesh: &crate::mesh::Mesh, ray: &Ray, h: &crate::refere
 /// [`grazing`], or (one-sided reference) met nearly edge-on, where a
 /// back-face culling kernel may drop it.
 fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &crate::reference::Hit) -> bool {
-    grazing(test, refi.mesh(), ray, h) || (refi.is_one_sided() && refi.edge_on(h.prim, ray.dir))
+    grazing(test, refi.mesh(), ray, h)
+        || (refi.is_one_sided() && refi.edge_on(h.prim, ray.dir))
+        || (test == F32Test::Pluecker && pluecker_unreliable(refi.mesh(), h.prim, ray))
+}
+
+/// Whether the MFT kernel's common-origin test cannot resolve `ray` against
+/// triangle `prim`: |d . n| within 8 ulp x |v0 - o|^2 x |d| (twice the
+/// noise floor the kernel rejects below).
+fn pluecker_unreliable(mesh: &crate::mesh::Mesh, prim: u32, ray: &Ray) -> bool {
+    let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
+    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
+    let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
+    let (e1, e2) = (sub(b, a), sub(c, a));
+    let n = [
+        e1[1] * e2[2] - e1[2] * e2[1],
+        e1[2] * e2[0] - e1[0] * e2[2],
+        e1[0] * e2[1] - e1[1] * e2[0],
+    ];
+    let rel = sub(a, ray.org);
+    dot(ray.dir, n).abs()
+        <= 8.0 * f64::from(f32::EPSILON) * dot(rel, rel) * dot(ray.dir, ray.dir).sqrt()
 }
 
 /// Whether triangle `prim` is hit at about `t` (`None`: anywhere in

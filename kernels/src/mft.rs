@@ -318,7 +318,7 @@ pub struct MftBufs {
     pub hits: Buf,
     /// Traversal stack: (node u32, frustum mask u32) entries.
     pub stack: Buf,
-    /// Per-triangle values read back by broadcast (10 rows).
+    /// Per-triangle values read back by broadcast (11 rows).
     pub scratch: Buf,
     /// Shadow frusta: occlusion bits of each frustum's rays (u32 each).
     pub occl: Buf,
@@ -347,7 +347,7 @@ impl MftBufs {
             },
             hits: sp.alloc_f32(MemKind::Hits, "frusta-hits", &hits, 64),
             stack: sp.alloc(MemKind::Stack, "frusta-stack", 8 * 256, 64),
-            scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 10, 64),
+            scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 11, 64),
             occl: sp.alloc(MemKind::Hits, "frusta-occlusion", 64, 64),
             shadow: f.shadow,
             terminated: 0,
@@ -698,6 +698,14 @@ fn leaf<M: Machine>(
             }
         }
         keep(m, &mut b.scratch, an);
+        // The noise floor of d . E in f32: about 4 ulp x |a|^2 x |d| (cross
+        // products of two long, nearly parallel vectors); kept squared as
+        // (4 eps)^2 |a|^4 for the per-ray reliability test below.
+        let a2 = dot(m, a, a);
+        let a4 = m.mul(a2, a2);
+        let k = m.splat((4.0 * f32::EPSILON) * (4.0 * f32::EPSILON));
+        let floor = m.mul(a4, k);
+        keep(m, &mut b.scratch, floor);
         let mut bits = m.movemask(tmask);
         b.stats.isec_tests += u64::from(bits.get().count_ones());
         loop {
@@ -730,6 +738,15 @@ fn leaf<M: Machine>(
             let ht = 128 * n;
             let pos = m.cmp(Cmp::Gt, t, zero_v);
             let mut hit = m.kand(inside.expect("3 edges"), pos);
+            // A ray nearly in the triangle's plane: d . n (the sum of the three
+            // edge tests) below their rounding noise makes the inside test
+            // meaningless; such rays miss (robustness; not in the paper).
+            let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
+            let d2 = dot(m, d, d);
+            let noise = m.mul(fl, d2);
+            let dn2 = m.mul(dn, dn);
+            let reliable = m.cmp(Cmp::Gt, dn2, noise);
+            hit = m.kand(hit, reliable);
             if shadow {
                 // Rays not yet occluded, t below the limit.
                 let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);

@@ -3,9 +3,10 @@
 
 use crate::bvh::{Bvh2, Bvh4};
 use crate::layout::{hit_records, lay_out, ray_records};
-use crate::reference::{Ray, Reference};
+use crate::reference::{Ray, Reference, TriGeom};
 use crate::scene::Scene;
 use crate::workload::RayStream;
+use glam::DVec3;
 use isa::{Machine, MemKind, Program};
 
 /// Which traversal kernel.
@@ -280,32 +281,25 @@ pub fn tri_eps_for(
     org: [f64; 3],
     dir: [f64; 3],
 ) -> f64 {
-    let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
-    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    let len = |p: [f64; 3]| (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
-    let (e1, e2) = (sub(b, a), sub(c, a));
-    let cr = [
-        e1[1] * e2[2] - e1[2] * e2[1],
-        e1[2] * e2[0] - e1[0] * e2[2],
-        e1[0] * e2[1] - e1[1] * e2[0],
-    ];
-    let longest = len(e1).max(len(e2)).max(len(sub(c, b)));
-    let altitude = len(cr) / longest.max(1e-300);
-    let reach = a
-        .iter()
-        .chain(&b)
-        .chain(&c)
-        .chain(&org)
-        .fold(0.0f64, |m, x| m.max(x.abs()));
+    let g = TriGeom::of(mesh, prim);
+    let longest =
+        g.e1.length()
+            .max(g.e2.length())
+            .max((g.v[2] - g.v[1]).length());
+    let altitude = g.n.length() / longest.max(1e-300);
+    let reach =
+        g.v.iter()
+            .map(|v| v.abs().max_element())
+            .fold(DVec3::from(org).abs().max_element(), f64::max);
     let f32_err = 16.0 * f64::from(f32::EPSILON) * reach / altitude.max(1e-300);
     let eps = EDGE_EPS.max(f32_err);
     let eps = if test == F32Test::Pluecker {
         // |d . E| carries about eps * |d| * reach^2 of rounding; the signal
         // is lambda * |d . n| (n = e1 x e2).
-        let dl = len(dir);
-        let dn = (cr[0] * dir[0] + cr[1] * dir[1] + cr[2] * dir[2]).abs();
-        let r = reach.max(len(sub(a, org)));
-        eps.max(4.0 * f64::from(f32::EPSILON) * dl * r * r / dn.max(1e-300))
+        let d = DVec3::from(dir);
+        let r = reach.max((g.v[0] - DVec3::from(org)).length());
+        let dn = g.n.dot(d).abs();
+        eps.max(4.0 * f64::from(f32::EPSILON) * d.length() * r * r / dn.max(1e-300))
     } else {
         eps
     };
@@ -330,52 +324,34 @@ fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &crate::reference::Hi
 /// triangle `prim`: |d . n| within 8 ulp x |v0 - o|^2 x |d| (twice the
 /// noise floor the kernel rejects below).
 fn pluecker_unreliable(mesh: &crate::mesh::Mesh, prim: u32, ray: &Ray) -> bool {
-    let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
-    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
-    let (e1, e2) = (sub(b, a), sub(c, a));
-    let n = [
-        e1[1] * e2[2] - e1[2] * e2[1],
-        e1[2] * e2[0] - e1[0] * e2[2],
-        e1[0] * e2[1] - e1[1] * e2[0],
-    ];
-    let rel = sub(a, ray.org);
-    dot(ray.dir, n).abs()
-        <= 8.0 * f64::from(f32::EPSILON) * dot(rel, rel) * dot(ray.dir, ray.dir).sqrt()
+    let g = TriGeom::of(mesh, prim);
+    let (o, d) = (DVec3::from(ray.org), DVec3::from(ray.dir));
+    d.dot(g.n).abs() <= 8.0 * f64::from(f32::EPSILON) * (g.v[0] - o).length_squared() * d.length()
 }
 
 /// Whether triangle `prim` is hit at about `t` (`None`: anywhere in
 /// (0, tmax]) by `ray` in f64 with its edges widened by the f32 tolerance (a
 /// hit the reference calls a near miss).
 fn near_hit(test: F32Test, refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
-    let mesh = refi.mesh();
     // One-sided: a back face counts only when nearly edge-on, where the
     // kernel's f32 orientation test may go either way.
     if !refi.faces(prim, ray.dir) && !refi.edge_on(prim, ray.dir) {
         return false;
     }
-    let [a, b, c] = mesh.tri(prim as usize).map(|v| v.map(f64::from));
-    let sub = |p: [f64; 3], q: [f64; 3]| [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
-    let cross = |p: [f64; 3], q: [f64; 3]| {
-        [
-            p[1] * q[2] - p[2] * q[1],
-            p[2] * q[0] - p[0] * q[2],
-            p[0] * q[1] - p[1] * q[0],
-        ]
-    };
-    let dot = |p: [f64; 3], q: [f64; 3]| p[0] * q[0] + p[1] * q[1] + p[2] * q[2];
-    let (e1, e2) = (sub(b, a), sub(c, a));
-    let p = cross(ray.dir, e2);
-    let det = dot(e1, p);
+    // f64 Moller-Trumbore barycentrics, edges widened by the tolerance.
+    let g = TriGeom::of(refi.mesh(), prim);
+    let (o, d) = (DVec3::from(ray.org), DVec3::from(ray.dir));
+    let p = d.cross(g.e2);
+    let det = g.e1.dot(p);
     if det == 0.0 || !det.is_finite() {
         return false;
     }
-    let s = sub(ray.org, a);
-    let u = dot(s, p) / det;
-    let q = cross(s, e1);
-    let v = dot(ray.dir, q) / det;
-    let th = dot(e2, q) / det;
-    let eps = tri_eps_for(test, mesh, prim, ray.org, ray.dir);
+    let s = o - g.v[0];
+    let u = s.dot(p) / det;
+    let q = s.cross(g.e1);
+    let v = d.dot(q) / det;
+    let th = g.e2.dot(q) / det;
+    let eps = tri_eps_for(test, refi.mesh(), prim, ray.org, ray.dir);
     let at_t = match t {
         Some(t) => (th - t).abs() <= 1e-4 * t.abs().max(1.0),
         None => th > 0.0 && th <= ray.tmax * (1.0 + 1e-4),

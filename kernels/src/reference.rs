@@ -202,6 +202,37 @@ pub fn moller_trumbore(
     (t > tmin && t <= tmax).then_some(t)
 }
 
+/// A triangle's vertices, edges and (unnormalised) normal in f64, for the
+/// agreement rules' geometric tolerances.
+#[derive(Clone, Copy, Debug)]
+pub struct TriGeom {
+    /// Vertices.
+    pub v: [glam::DVec3; 3],
+    /// `v1 - v0`.
+    pub e1: glam::DVec3,
+    /// `v2 - v0`.
+    pub e2: glam::DVec3,
+    /// `e1 x e2` (twice the area, along the winding's normal).
+    pub n: glam::DVec3,
+}
+
+impl TriGeom {
+    /// Triangle `p` of `mesh`.
+    #[must_use]
+    pub fn of(mesh: &Mesh, p: u32) -> TriGeom {
+        let v = mesh
+            .tri(p as usize)
+            .map(|x| glam::DVec3::from(x.map(f64::from)));
+        let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+        TriGeom {
+            v,
+            e1,
+            e2,
+            n: e1.cross(e2),
+        }
+    }
+}
+
 /// The reference intersector over a mesh (and, for speed, a BVH2 of it).
 pub struct Reference<'a> {
     mesh: &'a Mesh,
@@ -255,39 +286,16 @@ impl<'a> Reference<'a> {
     /// f32 kernels may decide its orientation either way.
     #[must_use]
     pub fn edge_on(&self, p: u32, dir: [f64; 3]) -> bool {
-        let [a, b, c] = self.mesh.tri(p as usize).map(|v| v.map(f64::from));
-        let (e1, e2) = (
-            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-        );
-        let n = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
-        let len = |v: [f64; 3]| (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-        let d = n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2];
-        d.abs() <= 1e-3 * len(n) * len(dir)
+        let g = TriGeom::of(self.mesh, p);
+        let d = glam::DVec3::from(dir);
+        g.n.dot(d).abs() <= 1e-3 * g.n.length() * d.length()
     }
 
     /// Whether triangle `p` counts for a ray along `dir` (always, unless
     /// [`Reference::front_faces_only`]).
     #[must_use]
     pub fn faces(&self, p: u32, dir: [f64; 3]) -> bool {
-        if !self.one_sided {
-            return true;
-        }
-        let [a, b, c] = self.mesh.tri(p as usize).map(|v| v.map(f64::from));
-        let (e1, e2) = (
-            [b[0] - a[0], b[1] - a[1], b[2] - a[2]],
-            [c[0] - a[0], c[1] - a[1], c[2] - a[2]],
-        );
-        let n = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
-        n[0] * dir[0] + n[1] * dir[1] + n[2] * dir[2] < 0.0
+        !self.one_sided || TriGeom::of(self.mesh, p).n.dot(glam::DVec3::from(dir)) < 0.0
     }
 
     /// Visit candidate triangles whose boxes the ray overlaps within (tmin, tmax()).

@@ -558,3 +558,29 @@ fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
         );
     }
 }
+
+#[test]
+fn reproduce_mft_packet256_checks_hits_and_counts_both_methods() {
+    let j = json(&rtsim(&[
+        "reproduce",
+        "mft-packet256",
+        "--quick",
+        "--tiles",
+        "1",
+        "--format",
+        "json",
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    for method in ["packet256", "p-frusta", "s-frusta"] {
+        let n = rows
+            .iter()
+            .filter(|r| r["method"] == method && r["metric"] == "cycles")
+            .filter(|r| r["value"].as_f64().unwrap() > 0.0)
+            .count();
+        assert!(n >= 4, "{method}: cycles on every scene ({n})");
+    }
+    assert!(rows
+        .iter()
+        .filter(|r| r["metric"] == "hit_mismatches")
+        .all(|r| r["value"] == 0.0));
+}

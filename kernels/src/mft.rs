@@ -109,6 +109,8 @@ pub mod site {
     pub const UPDATE: Site = Site(90);
     /// Shadow frustum fully occluded?
     pub const DONE: Site = Site(91);
+    /// Next active packet (256-ray packets)?
+    pub const PACKET: Site = Site(92);
 }
 
 /// MFT counters, as the paper's Table 1.
@@ -324,6 +326,11 @@ pub struct MftBufs {
     pub occl: Buf,
     /// Shadow frusta (any hit) rather than primary.
     pub shadow: bool,
+    /// 256-ray packets (the paper's section 5.2): MFT's frustum traversal
+    /// replaced by per-ray box tests of the 16 packets; leaves unchanged.
+    pub packets256: bool,
+    /// Per-ray reciprocal directions of the 256-ray packet traversal.
+    pub rcp: Buf,
     /// Frusta terminated because all their rays were occluded.
     pub terminated: u64,
     /// Counters.
@@ -350,6 +357,8 @@ impl MftBufs {
             scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 11, 64),
             occl: sp.alloc(MemKind::Hits, "frusta-occlusion", 64, 64),
             shadow: f.shadow,
+            packets256: false,
+            rcp: sp.alloc(MemKind::Rays, "packet-rcp", 64 * 48, 64),
             terminated: 0,
             stats: MftStats::default(),
         }
@@ -428,6 +437,23 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
     m.s_store(&mut b.stack, At::off(0), 4, root);
     m.s_store(&mut b.stack, At::off(4), 4, all);
     let mut sp = m.int(1);
+    let p256 = b.packets256;
+    if p256 {
+        // 256-ray packets need every ray's reciprocal direction in memory.
+        for n in 0..FRUSTA {
+            for a in 0..3 {
+                let st = m.load_bcast(fr, At::off(at_row(row::START + a) + 4 * n));
+                let dl = if shadow {
+                    m.load(fr, At::off(at_row(row::DELTA_SETS + 3 * n + a)))
+                } else {
+                    delta[a]
+                };
+                let d = m.add(st, dl);
+                let r = m.rcp(d);
+                m.store(&mut b.rcp, At::off(64 * (3 * n + a)), r);
+            }
+        }
+    }
     let zero = m.int(0);
     let leaf_flag = m.int(i64::from(LEAF));
     loop {
@@ -501,6 +527,95 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
                 hit = m.kand(hit, mask);
                 (near, far, hit, parts)
             };
+            if p256 {
+                // Each active 16-ray packet against both children, ray by ray.
+                b.stats.aabb_tests -= 2;
+                let zero = m.int(0);
+                let (mut lbits, mut rbits) = (m.int(0), m.int(0));
+                let mut bits = m.movemask(mask);
+                while m.branch_if(site::PACKET, Cmp::Ne, bits, zero) {
+                    let lane = m.s_tzcnt(bits);
+                    let n = lane.get() as usize;
+                    b.stats.aabb_tests += 2;
+                    let rc = [0, 1, 2].map(|a| m.load(&b.rcp, At::off(64 * (3 * n + a))));
+                    let frb = &b.frusta;
+                    let on =
+                        [0, 1, 2].map(|a| m.load_bcast(frb, At::off(at_row(row::ORG + a) + 4 * n)));
+                    // Each ray's far limit: its hit so far (primary), the
+                    // light sample (shadow).
+                    let far_n = if shadow {
+                        m.load_bcast(frb, At::off(at_row(row::DIST) + 4 * n))
+                    } else {
+                        m.load(&b.hits, At::off(128 * n))
+                    };
+                    for (child, acc) in [(0usize, &mut lbits), (1, &mut rbits)] {
+                        let mut near = zero_v;
+                        let mut far = far_n;
+                        for a in 0..3 {
+                            let lo_at = 4 * (4 * a + child);
+                            let hi_at = 4 * (4 * a + 2 + child);
+                            let lo = m.load_bcast(&s.nodes, At::idx(nb, 1, lo_at));
+                            let hi = m.load_bcast(&s.nodes, At::idx(nb, 1, hi_at));
+                            let lo = m.sub(lo, on[a]);
+                            let hi = m.sub(hi, on[a]);
+                            let t0 = m.mul(lo, rc[a]);
+                            let t1 = m.mul(hi, rc[a]);
+                            let mn = m.min(t0, t1);
+                            let mx = m.max(t0, t1);
+                            near = m.max(near, mn);
+                            far = m.min(far, mx);
+                        }
+                        let hit = m.cmp(Cmp::Le, near, far);
+                        let any = m.any(hit);
+                        let bit = m.s_shift(Shift::Shl, any, n as u32);
+                        *acc = m.s_op(isa::SOp::Or, *acc, bit);
+                    }
+                    let lm1 = m.s_addi(bits, -1);
+                    bits = m.s_and(bits, lm1);
+                }
+                // The packets' masks back into mask registers.
+                let to_mask = |m: &mut M, buf: &mut Buf, v: M::S| {
+                    m.s_store(buf, At::off(64 * 10), 4, v);
+                    let x = m.load_bcast(buf, At::off(64 * 10));
+                    let x = m.bits_to_i(x);
+                    let sel = m.iop(IOp::And, x, lane_bits);
+                    m.icmp(Cmp::Ne, sel, zero_i)
+                };
+                let hl = to_mask(m, &mut b.scratch, lbits);
+                let hr = to_mask(m, &mut b.scratch, rbits);
+                let l = m.s_load(&s.nodes, At::idx(nb, 1, 48), 4, false);
+                let r = m.s_load(&s.nodes, At::idx(nb, 1, 52), 4, false);
+                let lnz = m.s_cmp(Cmp::Ne, lbits, zero);
+                let rnz = m.s_cmp(Cmp::Ne, rbits, zero);
+                let two = m.int(2);
+                let rnz2 = m.s_op(isa::SOp::Mul, rnz, two);
+                let which = m.s_add(lnz, rnz2);
+                let which_v = which.get();
+                m.branch(site::CHILDREN, which);
+                match which_v {
+                    0 => {
+                        missed = true;
+                        break;
+                    }
+                    3 => {
+                        // Both: left first (no per-frustum entry distances here).
+                        m.s_store(&mut b.stack, At::idx(sp, 8, 0), 4, r);
+                        m.s_store(&mut b.stack, At::idx(sp, 8, 4), 4, rbits);
+                        sp = m.s_addi(sp, 1);
+                        node = l;
+                        mask = hl;
+                    }
+                    1 => {
+                        node = l;
+                        mask = hl;
+                    }
+                    _ => {
+                        node = r;
+                        mask = hr;
+                    }
+                }
+                continue;
+            }
             let (nl, fl_, mut hl, pl) = test(m, 0);
             let (nr, fr_, mut hr, pr) = test(m, 1);
             // The zero-interval fix: on an axis whose direction interval holds
@@ -820,6 +935,8 @@ pub struct FrustaRun<'a> {
     pub sets: Vec<Frusta>,
     /// Back-face culling.
     pub cull_back: bool,
+    /// Traverse as 256-ray packets instead of frusta (section 5.2).
+    pub packets256: bool,
 }
 
 impl Program for FrustaRun<'_> {
@@ -837,6 +954,7 @@ impl Program for FrustaRun<'_> {
                 }
                 None => bufs.insert(MftBufs::new(m, f)),
             };
+            b.packets256 = self.packets256;
             trace(m, &s, b, self.cull_back);
             for n in 0..FRUSTA {
                 for k in 0..FRUSTA {

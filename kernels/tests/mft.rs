@@ -51,6 +51,7 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
             bvh: &shallow,
             sets: sets.to_vec(),
             cull_back,
+            packets256: false,
         };
         let (traced, stats) = isa::record(&run, FlavourId::Lrb16, "mft").1;
         assert_eq!(
@@ -77,6 +78,22 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
         );
         let n = bad(&format!("packet {label}"), &refi, sets, &ptraced);
         assert_eq!(n, 0, "packet {label}: {n} rays differ");
+        // 256-ray packets: MFT's leaves behind per-ray box tests of 16 packets.
+        let big = FrustaRun {
+            packets256: true,
+            ..run
+        };
+        let (btraced, bstats) = isa::record(&big, FlavourId::Lrb16, "p256").1;
+        assert_eq!(
+            (btraced.clone(), bstats),
+            isa::run_native(&big, FlavourId::Lrb16)
+        );
+        let n = bad(&format!("mft p256 {label}"), &refi, sets, &btraced);
+        assert_eq!(n, 0, "256-ray packets {label}: {n} rays differ");
+        assert!(
+            bstats.aabb_tests > stats.aabb_tests,
+            "{bstats:?} vs {stats:?}"
+        );
         last = Some((stats, pstats));
     }
     last.unwrap()

@@ -428,12 +428,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
     // Stack: the root with every active frustum.
     let root = m.int(i64::from(s.root));
     let all = m.s_load(fr, At::off(at_row(row::ACTIVE)), 4, false);
-    let mut alive = {
-        let bits = m.load_bcast(fr, At::off(at_row(row::ACTIVE)));
-        let bits = m.bits_to_i(bits);
-        let sel = m.iop(IOp::And, bits, lane_bits);
-        m.icmp(Cmp::Ne, sel, zero_i)
-    };
+    let mut alive = bits_mask(m, fr, At::off(at_row(row::ACTIVE)), lane_bits, zero_i);
     m.s_store(&mut b.stack, At::off(0), 4, root);
     m.s_store(&mut b.stack, At::off(4), 4, all);
     let mut sp = m.int(1);
@@ -464,10 +459,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
         sp = m.s_addi(sp, -1);
         let mut node = m.s_load(&b.stack, At::idx(sp, 8, 0), 4, false);
         // Mask register from the stored bits.
-        let bits = m.load_bcast(&b.stack, At::idx(sp, 8, 4));
-        let bits = m.bits_to_i(bits);
-        let sel = m.iop(IOp::And, bits, lane_bits);
-        let mut mask = m.icmp(Cmp::Ne, sel, zero_i);
+        let mut mask = bits_mask(m, &b.stack, At::idx(sp, 8, 4), lane_bits, zero_i);
         if shadow {
             // Terminated frusta drop out.
             mask = m.kand(mask, alive);
@@ -576,23 +568,12 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
                 // The packets' masks back into mask registers.
                 let to_mask = |m: &mut M, buf: &mut Buf, v: M::S| {
                     m.s_store(buf, At::off(64 * 10), 4, v);
-                    let x = m.load_bcast(buf, At::off(64 * 10));
-                    let x = m.bits_to_i(x);
-                    let sel = m.iop(IOp::And, x, lane_bits);
-                    m.icmp(Cmp::Ne, sel, zero_i)
+                    bits_mask(m, buf, At::off(64 * 10), lane_bits, zero_i)
                 };
                 let hl = to_mask(m, &mut b.scratch, lbits);
                 let hr = to_mask(m, &mut b.scratch, rbits);
-                let l = m.s_load(&s.nodes, At::idx(nb, 1, 48), 4, false);
-                let r = m.s_load(&s.nodes, At::idx(nb, 1, 52), 4, false);
-                let lnz = m.s_cmp(Cmp::Ne, lbits, zero);
-                let rnz = m.s_cmp(Cmp::Ne, rbits, zero);
-                let two = m.int(2);
-                let rnz2 = m.s_op(isa::SOp::Mul, rnz, two);
-                let which = m.s_add(lnz, rnz2);
-                let which_v = which.get();
-                m.branch(site::CHILDREN, which);
-                match which_v {
+                let (l, r, which) = children(m, &s.nodes, nb, lbits, rbits);
+                match which {
                     0 => {
                         missed = true;
                         break;
@@ -642,16 +623,8 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             }
             let lb = m.movemask(hl);
             let rb = m.movemask(hr);
-            let l = m.s_load(&s.nodes, At::idx(nb, 1, 48), 4, false);
-            let r = m.s_load(&s.nodes, At::idx(nb, 1, 52), 4, false);
-            let lnz = m.s_cmp(Cmp::Ne, lb, zero);
-            let rnz = m.s_cmp(Cmp::Ne, rb, zero);
-            let two = m.int(2);
-            let rnz2 = m.s_op(isa::SOp::Mul, rnz, two);
-            let which = m.s_add(lnz, rnz2);
-            let which_v = which.get();
-            m.branch(site::CHILDREN, which);
-            match which_v {
+            let (l, r, which) = children(m, &s.nodes, nb, lb, rb);
+            match which {
                 0 => {
                     missed = true;
                     break;
@@ -699,6 +672,45 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             cull_back,
         );
     }
+}
+
+/// A mask register from frustum bits stored as a u32 at `at` of `buf`: a
+/// broadcast load, an and with each lane's bit, a compare (LRBni would move
+/// the bits from a GPR in one op; see the module's deviations).
+fn bits_mask<M: Machine>(
+    m: &mut M,
+    buf: &Buf,
+    at: At<M::S>,
+    lane_bits: M::I,
+    zero_i: M::I,
+) -> M::K {
+    let x = m.load_bcast(buf, at);
+    let x = m.bits_to_i(x);
+    let sel = m.iop(IOp::And, x, lane_bits);
+    m.icmp(Cmp::Ne, sel, zero_i)
+}
+
+/// A BVH2 node's children (at byte `nb` of `nodes`) and which of them the
+/// frusta (or packets) in `lbits` / `rbits` reach: 0 none, 1 left, 2 right,
+/// 3 both (one recorded branch).
+fn children<M: Machine>(
+    m: &mut M,
+    nodes: &Buf,
+    nb: M::S,
+    lbits: M::S,
+    rbits: M::S,
+) -> (M::S, M::S, i64) {
+    let zero = m.int(0);
+    let l = m.s_load(nodes, At::idx(nb, 1, 48), 4, false);
+    let r = m.s_load(nodes, At::idx(nb, 1, 52), 4, false);
+    let lnz = m.s_cmp(Cmp::Ne, lbits, zero);
+    let rnz = m.s_cmp(Cmp::Ne, rbits, zero);
+    let two = m.int(2);
+    let rnz2 = m.s_op(isa::SOp::Mul, rnz, two);
+    let which = m.s_add(lnz, rnz2);
+    let v = which.get();
+    m.branch(site::CHILDREN, which);
+    (l, r, v)
 }
 
 /// Every triangle of leaf `node` against the frusta in `mask`.

@@ -4,7 +4,7 @@
 //! Counts (#tris accessed / after culling, #AABB tests, #isec tests) are
 //! exact over the whole image (kernels run on the native backend, which
 //! counts the same as the traced one); cycles are simulated on a seeded
-//! sample of batches of frusta sets, each batch split over the core's 4
+//! sample of batches of frusta sets (each a systematic sample over the image), each batch split over the core's 4
 //! hardware threads, and scaled to the image, with a 95% CI over batches.
 
 use crate::report::{Report, Row};
@@ -70,9 +70,9 @@ const PAPER: [(&str, &str, [PaperRow; 4]); 4] = [
 
 const METHODS: [&str; 4] = ["p-packet", "p-frusta", "s-packet", "s-frusta"];
 
-/// Simulated cycles of `sets` on one core: `batches` seeded runs of `per`
-/// consecutive sets, each split round-robin over the core's hardware
-/// threads; (cycles scaled to all sets, 95% CI half-width, ops simulated).
+/// Simulated cycles of `sets` on one core: `batches` seeded systematic
+/// samples of `per` sets spread over the image, each split round-robin over
+/// the core's hardware threads; (cycles scaled to all sets, 95% CI half-width, ops simulated).
 fn sampled_cycles<P: Program>(
     m: &sim::MachineConfig,
     sets: &[Frusta],
@@ -88,12 +88,20 @@ fn sampled_cycles<P: Program>(
     let per = per.min(sets.len());
     let mut pairs = Vec::new();
     let mut ops = 0u64;
+    // Each batch: a systematic sample over the image (every stride-th set
+    // from a seeded offset), so a batch is not one patch of sky or wall.
+    let stride = sets.len() / per;
     for b in 0..batches {
-        let first = (mix(seed ^ mix(b as u64 + 1)) % (sets.len() - per + 1) as u64) as usize;
-        let batch = &sets[first..first + per];
+        let first = (mix(seed ^ mix(b as u64 + 1)) % stride as u64) as usize;
+        let batch: Vec<&Frusta> = (0..per).map(|j| &sets[first + j * stride]).collect();
         let traces: Vec<isa::Trace> = (0..threads)
             .map(|t| {
-                let mine: Vec<Frusta> = batch.iter().skip(t).step_by(threads).cloned().collect();
+                let mine: Vec<Frusta> = batch
+                    .iter()
+                    .skip(t)
+                    .step_by(threads)
+                    .map(|f| (*f).clone())
+                    .collect();
                 isa::record(&prog(mine), m.flavour(), "mft").0
             })
             .collect();
@@ -167,16 +175,8 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
             )));
         };
         // A shallow BVH for the frusta, a deep one for packets (the paper's
-        // setup): leaves up to 8 triangles at a high traversal cost vs up to 4.
-        let shallow = Bvh2::build(
-            &scene.mesh,
-            &BuildConfig {
-                max_leaf: 8,
-                c_trav: 8.0,
-                ..BuildConfig::default()
-            },
-        )
-        .map_err(AppError)?;
+        // setup; it gives no leaf sizes): see `kernels::mft::SHALLOW_BVH`.
+        let shallow = Bvh2::build(&scene.mesh, &kernels::mft::SHALLOW_BVH).map_err(AppError)?;
         let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).map_err(AppError)?;
         let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
         let primary: Vec<Frusta> = (0..res / 16)
@@ -323,7 +323,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
         ));
     }
     notes.push("s-packet and s-frusta include the primary rays' counts and cycles, as the paper's soft-shadow rows do; cycles exclude shading, filtering and frame setup (cycles_shaded is not computed yet), so they compare with the paper's unshaded primary figures and undercount its soft-shadow figures".into());
-    notes.push("both kernels cull back faces (the paper's MFT does; the packet baseline uses one-sided Moller-Trumbore to return the same hits), and both are checked against a front-faces-only reference; leaves hold at most 8 triangles in both BVHs (our block layout), so the 'shallow' MFT BVH is shallower than the packet BVH only through its SAH traversal cost".into());
+    notes.push("both kernels cull back faces (the paper's MFT does; the packet baseline uses one-sided Moller-Trumbore to return the same hits), and both are checked against a front-faces-only reference; the packets' deep BVH has leaves of up to 4 triangles (SAH traversal cost 1), MFT's shallow BVH leaves of up to 32 (cost 32, kernels::mft::SHALLOW_BVH; the paper gives neither)".into());
     if p256 {
         notes.push("the paper (section 5.2): 256-ray packets need 3-4% fewer AABB tests than MFT on average but reach at most 50% of its speed; here the baseline rows are 256-ray packets (method packet256, key rays) on the same shallow BVH with MFT's leaves, and the reductions are packet256 over frusta; an AABB test here is one 16-wide test of one packet against one child box, so packets count up to 16 tests where MFT counts one (the paper's 3-4% comparison must count differently; it does not say how)".into());
     }

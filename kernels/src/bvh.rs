@@ -402,8 +402,10 @@ fn sah_split(
 /// | 52..56 | right child ref |
 /// | 56..64 | padding |
 ///
-/// A child ref is a node index, or `LEAF | leaf index` into the leaf table
-/// (`first`, `count` u32 pairs, 8 bytes each). The root's own box is stored
+/// A child ref is a node index, or `LEAF | (blocks - 1) << LEAF_BLOCKS_SHIFT
+/// | first block`: the leaf's triangles in `blocks` consecutive 8-triangle
+/// blocks (one block for leaves of up to 8 triangles, where the first block
+/// is the leaf's index in the leaf table of (`first`, `count`) u32 pairs). The root's own box is stored
 /// beside the tree (`root_bounds`).
 #[derive(Clone, Debug)]
 pub struct Bvh2Layout {
@@ -415,10 +417,18 @@ pub struct Bvh2Layout {
     pub root_bounds: Aabb,
     /// Reference to the root (a node, or a leaf for a one-leaf tree).
     pub root: u32,
+    /// Triangle blocks the leaves take (8 triangles a block).
+    pub blocks: u32,
 }
 
 /// Flag marking a child ref as a leaf.
 pub const LEAF: u32 = 1 << 31;
+/// Bit position of a BVH2 leaf ref's block count minus one (7 bits).
+pub const LEAF_BLOCKS_SHIFT: u32 = 24;
+/// Mask of a BVH2 leaf ref's first block.
+pub const LEAF_FIRST_MASK: u32 = (1 << LEAF_BLOCKS_SHIFT) - 1;
+/// Most blocks in one BVH2 leaf (7 bits of count): 1024 triangles.
+pub const LEAF_MAX_BLOCKS: u32 = 128;
 
 const _: () = assert!(std::mem::size_of::<[u32; 16]>() == 64);
 
@@ -431,6 +441,7 @@ impl Bvh2Layout {
             leaves: Vec::new(),
             root_bounds: *b.nodes[0].bounds(),
             root: 0,
+            blocks: 0,
         };
         out.root = out.emit(b, 0);
         out
@@ -440,7 +451,15 @@ impl Bvh2Layout {
         match b.nodes[n as usize] {
             Node::Leaf { first, count, .. } => {
                 self.leaves.push([first, count]);
-                LEAF | (self.leaves.len() as u32 - 1)
+                let n = count.div_ceil(8).max(1);
+                assert!(
+                    n <= LEAF_MAX_BLOCKS && self.blocks + n <= LEAF_FIRST_MASK,
+                    "leaf of {count} triangles at block {}: beyond the leaf ref's fields",
+                    self.blocks
+                );
+                let r = LEAF | ((n - 1) << LEAF_BLOCKS_SHIFT) | self.blocks;
+                self.blocks += n;
+                r
             }
             Node::Inner { left, right, .. } => {
                 let me = self.nodes.len();

@@ -41,7 +41,7 @@ pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> Scen
     for i in 0..b4.nodes.len() {
         node_words.extend_from_slice(&b4.record(i));
     }
-    let block_words = blocks(mesh, b2, &b4.leaves);
+    let block_words = blocks(mesh, b2, &b4.leaves, false);
     let nodes = m
         .space()
         .alloc_u32(MemKind::Nodes, "bvh4-nodes", &node_words, 64);
@@ -55,14 +55,23 @@ pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> Scen
     }
 }
 
-/// Triangle blocks of `leaves` ((first, count) into `b2.prims`), one per leaf.
-fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]]) -> Vec<u32> {
+/// Triangle blocks of `leaves` ((first, count) into `b2.prims`): one per
+/// leaf, or with `multi` as many consecutive blocks as a leaf needs (the
+/// last one padded).
+fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u32> {
     let mut block_words: Vec<u32> = Vec::with_capacity(leaves.len() * 80);
-    for &[first, count] in leaves {
+    let chunks = leaves.iter().flat_map(|&[first, count]| {
         assert!(
-            count as usize <= BLOCK,
+            multi || count as usize <= BLOCK,
             "leaf of {count} triangles: build with max_leaf <= 8"
         );
+        let n = count.div_ceil(BLOCK as u32).max(1);
+        (0..n).map(move |i| {
+            let f = first + BLOCK as u32 * i;
+            (f, (count - BLOCK as u32 * i).min(BLOCK as u32))
+        })
+    });
+    for (first, count) in chunks {
         let mut w = [0u32; 80];
         for k in 0..BLOCK {
             if (k as u32) < count {
@@ -96,6 +105,17 @@ pub struct SceneBufs2 {
 
 /// Lay a BVH2 (leaves of at most 8 triangles) into `m`'s memory.
 pub fn lay_out2<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> SceneBufs2 {
+    lay_out2_with(m, mesh, b2, false)
+}
+
+/// Lay a BVH2 with leaves of any size (up to [`crate::bvh::LEAF_MAX_BLOCKS`]
+/// blocks) into `m`'s memory: a leaf ref names its first block and block
+/// count (the MFT kernel's shallow BVH).
+pub fn lay_out2_multi<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> SceneBufs2 {
+    lay_out2_with(m, mesh, b2, true)
+}
+
+fn lay_out2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool) -> SceneBufs2 {
     let lay = crate::bvh::Bvh2Layout::new(b2);
     let words: Vec<u32> = lay.nodes.iter().flatten().copied().collect();
     let words = if words.is_empty() {
@@ -109,7 +129,7 @@ pub fn lay_out2<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> SceneBufs2 {
     let tris = m.space().alloc_u32(
         MemKind::Triangles,
         "tri-blocks",
-        &blocks(mesh, b2, &lay.leaves),
+        &blocks(mesh, b2, &lay.leaves, multi),
         64,
     );
     SceneBufs2 {
@@ -159,4 +179,72 @@ pub fn hit_records(n: usize) -> Vec<u8> {
         b.extend((-1i32).to_le_bytes());
     }
     b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::{BuildConfig, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
+
+    /// A strip of `n` small triangles along x.
+    fn strip(n: u32) -> Mesh {
+        let mut m = Mesh::default();
+        for i in 0..n {
+            let x = i as f32;
+            m.positions
+                .extend([[x, 0.0, 0.0], [x + 0.5, 0.0, 0.0], [x, 0.5, 0.0]]);
+            m.tris.push([3 * i, 3 * i + 1, 3 * i + 2]);
+        }
+        m
+    }
+
+    #[test]
+    fn large_leaves_take_consecutive_blocks() {
+        let m = strip(20);
+        // One leaf of 20 triangles: 3 blocks, the last with 4 empty slots.
+        let b = Bvh2::build(
+            &m,
+            &BuildConfig {
+                max_leaf: 32,
+                c_trav: 1000.0,
+                ..BuildConfig::default()
+            },
+        )
+        .unwrap();
+        let lay = crate::bvh::Bvh2Layout::new(&b);
+        assert_eq!(lay.blocks, 3);
+        assert_eq!(lay.root & LEAF, LEAF);
+        assert_eq!((lay.root & !LEAF) >> LEAF_BLOCKS_SHIFT, 2, "3 blocks");
+        assert_eq!(lay.root & LEAF_FIRST_MASK, 0);
+        let words = blocks(&m, &b, &lay.leaves, true);
+        assert_eq!(words.len(), 3 * 80);
+        let prims: Vec<u32> = (0..3)
+            .flat_map(|k| words[80 * k + 72..80 * k + 80].to_vec())
+            .collect();
+        let mut seen: Vec<u32> = prims.iter().copied().filter(|&p| p != u32::MAX).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..20).collect::<Vec<u32>>());
+        assert!(prims[20..].iter().all(|&p| p == u32::MAX));
+        // Leaves of at most 8: one block each, the ref is the leaf index.
+        let b = Bvh2::build(&m, &BuildConfig::default()).unwrap();
+        let lay = crate::bvh::Bvh2Layout::new(&b);
+        assert_eq!(lay.blocks as usize, lay.leaves.len());
+    }
+
+    #[test]
+    #[should_panic(expected = "max_leaf <= 8")]
+    fn one_block_layouts_refuse_large_leaves() {
+        let m = strip(20);
+        let b = Bvh2::build(
+            &m,
+            &BuildConfig {
+                max_leaf: 32,
+                c_trav: 1000.0,
+                ..BuildConfig::default()
+            },
+        )
+        .unwrap();
+        let lay = crate::bvh::Bvh2Layout::new(&b);
+        let _ = blocks(&m, &b, &lay.leaves, false);
+    }
 }

@@ -38,12 +38,27 @@
 //! with broadcast loads; a node is tested with per-lane signs (the paper picks
 //! the planes once per frusta set from the first frustum's signs).
 
-use crate::bvh::LEAF;
+use crate::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
 use crate::layout::{SceneBufs2, BLOCK, BLOCK_BYTES};
 use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shift};
 
 /// Frusta traced together (the SIMD width of the kernel).
 pub const FRUSTA: usize = 16;
+
+/// The MFT kernel's shallow BVH: SAH with leaves of up to 32 triangles (4
+/// blocks) and a traversal cost of 32 triangle tests. Measured (quick runs,
+/// 256 x 256, this session): with leaves of at most 8 triangles and cost 8
+/// the shadow AABB reduction was 5.8 / 10.4 / 17.3 / 6.3 (T-Rex, Fern,
+/// Saloon, Fairy), with 32 / 32 it is 12.3 / 24.0 / 22.8 / 16.8, at
+/// simulated cycles within 5% except Saloon's primary frusta (+40%). A
+/// node test costs MFT one test for 16 frusta where the SAH assumes one ray,
+/// so a high traversal cost is the bundle's; the paper's 16x-plus AABB
+/// reductions need a tree this shallow.
+pub const SHALLOW_BVH: crate::bvh::BuildConfig = crate::bvh::BuildConfig {
+    bins: 16,
+    max_leaf: 32,
+    c_trav: 32.0,
+};
 
 /// Rows of the frusta record.
 pub mod row {
@@ -111,6 +126,8 @@ pub mod site {
     pub const DONE: Site = Site(91);
     /// Next active packet (256-ray packets)?
     pub const PACKET: Site = Site(92);
+    /// Another triangle block in this leaf?
+    pub const BLOCK: Site = Site(93);
 }
 
 /// MFT counters, as the paper's Table 1.
@@ -733,191 +750,204 @@ fn leaf<M: Machine>(
     let lane_bits = m.consts_i(&lane_bits);
     let zero_i = m.splat_i(0);
     let tris = &s.tris;
-    let idx = m.int(i64::from(!LEAF));
+    let idx = m.int(i64::from(LEAF_FIRST_MASK));
     let blk = m.s_and(node, idx);
     let bytes = m.int(BLOCK_BYTES as i64);
-    let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+    let mut bb = m.s_op(isa::SOp::Mul, blk, bytes);
+    // Blocks of the leaf after the first (the shallow BVH's large leaves).
+    let more = m.s_shift(Shift::Shr, node, LEAF_BLOCKS_SHIFT);
+    let seven = m.int(0x7F);
+    let mut more = m.s_and(more, seven);
     let zero_v = m.splat(0.0);
     let mut updated = m.int(0);
-    for j in 0..BLOCK {
-        let id = m.s_load(tris, At::idx(bb, 1, 32 * 9 + 4 * j), 4, true);
-        let zero = m.int(0);
-        if m.branch_if(site::SLOT, Cmp::Lt, id, zero) {
-            break;
-        }
-        b.stats.tris_accessed += 1;
-        let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
-        let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
-        let prim_f = r(9);
-        // Vertices relative to each frustum's origin.
-        let a = [0, 1, 2].map(|i| m.sub(v0[i], org[i]));
-        let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
-        let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
-        let cross = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
-            let x0 = m.mul(p[2], q[1]);
-            let x = m.fmsub(p[1], q[2], x0);
-            let y0 = m.mul(p[0], q[2]);
-            let y = m.fmsub(p[2], q[0], y0);
-            let z0 = m.mul(p[1], q[0]);
-            let z = m.fmsub(p[0], q[1], z0);
-            [x, y, z]
-        };
-        let dot = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
-            let d0 = m.mul(p[0], q[0]);
-            let d1 = m.fmadd(p[1], q[1], d0);
-            m.fmadd(p[2], q[2], d1)
-        };
-        let nrm = cross(m, e1, e2);
-        let an = dot(m, a, nrm);
-        // Orientation: front faces (origin on the normal's side) have a.n < 0.
-        let front = m.cmp(Cmp::Lt, an, zero_v);
-        let back = m.cmp(Cmp::Gt, an, zero_v);
-        let facing = if cull_back { front } else { m.kor(front, back) };
-        let mut tmask = m.kand(mask, facing);
-        if shadow {
-            tmask = m.kand(tmask, *alive);
-        }
-        let anyf = m.any(tmask);
-        if !m.branch(site::FRONT, anyf) {
-            continue;
-        }
-        // Edge normals; inside a front face: d . e <= 0 for all three.
-        let mut edges = [cross(m, a, bv), cross(m, bv, cv), cross(m, cv, a)];
-        if !cull_back {
-            // Back faces seen from the origin: flip the edge normals.
-            let flip = m.splat(-1.0);
-            for e in &mut edges {
-                for c in e.iter_mut() {
-                    let f = m.mul(*c, flip);
-                    *c = m.select(back, f, *c);
-                }
+    'blocks: loop {
+        for j in 0..BLOCK {
+            let id = m.s_load(tris, At::idx(bb, 1, 32 * 9 + 4 * j), 4, true);
+            let zero = m.int(0);
+            if m.branch_if(site::SLOT, Cmp::Lt, id, zero) {
+                break 'blocks;
             }
-        }
-        // Corner-ray culling: a frustum whose 4 corner rays are all outside
-        // one edge misses the triangle.
-        for e in &edges {
-            let mut out = None;
-            for c in corner {
-                let d = dot(m, *c, *e);
-                let o = m.cmp(Cmp::Gt, d, zero_v);
-                out = Some(match out {
-                    None => o,
-                    Some(p) => m.kand(p, o),
-                });
-            }
-            let keep = m.knot(out.expect("4 corners"));
-            tmask = m.kand(tmask, keep);
-        }
-        let anyc = m.any(tmask);
-        if !m.branch(site::CORNER, anyc) {
-            continue;
-        }
-        b.stats.tris_after_culling += 1;
-        // Per-frustum values for the broadcasts below.
-        let mut slot = 0;
-        let mut keep = |m: &mut M, buf: &mut Buf, v: M::F| {
-            m.store(buf, At::off(64 * slot), v);
-            slot += 1;
-        };
-        for e in &edges {
-            for &c in e {
-                keep(m, &mut b.scratch, c);
-            }
-        }
-        keep(m, &mut b.scratch, an);
-        // The noise floor of d . E in f32: about 4 ulp x |a|^2 x |d| (cross
-        // products of two long, nearly parallel vectors); kept squared as
-        // (4 eps)^2 |a|^4 for the per-ray reliability test below.
-        let a2 = dot(m, a, a);
-        let a4 = m.mul(a2, a2);
-        let k = m.splat((4.0 * f32::EPSILON) * (4.0 * f32::EPSILON));
-        let floor = m.mul(a4, k);
-        keep(m, &mut b.scratch, floor);
-        let mut bits = m.movemask(tmask);
-        b.stats.isec_tests += u64::from(bits.get().count_ones());
-        loop {
-            let lane = m.s_tzcnt(bits);
-            let n = lane.get() as usize;
-            let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
-            // Rays of frustum n: start[n] + delta (shadow: frustum n's own deltas).
-            let d = [0, 1, 2].map(|i| {
-                let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
-                let dl = if shadow {
-                    m.load(&b.frusta, At::off(at_row(row::DELTA_SETS + 3 * n + i)))
-                } else {
-                    delta[i]
-                };
-                m.add(st, dl)
-            });
-            let mut inside = None;
-            for (i, _) in edges.iter().enumerate() {
-                let e = [0, 1, 2].map(|c| bc(m, &b.scratch, 64 * (3 * i + c) + 4 * n));
-                let sdot = dot(m, d, e);
-                let ok = m.cmp(Cmp::Le, sdot, zero_v);
-                inside = Some(match inside {
-                    None => ok,
-                    Some(p) => m.kand(p, ok),
-                });
-            }
-            let an_n = bc(m, &b.scratch, 64 * 9 + 4 * n);
-            let dn = dot(m, d, nrm);
-            let t = m.div(an_n, dn);
-            let ht = 128 * n;
-            let pos = m.cmp(Cmp::Gt, t, zero_v);
-            let mut hit = m.kand(inside.expect("3 edges"), pos);
-            // A ray nearly in the triangle's plane: d . n (the sum of the three
-            // edge tests) below their rounding noise makes the inside test
-            // meaningless; such rays miss (robustness; not in the paper).
-            let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
-            let d2 = dot(m, d, d);
-            let noise = m.mul(fl, d2);
-            let dn2 = m.mul(dn, dn);
-            let reliable = m.cmp(Cmp::Gt, dn2, noise);
-            hit = m.kand(hit, reliable);
+            b.stats.tris_accessed += 1;
+            let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
+            let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
+            let prim_f = r(9);
+            // Vertices relative to each frustum's origin.
+            let a = [0, 1, 2].map(|i| m.sub(v0[i], org[i]));
+            let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
+            let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
+            let cross = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
+                let x0 = m.mul(p[2], q[1]);
+                let x = m.fmsub(p[1], q[2], x0);
+                let y0 = m.mul(p[0], q[2]);
+                let y = m.fmsub(p[2], q[0], y0);
+                let z0 = m.mul(p[1], q[0]);
+                let z = m.fmsub(p[0], q[1], z0);
+                [x, y, z]
+            };
+            let dot = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
+                let d0 = m.mul(p[0], q[0]);
+                let d1 = m.fmadd(p[1], q[1], d0);
+                m.fmadd(p[2], q[2], d1)
+            };
+            let nrm = cross(m, e1, e2);
+            let an = dot(m, a, nrm);
+            // Orientation: front faces (origin on the normal's side) have a.n < 0.
+            let front = m.cmp(Cmp::Lt, an, zero_v);
+            let back = m.cmp(Cmp::Gt, an, zero_v);
+            let facing = if cull_back { front } else { m.kor(front, back) };
+            let mut tmask = m.kand(mask, facing);
             if shadow {
-                // Rays not yet occluded, t below the limit.
-                let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
-                let below = m.cmp(Cmp::Lt, t, lim);
-                let ob = bc(m, &b.occl, 4 * n);
-                let ob = m.bits_to_i(ob);
-                let sel = m.iop(IOp::And, ob, lane_bits);
-                let live = m.icmp(Cmp::Eq, sel, zero_i);
-                hit = m.kand(hit, below);
-                hit = m.kand(hit, live);
-                let any = m.any(hit);
-                if m.branch(site::RAY_HIT, any) {
-                    m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
-                    let new = m.movemask(hit);
-                    let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
-                    let now = m.s_op(isa::SOp::Or, old, new);
-                    m.s_store(&mut b.occl, At::off(4 * n), 4, now);
-                    let full = m.int(0xFFFF);
-                    if m.branch_if(site::DONE, Cmp::Eq, now, full) {
-                        // All 16 rays occluded: the frustum is done.
-                        let gone = m.mask(!(1u32 << n) & 0xFFFF);
-                        *alive = m.kand(*alive, gone);
-                        b.terminated += 1;
+                tmask = m.kand(tmask, *alive);
+            }
+            let anyf = m.any(tmask);
+            if !m.branch(site::FRONT, anyf) {
+                continue;
+            }
+            // Edge normals; inside a front face: d . e <= 0 for all three.
+            let mut edges = [cross(m, a, bv), cross(m, bv, cv), cross(m, cv, a)];
+            if !cull_back {
+                // Back faces seen from the origin: flip the edge normals.
+                let flip = m.splat(-1.0);
+                for e in &mut edges {
+                    for c in e.iter_mut() {
+                        let f = m.mul(*c, flip);
+                        *c = m.select(back, f, *c);
                     }
                 }
-            } else {
-                let tcur = m.load(&b.hits, At::off(ht));
-                let closer = m.cmp(Cmp::Lt, t, tcur);
-                hit = m.kand(hit, closer);
-                let any = m.any(hit);
-                if m.branch(site::RAY_HIT, any) {
-                    m.store_masked(hit, &mut b.hits, At::off(ht), t);
-                    m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
-                    let bit = m.int(1 << n);
-                    updated = m.s_op(isa::SOp::Or, updated, bit);
+            }
+            // Corner-ray culling: a frustum whose 4 corner rays are all outside
+            // one edge misses the triangle.
+            for e in &edges {
+                let mut out = None;
+                for c in corner {
+                    let d = dot(m, *c, *e);
+                    let o = m.cmp(Cmp::Gt, d, zero_v);
+                    out = Some(match out {
+                        None => o,
+                        Some(p) => m.kand(p, o),
+                    });
+                }
+                let keep = m.knot(out.expect("4 corners"));
+                tmask = m.kand(tmask, keep);
+            }
+            let anyc = m.any(tmask);
+            if !m.branch(site::CORNER, anyc) {
+                continue;
+            }
+            b.stats.tris_after_culling += 1;
+            // Per-frustum values for the broadcasts below.
+            let mut slot = 0;
+            let mut keep = |m: &mut M, buf: &mut Buf, v: M::F| {
+                m.store(buf, At::off(64 * slot), v);
+                slot += 1;
+            };
+            for e in &edges {
+                for &c in e {
+                    keep(m, &mut b.scratch, c);
                 }
             }
-            let lm1 = m.s_addi(bits, -1);
-            bits = m.s_and(bits, lm1);
-            let zero = m.int(0);
-            if !m.branch_if(site::FRUSTUM, Cmp::Ne, bits, zero) {
-                break;
+            keep(m, &mut b.scratch, an);
+            // The noise floor of d . E in f32: about 4 ulp x |a|^2 x |d| (cross
+            // products of two long, nearly parallel vectors); kept squared as
+            // (4 eps)^2 |a|^4 for the per-ray reliability test below.
+            let a2 = dot(m, a, a);
+            let a4 = m.mul(a2, a2);
+            let k = m.splat((4.0 * f32::EPSILON) * (4.0 * f32::EPSILON));
+            let floor = m.mul(a4, k);
+            keep(m, &mut b.scratch, floor);
+            let mut bits = m.movemask(tmask);
+            b.stats.isec_tests += u64::from(bits.get().count_ones());
+            loop {
+                let lane = m.s_tzcnt(bits);
+                let n = lane.get() as usize;
+                let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
+                // Rays of frustum n: start[n] + delta (shadow: frustum n's own deltas).
+                let d = [0, 1, 2].map(|i| {
+                    let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
+                    let dl = if shadow {
+                        m.load(&b.frusta, At::off(at_row(row::DELTA_SETS + 3 * n + i)))
+                    } else {
+                        delta[i]
+                    };
+                    m.add(st, dl)
+                });
+                let mut inside = None;
+                for (i, _) in edges.iter().enumerate() {
+                    let e = [0, 1, 2].map(|c| bc(m, &b.scratch, 64 * (3 * i + c) + 4 * n));
+                    let sdot = dot(m, d, e);
+                    let ok = m.cmp(Cmp::Le, sdot, zero_v);
+                    inside = Some(match inside {
+                        None => ok,
+                        Some(p) => m.kand(p, ok),
+                    });
+                }
+                let an_n = bc(m, &b.scratch, 64 * 9 + 4 * n);
+                let dn = dot(m, d, nrm);
+                let t = m.div(an_n, dn);
+                let ht = 128 * n;
+                let pos = m.cmp(Cmp::Gt, t, zero_v);
+                let mut hit = m.kand(inside.expect("3 edges"), pos);
+                // A ray nearly in the triangle's plane: d . n (the sum of the three
+                // edge tests) below their rounding noise makes the inside test
+                // meaningless; such rays miss (robustness; not in the paper).
+                let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
+                let d2 = dot(m, d, d);
+                let noise = m.mul(fl, d2);
+                let dn2 = m.mul(dn, dn);
+                let reliable = m.cmp(Cmp::Gt, dn2, noise);
+                hit = m.kand(hit, reliable);
+                if shadow {
+                    // Rays not yet occluded, t below the limit.
+                    let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
+                    let below = m.cmp(Cmp::Lt, t, lim);
+                    let ob = bc(m, &b.occl, 4 * n);
+                    let ob = m.bits_to_i(ob);
+                    let sel = m.iop(IOp::And, ob, lane_bits);
+                    let live = m.icmp(Cmp::Eq, sel, zero_i);
+                    hit = m.kand(hit, below);
+                    hit = m.kand(hit, live);
+                    let any = m.any(hit);
+                    if m.branch(site::RAY_HIT, any) {
+                        m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
+                        let new = m.movemask(hit);
+                        let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
+                        let now = m.s_op(isa::SOp::Or, old, new);
+                        m.s_store(&mut b.occl, At::off(4 * n), 4, now);
+                        let full = m.int(0xFFFF);
+                        if m.branch_if(site::DONE, Cmp::Eq, now, full) {
+                            // All 16 rays occluded: the frustum is done.
+                            let gone = m.mask(!(1u32 << n) & 0xFFFF);
+                            *alive = m.kand(*alive, gone);
+                            b.terminated += 1;
+                        }
+                    }
+                } else {
+                    let tcur = m.load(&b.hits, At::off(ht));
+                    let closer = m.cmp(Cmp::Lt, t, tcur);
+                    hit = m.kand(hit, closer);
+                    let any = m.any(hit);
+                    if m.branch(site::RAY_HIT, any) {
+                        m.store_masked(hit, &mut b.hits, At::off(ht), t);
+                        m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
+                        let bit = m.int(1 << n);
+                        updated = m.s_op(isa::SOp::Or, updated, bit);
+                    }
+                }
+                let lm1 = m.s_addi(bits, -1);
+                bits = m.s_and(bits, lm1);
+                let zero = m.int(0);
+                if !m.branch_if(site::FRUSTUM, Cmp::Ne, bits, zero) {
+                    break;
+                }
             }
         }
+        // Next block of the leaf, if any.
+        let zero = m.int(0);
+        if !m.branch_if(site::BLOCK, Cmp::Gt, more, zero) {
+            break;
+        }
+        more = m.s_addi(more, -1);
+        bb = m.s_addi(bb, BLOCK_BYTES as i64);
     }
     // Distance bound of each updated frustum: its farthest ray hit.
     let zero = m.int(0);
@@ -954,7 +984,7 @@ pub struct FrustaRun<'a> {
 impl Program for FrustaRun<'_> {
     type Out = (Vec<(f32, i32)>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let s = crate::layout::lay_out2(m, &self.scene.mesh, self.bvh);
+        let s = crate::layout::lay_out2_multi(m, &self.scene.mesh, self.bvh);
         let mut out = Vec::with_capacity(self.sets.len() * 256);
         let mut stats = MftStats::default();
         let mut bufs: Option<MftBufs> = None;

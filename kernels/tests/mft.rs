@@ -27,15 +27,7 @@ fn bad(label: &str, refi: &Reference, sets: &[Frusta], out: &[(f32, i32)]) -> us
 /// culling modes; the counters of the two-sided run.
 fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
     let name = &scene.config.name;
-    let shallow = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            c_trav: 8.0,
-            ..BuildConfig::default()
-        },
-    )
-    .unwrap();
+    let shallow = Bvh2::build(&scene.mesh, &kernels::mft::SHALLOW_BVH).unwrap();
     let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
     let mut last = None;
     for cull_back in [true, false] {

@@ -13,7 +13,7 @@ use crate::{AppError, AppResult};
 use isa::Program;
 use kernels::bvh::{BuildConfig, Bvh2};
 use kernels::harness::F32Test;
-use kernels::mft::{mismatches_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun};
+use kernels::mft::{mismatches_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun, Shrink};
 use kernels::reference::Reference;
 use kernels::scene::{Light, Scene};
 use kernels::workload::soft_shadow_group;
@@ -117,11 +117,100 @@ fn sampled_cycles<P: Program>(
     Ok((c / n * scale, ratio_ci(&pairs).map(|h| h * scale), ops))
 }
 
-fn add(a: &mut MftStats, b: MftStats) {
-    a.aabb_tests += b.aabb_tests;
-    a.tris_accessed += b.tris_accessed;
-    a.tris_after_culling += b.tris_after_culling;
-    a.isec_tests += b.isec_tests;
+/// The machine of a 16-lane MFT report: `--machine`, or the Larrabee model
+/// when the default (8-lane Haswell) was left in place.
+fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::MachineConfig> {
+    let m = a.machine.load()?;
+    if m.flavour().lanes() == 16 {
+        return Ok(m);
+    }
+    if a.machine.machine == "haswell-i7-4750hq" {
+        return sim::MachineConfig::load("larrabee")
+            .map_err(|e| AppError(e.to_string()))?
+            .with_sets(&a.machine.sets)
+            .map_err(|e| AppError(e.to_string()));
+    }
+    Err(AppError(format!(
+        "--machine {}: {name} traces 16 frusta on 16 lanes, {} has {}",
+        m.name,
+        m.flavour(),
+        m.flavour().lanes()
+    )))
+}
+
+/// One scene made ready for the MFT reports: at `res` x `res`, its quad
+/// light, the shallow (MFT) and deep (packet) BVHs, the primary frusta sets
+/// and the soft-shadow sets with a hit.
+struct Prepared {
+    scene: Scene,
+    shallow: Bvh2,
+    deep: Bvh2,
+    primary: Vec<Frusta>,
+    shadow: Vec<Frusta>,
+}
+
+impl Prepared {
+    fn new(scene_name: &str, res: u32, report: &str) -> AppResult<Prepared> {
+        let mut scene = Scene::load(scene_name).map_err(|e| AppError(e.0))?;
+        scene.config.camera.width = res;
+        scene.config.camera.height = res;
+        let cam = scene.config.camera.clone();
+        let Some(Light::Quad(c, e1, e2, _)) = scene.config.lights.first().cloned() else {
+            return Err(AppError(format!(
+                "{scene_name}: {report} needs a quad light for soft shadows"
+            )));
+        };
+        // A shallow BVH for the frusta, a deep one for packets (the paper's
+        // setup; it gives no leaf sizes): see `kernels::mft::SHALLOW_BVH`.
+        let shallow = Bvh2::build(&scene.mesh, &kernels::mft::SHALLOW_BVH).map_err(AppError)?;
+        let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).map_err(AppError)?;
+        let primary: Vec<Frusta> = (0..res / 16)
+            .flat_map(|by| (0..res / 16).map(move |bx| (bx, by)))
+            .map(|(bx, by)| Frusta::primary(&cam, bx, by))
+            .collect();
+        let shadow = {
+            let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
+            (0..res / 4)
+                .flat_map(|gy| (0..res / 4).map(move |gx| (4 * gx, 4 * gy)))
+                .map(|(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+                .filter(|f| f.active != 0)
+                .collect()
+        };
+        Ok(Prepared {
+            scene,
+            shallow,
+            deep,
+            primary,
+            shadow,
+        })
+    }
+
+    /// The front-faces-only reference (both kernels cull back faces).
+    fn reference(&self) -> Reference<'_> {
+        Reference::with_bvh(&self.scene.mesh, &self.shallow).front_faces_only()
+    }
+
+    /// MFT over `sets` on the shallow BVH.
+    fn frusta(&self, sets: Vec<Frusta>, packets256: bool, shrink: Shrink) -> FrustaRun<'_> {
+        FrustaRun {
+            scene: &self.scene,
+            bvh: &self.shallow,
+            sets,
+            cull_back: true,
+            packets256,
+            shrink,
+        }
+    }
+
+    /// 16-ray packets over `sets` on the deep BVH.
+    fn packets(&self, sets: Vec<Frusta>) -> PacketPrimaryRun<'_> {
+        PacketPrimaryRun {
+            scene: &self.scene,
+            bvh: &self.deep,
+            sets,
+            cull_back: true,
+        }
+    }
 }
 
 /// `rtsim reproduce mft-table1`.
@@ -140,23 +229,8 @@ pub fn mft_packet256(a: &ReproduceArgs) -> AppResult<()> {
 fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
     let name = if p256 { "mft-packet256" } else { "mft-table1" };
     let start = Instant::now();
-    let mut m = a.machine.load()?;
+    let m = lrb_machine(a, name)?;
     let mut notes = Vec::new();
-    if m.flavour().lanes() != 16 {
-        if a.machine.machine == "haswell-i7-4750hq" {
-            m = sim::MachineConfig::load("larrabee")
-                .map_err(|e| AppError(e.to_string()))?
-                .with_sets(&a.machine.sets)
-                .map_err(|e| AppError(e.to_string()))?;
-        } else {
-            return Err(AppError(format!(
-                "--machine {}: mft-table1 traces 16 frusta on 16 lanes, {} has {}",
-                m.name,
-                m.flavour(),
-                m.flavour().lanes()
-            )));
-        }
-    }
     let fl = m.flavour();
     let res: u32 = if a.quick { 256 } else { 1024 };
     let (batches, per_p, per_s) = if a.quick { (2, 4, 16) } else { (4, 8, 32) };
@@ -165,58 +239,16 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
     let mut ops_total = 0u64;
     let mut bad_total = 0usize;
     for (scene_name, label, paper) in PAPER {
-        let mut scene = Scene::load(scene_name).map_err(|e| AppError(e.0))?;
-        scene.config.camera.width = res;
-        scene.config.camera.height = res;
-        let cam = scene.config.camera.clone();
-        let Some(Light::Quad(c, e1, e2, _)) = scene.config.lights.first().cloned() else {
-            return Err(AppError(format!(
-                "{scene_name}: mft-table1 needs a quad light for soft shadows"
-            )));
-        };
-        // A shallow BVH for the frusta, a deep one for packets (the paper's
-        // setup; it gives no leaf sizes): see `kernels::mft::SHALLOW_BVH`.
-        let shallow = Bvh2::build(&scene.mesh, &kernels::mft::SHALLOW_BVH).map_err(AppError)?;
-        let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).map_err(AppError)?;
-        let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
-        let primary: Vec<Frusta> = (0..res / 16)
-            .flat_map(|by| (0..res / 16).map(move |bx| (bx, by)))
-            .map(|(bx, by)| Frusta::primary(&cam, bx, by))
-            .collect();
-        let shadow: Vec<Frusta> = (0..res / 4)
-            .flat_map(|gy| (0..res / 4).map(move |gx| (4 * gx, 4 * gy)))
-            .map(|(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
-            .filter(|f| f.active != 0)
-            .collect();
-        let frusta = |sets: Vec<Frusta>| FrustaRun {
-            scene: &scene,
-            bvh: &shallow,
-            sets,
-            cull_back: true,
-            packets256: false,
-        };
-        let big = |sets: Vec<Frusta>| FrustaRun {
-            scene: &scene,
-            bvh: &shallow,
-            sets,
-            cull_back: true,
-            packets256: true,
-        };
-        let packets = |sets: Vec<Frusta>| PacketPrimaryRun {
-            scene: &scene,
-            bvh: &deep,
-            sets,
-            cull_back: true,
-        };
+        let pr = Prepared::new(scene_name, res, name)?;
+        let refi = pr.reference();
+        let (scene, primary, shadow) = (&pr.scene, &pr.primary, &pr.shadow);
+        let frusta = |sets: Vec<Frusta>| pr.frusta(sets, false, Shrink::None);
+        let big = |sets: Vec<Frusta>| pr.frusta(sets, true, Shrink::None);
+        let packets = |sets: Vec<Frusta>| pr.packets(sets);
         // Exact counts and the hit check over the whole image.
         let mut stats = [MftStats::default(); 4];
         let mut cycles = [(0.0, None); 4];
-        for (mi, sets) in [
-            (0usize, &primary),
-            (1, &primary),
-            (2, &shadow),
-            (3, &shadow),
-        ] {
+        for (mi, sets) in [(0usize, primary), (1, primary), (2, shadow), (3, shadow)] {
             let baseline = mi % 2 == 0;
             let (out, st) = match (baseline, p256) {
                 (false, _) => isa::run_native(&frusta(sets.clone()), fl),
@@ -249,8 +281,8 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
         }
         // The paper's soft-shadow rows include the primary rays.
         let (p0, p1) = (stats[0], stats[1]);
-        add(&mut stats[2], p0);
-        add(&mut stats[3], p1);
+        stats[2].add(p0);
+        stats[3].add(p1);
         cycles[2].0 += cycles[0].0;
         cycles[3].0 += cycles[1].0;
         for mi in 0..4 {
@@ -297,7 +329,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
         // Shadow frusta whose direction interval holds zero on some axis: they
         // lose that axis's slab culling and rely on the zero-interval fix.
         let (mut lanes, mut zero) = (0u64, 0u64);
-        for f in &shadow {
+        for f in shadow {
             let rec = f.record();
             for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
                 lanes += 1;

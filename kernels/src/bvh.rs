@@ -413,6 +413,8 @@ pub struct Bvh2Layout {
     pub nodes: Vec<[u32; 16]>,
     /// Leaves: (first prim, count).
     pub leaves: Vec<[u32; 2]>,
+    /// Each leaf's box.
+    pub leaf_bounds: Vec<Aabb>,
     /// Root bounds.
     pub root_bounds: Aabb,
     /// Reference to the root (a node, or a leaf for a one-leaf tree).
@@ -439,6 +441,7 @@ impl Bvh2Layout {
         let mut out = Bvh2Layout {
             nodes: Vec::new(),
             leaves: Vec::new(),
+            leaf_bounds: Vec::new(),
             root_bounds: *b.nodes[0].bounds(),
             root: 0,
             blocks: 0,
@@ -449,8 +452,13 @@ impl Bvh2Layout {
 
     fn emit(&mut self, b: &Bvh2, n: u32) -> u32 {
         match b.nodes[n as usize] {
-            Node::Leaf { first, count, .. } => {
+            Node::Leaf {
+                first,
+                count,
+                bounds,
+            } => {
                 self.leaves.push([first, count]);
+                self.leaf_bounds.push(bounds);
                 let n = count.div_ceil(8).max(1);
                 assert!(
                     n <= LEAF_MAX_BLOCKS && self.blocks + n <= LEAF_FIRST_MASK,

@@ -101,6 +101,9 @@ pub struct SceneBufs2 {
     pub tris: Buf,
     /// The root's ref (a node, or a leaf for a one-leaf tree).
     pub root: u32,
+    /// [`lay_out2_multi`] only: each leaf's box at 32 x its first block
+    /// (`lo.xyz, 0, hi.xyz, 0` f32), for per-ray leaf tests.
+    pub leaf_boxes: Option<Buf>,
 }
 
 /// Lay a BVH2 (leaves of at most 8 triangles) into `m`'s memory.
@@ -132,10 +135,24 @@ fn lay_out2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool) -> 
         &blocks(mesh, b2, &lay.leaves, multi),
         64,
     );
+    let leaf_boxes = multi.then(|| {
+        let mut words = vec![0u32; 8 * lay.blocks.max(1) as usize];
+        let mut blk = 0usize;
+        for (&[_, count], bx) in lay.leaves.iter().zip(&lay.leaf_bounds) {
+            for a in 0..3 {
+                words[8 * blk + a] = bx.lo[a].to_bits();
+                words[8 * blk + 4 + a] = bx.hi[a].to_bits();
+            }
+            blk += count.div_ceil(BLOCK as u32).max(1) as usize;
+        }
+        m.space()
+            .alloc_u32(MemKind::Nodes, "bvh2-leaf-boxes", &words, 64)
+    });
     SceneBufs2 {
         nodes,
         tris,
         root: lay.root,
+        leaf_boxes,
     }
 }
 

@@ -27,6 +27,8 @@
 //! | 34 | per-frustum distance bound (all rays' farthest hit, +inf while any ray misses; shadow: the rays' t limit) |
 //! | 35 | active frusta (bits, lane 0) |
 //! | 36-83 | shadow frusta only: frustum n's delta vectors at rows 36 + 3n .. 38 + 3n |
+//! | 84-115 | shadow frusta only: frustum n's samples' (u, v) on the light, rows 84 + 2n, 85 + 2n |
+//! | 116 | shadow frusta only: the light's corner, edge 1, edge 2 (lanes 0-8) |
 //!
 //! Hits: per frustum 2 rows, t then prim (i32, -1: none), 2 KB for 256 rays.
 //!
@@ -44,6 +46,10 @@ use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shif
 
 /// Frusta traced together (the SIMD width of the kernel).
 pub const FRUSTA: usize = 16;
+
+/// Shadow corner rays go through the samples' 2D bounds on the light widened
+/// by this much (in units of the light's edges), so the f32 rays stay inside.
+pub const CORNER_MARGIN: f32 = 1e-3;
 
 /// The MFT kernel's shallow BVH: SAH with leaves of up to 32 triangles (4
 /// blocks) and a traversal cost of 32 triangle tests. Measured (quick runs,
@@ -86,10 +92,56 @@ pub mod row {
     pub const ACTIVE: usize = 35;
     /// Shadow frusta: frustum n's own delta vector x at `DELTA_SETS + 3n` (y, z follow).
     pub const DELTA_SETS: usize = 36;
+    /// Shadow frusta: frustum n's rays' light-sample parameters, u at
+    /// `UV + 2n` and v at `UV + 2n + 1` (ray k in lane k).
+    pub const UV: usize = 84;
+    /// Shadow frusta: the light (corner xyz, edge 1 xyz, edge 2 xyz in lanes 0-8).
+    pub const LIGHT: usize = 116;
     /// Rows of a primary record.
     pub const ROWS: usize = 36;
     /// Rows of a shadow record.
-    pub const ROWS_SHADOW: usize = 36 + 48;
+    pub const ROWS_SHADOW: usize = 117;
+}
+
+/// Frustum shrinking for partly occluded shadow frusta (the paper's section
+/// 5.3 and Table 2).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Shrink {
+    /// None: frusta keep their initial bounds.
+    #[default]
+    None,
+    /// Ray-AABB: at each leaf, the live rays of every non-terminated frustum
+    /// against the leaf's box (per-ray reciprocals computed on the spot); a
+    /// frustum none of whose rays hits the box skips the leaf.
+    RayAabb,
+    /// CR: after a leaf in which a frustum's rays newly became occluded, its
+    /// corner rays are recomputed through the 2D bounds (on the light) of its
+    /// still-live samples.
+    CornerRays,
+    /// FS: CR, and the frustum's direction interval (and reciprocals) shrunk
+    /// to its live rays too, so traversal culls with the tighter frustum.
+    Intervals,
+}
+
+impl Shrink {
+    /// The four, in the paper's Table 2 order.
+    pub const ALL: [Shrink; 4] = [
+        Shrink::None,
+        Shrink::RayAabb,
+        Shrink::CornerRays,
+        Shrink::Intervals,
+    ];
+
+    /// The paper's row label.
+    #[must_use]
+    pub fn label(self) -> &'static str {
+        match self {
+            Shrink::None => "no-shrink",
+            Shrink::RayAabb => "ray-aabb",
+            Shrink::CornerRays => "cr",
+            Shrink::Intervals => "fs",
+        }
+    }
 }
 
 /// Byte offset of row `r`.
@@ -128,6 +180,12 @@ pub mod site {
     pub const PACKET: Site = Site(92);
     /// Another triangle block in this leaf?
     pub const BLOCK: Site = Site(93);
+    /// Any frustum's rays reach the leaf's box (Ray-AABB)?
+    pub const LEAF_BOX: Site = Site(94);
+    /// Next frustum to test against the leaf box (Ray-AABB)?
+    pub const BOX_FRUSTUM: Site = Site(95);
+    /// Next frustum to shrink (CR, FS)?
+    pub const SHRINK: Site = Site(96);
 }
 
 /// MFT counters, as the paper's Table 1.
@@ -141,6 +199,23 @@ pub struct MftStats {
     pub tris_after_culling: u64,
     /// 16-wide ray-triangle tests (one per frustum per surviving triangle).
     pub isec_tests: u64,
+    /// Frustum shrinks (CR, FS: the paper's "# addl. tests").
+    pub shrinks: u64,
+    /// Per-frustum ray-packet tests against leaf boxes (Ray-AABB; also
+    /// counted in `aabb_tests`, as the paper's Table 2 does).
+    pub leaf_box_tests: u64,
+}
+
+impl MftStats {
+    /// Add `o`'s counts.
+    pub fn add(&mut self, o: MftStats) {
+        self.aabb_tests += o.aabb_tests;
+        self.tris_accessed += o.tris_accessed;
+        self.tris_after_culling += o.tris_after_culling;
+        self.isec_tests += o.isec_tests;
+        self.shrinks += o.shrinks;
+        self.leaf_box_tests += o.leaf_box_tests;
+    }
 }
 
 /// 16 frusta: primary (a 16 x 16 pixel block, each frustum a 4 x 4 pixel
@@ -165,6 +240,10 @@ pub struct Frusta {
     pub shadow: bool,
     /// Top-left pixel (of the block or the group).
     pub pixel: (u32, u32),
+    /// Shadow frusta: each ray's sample (u, v) on the light.
+    pub uv: Vec<[[f32; 2]; FRUSTA]>,
+    /// Shadow frusta: the light (corner, edge 1, edge 2).
+    pub light: [[f32; 3]; 3],
 }
 
 impl Frusta {
@@ -193,6 +272,8 @@ impl Frusta {
             active: 0xFFFF,
             shadow: false,
             pixel: (x0, y0),
+            uv: Vec::new(),
+            light: [[0.0; 3]; 3],
         };
         // Corner rays: the grid's corner pixels' rays themselves.
         for n in 0..FRUSTA {
@@ -221,6 +302,8 @@ impl Frusta {
             active: 0,
             shadow: true,
             pixel: input.pixel,
+            uv: vec![[[0.0; 2]; FRUSTA]; FRUSTA],
+            light,
         };
         for n in 0..FRUSTA {
             let Some(o) = input.hits[n] else { continue };
@@ -237,11 +320,13 @@ impl Frusta {
                 (dot(q, e1) / dot(e1, e1), dot(q, e2) / dot(e2, e2))
             };
             let (mut ul, mut uh, mut vl, mut vh) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-            for p in smp {
+            for (k, p) in smp.iter().enumerate() {
                 let (u, v) = uv(*p);
+                f.uv[n][k] = [u as f32, v as f32];
                 (ul, uh, vl, vh) = (ul.min(u), uh.max(u), vl.min(v), vh.max(v));
             }
-            let (ul, uh, vl, vh) = (ul - 1e-3, uh + 1e-3, vl - 1e-3, vh + 1e-3);
+            let m = f64::from(CORNER_MARGIN);
+            let (ul, uh, vl, vh) = (ul - m, uh + m, vl - m, vh + m);
             for (c, (u, v)) in [(ul, vl), (uh, vl), (ul, vh), (uh, vh)]
                 .into_iter()
                 .enumerate()
@@ -317,6 +402,12 @@ impl Frusta {
                     }
                 }
             }
+            if self.shadow {
+                for k in 0..FRUSTA {
+                    set(row::UV + 2 * n, k, self.uv[n][k][0]);
+                    set(row::UV + 2 * n + 1, k, self.uv[n][k][1]);
+                }
+            }
             set(row::DIST, n, self.tmax);
         }
         for a in 0..3 {
@@ -325,6 +416,11 @@ impl Frusta {
             }
         }
         set(row::ACTIVE, 0, f32::from_bits(u32::from(self.active)));
+        if self.shadow {
+            for (i, c) in self.light.iter().flatten().enumerate() {
+                set(row::LIGHT, i, *c);
+            }
+        }
         v
     }
 }
@@ -346,6 +442,8 @@ pub struct MftBufs {
     /// 256-ray packets (the paper's section 5.2): MFT's frustum traversal
     /// replaced by per-ray box tests of the 16 packets; leaves unchanged.
     pub packets256: bool,
+    /// Frustum shrinking (shadow frusta).
+    pub shrink: Shrink,
     /// Per-ray reciprocal directions of the 256-ray packet traversal.
     pub rcp: Buf,
     /// Frusta terminated because all their rays were occluded.
@@ -375,6 +473,7 @@ impl MftBufs {
             occl: sp.alloc(MemKind::Hits, "frusta-occlusion", 64, 64),
             shadow: f.shadow,
             packets256: false,
+            shrink: Shrink::None,
             rcp: sp.alloc(MemKind::Rays, "packet-rcp", 64 * 48, 64),
             terminated: 0,
             stats: MftStats::default(),
@@ -423,20 +522,21 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
     let org = [0, 1, 2].map(|a| ld(m, row::ORG + a));
     let org_node = ld(m, row::ORG_NODE);
     let delta = [0, 1, 2].map(|a| ld(m, row::DELTA + a));
-    let corner: Vec<[M::F; 3]> = (0..4)
-        .map(|c| [0, 1, 2].map(|a| ld(m, row::CORNER + 3 * c + a)))
-        .collect();
+    let corner: [[M::F; 3]; 4] =
+        std::array::from_fn(|c| [0, 1, 2].map(|a| ld(m, row::CORNER + 3 * c + a)));
     let mut dist = ld(m, row::DIST);
     let zero_v = m.splat(0.0);
-    let neg = [0, 1, 2].map(|a| m.cmp(Cmp::Lt, dhi[a], zero_v));
-    let zero_axis = [0, 1, 2].map(|a| {
-        let l = m.cmp(Cmp::Le, dlo[a], zero_v);
-        let h = m.cmp(Cmp::Ge, dhi[a], zero_v);
-        m.kand(l, h)
-    });
-    let zx = m.kor(zero_axis[0], zero_axis[1]);
-    let any_zero_k = m.kor(zx, zero_axis[2]);
-    let any_zero = m.any(any_zero_k);
+    let mut fr_regs = Regs {
+        rlo,
+        rhi,
+        dlo,
+        dhi,
+        neg: [0, 1, 2].map(|a| m.cmp(Cmp::Lt, dhi[a], zero_v)),
+        zero_axis: [0, 1, 2].map(|_| m.mask(0)),
+        any_zero: m.int(0),
+        corner,
+    };
+    fr_regs.zero_axes(m);
     let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
     let lane_bits = m.consts_i(&lane_bits);
     let zero_i = m.splat_i(0);
@@ -517,17 +617,18 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
                     let lo = plane(m, a, false, child);
                     let hi = plane(m, a, true, child);
                     // Entry plane and exit plane by the direction's sign.
-                    let en = m.select(neg[a], hi, lo);
-                    let ex = m.select(neg[a], lo, hi);
-                    let n0 = m.mul(en, rlo[a]);
-                    let n1 = m.mul(en, rhi[a]);
-                    let x0 = m.mul(ex, rlo[a]);
-                    let x1 = m.mul(ex, rhi[a]);
+                    let r = &fr_regs;
+                    let en = m.select(r.neg[a], hi, lo);
+                    let ex = m.select(r.neg[a], lo, hi);
+                    let n0 = m.mul(en, r.rlo[a]);
+                    let n1 = m.mul(en, r.rhi[a]);
+                    let x0 = m.mul(ex, r.rlo[a]);
+                    let x1 = m.mul(ex, r.rhi[a]);
                     let mut na = m.min(n0, n1);
                     let mut xa = m.max(x0, x1);
                     // A direction interval holding zero culls nothing on its axis.
-                    na = m.select(zero_axis[a], ninf, na);
-                    xa = m.select(zero_axis[a], pinf, xa);
+                    na = m.select(r.zero_axis[a], ninf, na);
+                    xa = m.select(r.zero_axis[a], pinf, xa);
                     near = m.max(near, na);
                     far = m.min(far, xa);
                     parts.push((lo, hi));
@@ -618,21 +719,22 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             let (nr, fr_, mut hr, pr) = test(m, 1);
             // The zero-interval fix: on an axis whose direction interval holds
             // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
-            if m.branch(site::ZERO, any_zero) {
+            if m.branch(site::ZERO, fr_regs.any_zero) {
+                let r = &fr_regs;
                 for (near, far, hit, parts) in [(nl, fl_, &mut hl, &pl), (nr, fr_, &mut hr, &pr)] {
                     let far_c = m.min(far, fmax);
                     for a in 0..3 {
                         let (lo, hi) = parts[a];
-                        let p0 = m.mul(near, dlo[a]);
-                        let p1 = m.mul(far_c, dlo[a]);
-                        let q0 = m.mul(near, dhi[a]);
-                        let q1 = m.mul(far_c, dhi[a]);
+                        let p0 = m.mul(near, r.dlo[a]);
+                        let p1 = m.mul(far_c, r.dlo[a]);
+                        let q0 = m.mul(near, r.dhi[a]);
+                        let q1 = m.mul(far_c, r.dhi[a]);
                         let pmin = m.min(p0, p1);
                         let qmax = m.max(q0, q1);
                         let below = m.cmp(Cmp::Le, pmin, hi);
                         let above = m.cmp(Cmp::Ge, qmax, lo);
                         let ok = m.kand(below, above);
-                        let not_zero = m.knot(zero_axis[a]);
+                        let not_zero = m.knot(r.zero_axis[a]);
                         let ok = m.kor(ok, not_zero);
                         *hit = m.kand(*hit, ok);
                     }
@@ -684,10 +786,40 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             mask,
             &org,
             &delta,
-            &corner,
+            &mut fr_regs,
             (&mut dist, &mut alive),
             cull_back,
         );
+    }
+}
+
+/// The frusta's bounds held in registers during a trace: reciprocal and
+/// direction intervals, sign and zero-interval masks, corner rays. Frustum
+/// shrinking (CR, FS) rewrites one frustum's lane.
+struct Regs<M: Machine> {
+    rlo: [M::F; 3],
+    rhi: [M::F; 3],
+    dlo: [M::F; 3],
+    dhi: [M::F; 3],
+    neg: [M::K; 3],
+    zero_axis: [M::K; 3],
+    /// Any lane with a zero-holding axis (a scalar for the branch).
+    any_zero: M::S,
+    corner: [[M::F; 3]; 4],
+}
+
+impl<M: Machine> Regs<M> {
+    /// The zero-holding axes from the direction intervals.
+    fn zero_axes(&mut self, m: &mut M) {
+        let zero_v = m.splat(0.0);
+        self.zero_axis = [0, 1, 2].map(|a| {
+            let l = m.cmp(Cmp::Le, self.dlo[a], zero_v);
+            let h = m.cmp(Cmp::Ge, self.dhi[a], zero_v);
+            m.kand(l, h)
+        });
+        let zx = m.kor(self.zero_axis[0], self.zero_axis[1]);
+        let k = m.kor(zx, self.zero_axis[2]);
+        self.any_zero = m.any(k);
     }
 }
 
@@ -740,7 +872,7 @@ fn leaf<M: Machine>(
     mask: M::K,
     org: &[M::F; 3],
     delta: &[M::F; 3],
-    corner: &[[M::F; 3]],
+    regs: &mut Regs<M>,
     (dist, alive): (&mut M::F, &mut M::K),
     cull_back: bool,
 ) {
@@ -749,6 +881,15 @@ fn leaf<M: Machine>(
     let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
     let lane_bits = m.consts_i(&lane_bits);
     let zero_i = m.splat_i(0);
+    let mut mask = mask;
+    if shadow && b.shrink == Shrink::RayAabb {
+        mask = leaf_box_cull(m, s, b, node, mask, *alive, (lane_bits, zero_i));
+        let any = m.any(mask);
+        if !m.branch(site::LEAF_BOX, any) {
+            return;
+        }
+    }
+    let corner = &regs.corner;
     let tris = &s.tris;
     let idx = m.int(i64::from(LEAF_FIRST_MASK));
     let blk = m.s_and(node, idx);
@@ -913,6 +1054,10 @@ fn leaf<M: Machine>(
                         let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
                         let now = m.s_op(isa::SOp::Or, old, new);
                         m.s_store(&mut b.occl, At::off(4 * n), 4, now);
+                        if matches!(b.shrink, Shrink::CornerRays | Shrink::Intervals) {
+                            let bit = m.int(1 << n);
+                            updated = m.s_op(isa::SOp::Or, updated, bit);
+                        }
                         let full = m.int(0xFFFF);
                         if m.branch_if(site::DONE, Cmp::Eq, now, full) {
                             // All 16 rays occluded: the frustum is done.
@@ -949,6 +1094,12 @@ fn leaf<M: Machine>(
         more = m.s_addi(more, -1);
         bb = m.s_addi(bb, BLOCK_BYTES as i64);
     }
+    if shadow {
+        if matches!(b.shrink, Shrink::CornerRays | Shrink::Intervals) {
+            shrink(m, b, updated, regs, *alive, (lane_bits, zero_i));
+        }
+        return;
+    }
     // Distance bound of each updated frustum: its farthest ray hit.
     let zero = m.int(0);
     let mut bits = updated;
@@ -960,6 +1111,171 @@ fn leaf<M: Machine>(
         let farv = m.broadcast(far);
         let k = m.mask(1 << n);
         *dist = m.select(k, farv, *dist);
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+    }
+}
+
+/// The live rays of shadow frustum `n`: lanes whose occlusion bit is clear.
+fn live_rays<M: Machine>(m: &mut M, b: &MftBufs, n: usize, lane_bits: M::I, zero_i: M::I) -> M::K {
+    let ob = m.load_bcast(&b.occl, At::off(4 * n));
+    let ob = m.bits_to_i(ob);
+    let sel = m.iop(IOp::And, ob, lane_bits);
+    m.icmp(Cmp::Eq, sel, zero_i)
+}
+
+/// Ray-AABB (Table 2): the live rays of every non-terminated frustum in
+/// `mask` against leaf `node`'s box, per-ray reciprocals computed here; the
+/// frusta some ray of which reaches the box.
+fn leaf_box_cull<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    b: &mut MftBufs,
+    node: M::S,
+    mask: M::K,
+    alive: M::K,
+    (lane_bits, zero_i): (M::I, M::I),
+) -> M::K {
+    let boxes = s
+        .leaf_boxes
+        .as_ref()
+        .expect("Ray-AABB reads the leaf boxes of lay_out2_multi");
+    let fm = m.int(i64::from(LEAF_FIRST_MASK));
+    let first = m.s_and(node, fm);
+    let off = m.s_shift(Shift::Shl, first, 5);
+    let lo = [0, 1, 2].map(|a| m.load_bcast(boxes, At::idx(off, 1, 4 * a)));
+    let hi = [0, 1, 2].map(|a| m.load_bcast(boxes, At::idx(off, 1, 16 + 4 * a)));
+    let tm = m.kand(mask, alive);
+    let mut bits = m.movemask(tm);
+    let mut keep = m.int(0);
+    let zero = m.int(0);
+    let zero_v = m.splat(0.0);
+    while m.branch_if(site::BOX_FRUSTUM, Cmp::Ne, bits, zero) {
+        let lane = m.s_tzcnt(bits);
+        let n = lane.get() as usize;
+        b.stats.leaf_box_tests += 1;
+        b.stats.aabb_tests += 1;
+        let fr = &b.frusta;
+        let mut near = zero_v;
+        let mut far = m.load_bcast(fr, At::off(at_row(row::DIST) + 4 * n));
+        for a in 0..3 {
+            let st = m.load_bcast(fr, At::off(at_row(row::START + a) + 4 * n));
+            let dl = m.load(fr, At::off(at_row(row::DELTA_SETS + 3 * n + a)));
+            let d = m.add(st, dl);
+            let rc = m.rcp(d);
+            let o = m.load_bcast(fr, At::off(at_row(row::ORG + a) + 4 * n));
+            let l = m.sub(lo[a], o);
+            let h = m.sub(hi[a], o);
+            let t0 = m.mul(l, rc);
+            let t1 = m.mul(h, rc);
+            let mn = m.min(t0, t1);
+            let mx = m.max(t0, t1);
+            near = m.max(near, mn);
+            far = m.min(far, mx);
+        }
+        let hit = m.cmp(Cmp::Le, near, far);
+        let live = live_rays(m, b, n, lane_bits, zero_i);
+        let hit = m.kand(hit, live);
+        let any = m.any(hit);
+        let bit = m.s_shift(Shift::Shl, any, n as u32);
+        keep = m.s_op(isa::SOp::Or, keep, bit);
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+    }
+    m.s_store(&mut b.scratch, At::off(64 * 10), 4, keep);
+    let k = bits_mask(m, &b.scratch, At::off(64 * 10), lane_bits, zero_i);
+    m.kand(mask, k)
+}
+
+/// CR and FS (Table 2), after a leaf: every still-active frustum in
+/// `updated` (rays newly occluded here) gets corner rays through the 2D
+/// bounds of its live samples on the light (widened by [`CORNER_MARGIN`]);
+/// FS also shrinks its direction interval and reciprocals to its live rays.
+fn shrink<M: Machine>(
+    m: &mut M,
+    b: &mut MftBufs,
+    updated: M::S,
+    regs: &mut Regs<M>,
+    alive: M::K,
+    (lane_bits, zero_i): (M::I, M::I),
+) {
+    let zero = m.int(0);
+    let al = m.movemask(alive);
+    let mut bits = m.s_and(updated, al);
+    let (ninf, pinf) = (m.splat(f32::NEG_INFINITY), m.splat(f32::INFINITY));
+    let margin = m.splat(CORNER_MARGIN);
+    let zero_v = m.splat(0.0);
+    while m.branch_if(site::SHRINK, Cmp::Ne, bits, zero) {
+        let lane = m.s_tzcnt(bits);
+        let n = lane.get() as usize;
+        b.stats.shrinks += 1;
+        let live = live_rays(m, b, n, lane_bits, zero_i);
+        let fr = &b.frusta;
+        let bound = |m: &mut M, v: M::F| {
+            let l = m.select(live, v, pinf);
+            let h = m.select(live, v, ninf);
+            let l = m.reduce(BinOp::Min, l);
+            let h = m.reduce(BinOp::Max, h);
+            (m.broadcast(l), m.broadcast(h))
+        };
+        let u = m.load(fr, At::off(at_row(row::UV + 2 * n)));
+        let v = m.load(fr, At::off(at_row(row::UV + 2 * n + 1)));
+        let (ul, uh) = bound(m, u);
+        let (vl, vh) = bound(m, v);
+        let ul = m.sub(ul, margin);
+        let uh = m.add(uh, margin);
+        let vl = m.sub(vl, margin);
+        let vh = m.add(vh, margin);
+        let lt = |m: &mut M, i: usize| m.load_bcast(fr, At::off(at_row(row::LIGHT) + 4 * i));
+        let c0 = [0, 1, 2].map(|a| lt(m, a));
+        let e1 = [0, 1, 2].map(|a| lt(m, 3 + a));
+        let e2 = [0, 1, 2].map(|a| lt(m, 6 + a));
+        let o = [0, 1, 2].map(|a| m.load_bcast(fr, At::off(at_row(row::ORG + a) + 4 * n)));
+        let k = m.mask(1 << n);
+        for (c, (uu, vv)) in [(ul, vl), (uh, vl), (ul, vh), (uh, vh)]
+            .into_iter()
+            .enumerate()
+        {
+            for a in 0..3 {
+                let p = m.fmadd(uu, e1[a], c0[a]);
+                let p = m.fmadd(vv, e2[a], p);
+                let p = m.sub(p, o[a]);
+                regs.corner[c][a] = m.select(k, p, regs.corner[c][a]);
+            }
+        }
+        if b.shrink == Shrink::Intervals {
+            let one = m.splat(1.0);
+            let dn = m.splat(1.0 - 1.0 / 1_048_576.0);
+            let up = m.splat(1.0 + 1.0 / 1_048_576.0);
+            for a in 0..3 {
+                let st = m.load_bcast(fr, At::off(at_row(row::START + a) + 4 * n));
+                let dl = m.load(fr, At::off(at_row(row::DELTA_SETS + 3 * n + a)));
+                let d = m.add(st, dl);
+                let (lo, hi) = bound(m, d);
+                let p = m.div(one, hi);
+                let q = m.div(one, lo);
+                let small = m.min(p, q);
+                let big = m.max(p, q);
+                // Widened by 2^-20 relative, as the record's.
+                let s0 = m.mul(small, dn);
+                let s1 = m.mul(small, up);
+                let rl = m.min(s0, s1);
+                let b0 = m.mul(big, dn);
+                let b1 = m.mul(big, up);
+                let rh = m.max(b0, b1);
+                let zl = m.cmp(Cmp::Le, lo, zero_v);
+                let zh = m.cmp(Cmp::Ge, hi, zero_v);
+                let zc = m.kand(zl, zh);
+                let rl = m.select(zc, ninf, rl);
+                let rh = m.select(zc, pinf, rh);
+                regs.rlo[a] = m.select(k, rl, regs.rlo[a]);
+                regs.rhi[a] = m.select(k, rh, regs.rhi[a]);
+                regs.dlo[a] = m.select(k, lo, regs.dlo[a]);
+                regs.dhi[a] = m.select(k, hi, regs.dhi[a]);
+                regs.neg[a] = m.cmp(Cmp::Lt, regs.dhi[a], zero_v);
+            }
+            regs.zero_axes(m);
+        }
         let lm1 = m.s_addi(bits, -1);
         bits = m.s_and(bits, lm1);
     }
@@ -979,6 +1295,8 @@ pub struct FrustaRun<'a> {
     pub cull_back: bool,
     /// Traverse as 256-ray packets instead of frusta (section 5.2).
     pub packets256: bool,
+    /// Frustum shrinking of shadow frusta (section 5.3).
+    pub shrink: Shrink,
 }
 
 impl Program for FrustaRun<'_> {
@@ -997,6 +1315,7 @@ impl Program for FrustaRun<'_> {
                 None => bufs.insert(MftBufs::new(m, f)),
             };
             b.packets256 = self.packets256;
+            b.shrink = self.shrink;
             trace(m, &s, b, self.cull_back);
             for n in 0..FRUSTA {
                 for k in 0..FRUSTA {

@@ -7,7 +7,7 @@
 use isa::FlavourId;
 use kernels::bvh::{BuildConfig, Bvh2};
 use kernels::harness::F32Test;
-use kernels::mft::{mismatches_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun};
+use kernels::mft::{mismatches_of, Frusta, FrustaRun, MftStats, PacketPrimaryRun, Shrink};
 use kernels::reference::{Ray, Reference};
 use kernels::scene::{Light, Scene};
 use kernels::workload::soft_shadow_group;
@@ -44,6 +44,7 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
             sets: sets.to_vec(),
             cull_back,
             packets256: false,
+            shrink: kernels::mft::Shrink::None,
         };
         let (traced, stats) = isa::record(&run, FlavourId::Lrb16, "mft").1;
         assert_eq!(
@@ -73,6 +74,7 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
         // 256-ray packets: MFT's leaves behind per-ray box tests of 16 packets.
         let big = FrustaRun {
             packets256: true,
+            shrink: kernels::mft::Shrink::None,
             ..run
         };
         let (btraced, bstats) = isa::record(&big, FlavourId::Lrb16, "p256").1;
@@ -163,4 +165,60 @@ fn mft_shadow_frusta_match_the_reference() {
     );
     let (s, p) = check(&scene, &sets);
     assert!(p.aabb_tests > s.aabb_tests, "packets {p:?} vs frusta {s:?}");
+    // Frustum shrinking (Table 2) keeps every answer and only ever culls
+    // more; on penumbra groups (some frustum partly occluded) as well.
+    let shallow = Bvh2::build(&scene.mesh, &kernels::mft::SHALLOW_BVH).unwrap();
+    let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
+    let partly = |f: &Frusta| {
+        (0..16).filter(|&n| f.active & (1 << n) != 0).any(|n| {
+            let occ = (0..16)
+                .filter(|&k| {
+                    let (o, d) = f.ray(n, k);
+                    let r = Ray::new(o.map(f64::from), d.map(f64::from));
+                    refi.all(&r).iter().any(|h| h.t < f64::from(f.tmax))
+                })
+                .count();
+            occ > 0 && occ < 16
+        })
+    };
+    let mut sets = sets;
+    sets.extend(
+        (0..64u32)
+            .map(|i| (384 + 8 * i, 700 + 4 * (i % 8)))
+            .map(|(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+            .filter(partly)
+            .take(3),
+    );
+    assert!(sets.len() >= 6, "penumbra groups found");
+    let mut by = Vec::new();
+    for shrink in Shrink::ALL {
+        let run = FrustaRun {
+            scene: &scene,
+            bvh: &shallow,
+            sets: sets.clone(),
+            cull_back: true,
+            packets256: false,
+            shrink,
+        };
+        let (out, st) = isa::record(&run, FlavourId::Lrb16, "shrink").1;
+        assert_eq!((out.clone(), st), isa::run_native(&run, FlavourId::Lrb16));
+        let n = bad(&format!("mft {shrink:?}"), &refi, &sets, &out);
+        assert_eq!(n, 0, "{shrink:?}: {n} rays differ");
+        by.push(st);
+    }
+    let [none, ray_aabb, cr, fs] = [by[0], by[1], by[2], by[3]];
+    assert_eq!(none.shrinks + none.leaf_box_tests, 0, "{none:?}");
+    assert!(ray_aabb.leaf_box_tests > 0 && ray_aabb.aabb_tests > none.aabb_tests);
+    assert!(ray_aabb.tris_accessed <= none.tris_accessed, "{ray_aabb:?}");
+    assert!(ray_aabb.isec_tests <= none.isec_tests, "{ray_aabb:?}");
+    // CR: same traversal, tighter corners.
+    assert!(cr.shrinks > 0, "{cr:?}");
+    assert_eq!(
+        (cr.aabb_tests, cr.tris_accessed),
+        (none.aabb_tests, none.tris_accessed)
+    );
+    assert!(cr.isec_tests < none.isec_tests, "{cr:?} vs {none:?}");
+    // FS: CR plus tighter traversal.
+    assert!(fs.aabb_tests <= none.aabb_tests && fs.isec_tests <= none.isec_tests);
+    assert!(fs.shrinks > 0, "{fs:?}");
 }

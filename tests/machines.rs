@@ -584,3 +584,41 @@ fn reproduce_mft_packet256_checks_hits_and_counts_both_methods() {
         .filter(|r| r["metric"] == "hit_mismatches")
         .all(|r| r["value"] == 0.0));
 }
+
+#[test]
+fn reproduce_mft_table2_shrinking_keeps_hits_and_cr_keeps_traversal() {
+    let j = json(&rtsim(&[
+        "reproduce",
+        "mft-table2",
+        "--quick",
+        "--tiles",
+        "1",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(j["machine"], "larrabee");
+    let rows = j["rows"].as_array().unwrap();
+    let get = |shrink: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["shrink"] == shrink && r["metric"] == metric)
+            .collect();
+        assert_eq!(r.len(), 1, "{shrink} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for s in ["no-shrink", "ray-aabb", "cr", "fs"] {
+        assert_eq!(get(s, "hit_mismatches"), 0.0, "{s}");
+        assert!(get(s, "cycles") > 0.0, "{s}");
+    }
+    // CR recomputes corners only: traversal and fetches unchanged, fewer
+    // triangles survive culling; Ray-AABB adds box tests.
+    assert_eq!(get("cr", "aabb_tests"), get("no-shrink", "aabb_tests"));
+    assert_eq!(
+        get("cr", "tris_accessed"),
+        get("no-shrink", "tris_accessed")
+    );
+    assert!(get("cr", "tris_after_culling") < get("no-shrink", "tris_after_culling"));
+    assert!(get("cr", "addl_tests") > 0.0);
+    assert!(get("ray-aabb", "aabb_tests") > get("no-shrink", "aabb_tests"));
+    assert!(get("fs", "tris_accessed") <= get("no-shrink", "tris_accessed"));
+}

@@ -18,6 +18,7 @@ pub mod micro;
 pub mod packet;
 pub mod reference;
 pub mod scene;
+pub mod shade;
 pub mod single;
 pub mod stats;
 pub mod workload;

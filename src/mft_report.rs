@@ -73,7 +73,7 @@ const METHODS: [&str; 4] = ["p-packet", "p-frusta", "s-packet", "s-frusta"];
 /// Simulated cycles of `sets` on one core: `batches` seeded systematic
 /// samples of `per` sets spread over the image, each split round-robin over
 /// the core's hardware threads; (cycles scaled to all sets, 95% CI half-width, ops simulated).
-fn sampled_cycles<P: Program>(
+pub(crate) fn sampled_cycles<P: Program>(
     m: &sim::MachineConfig,
     sets: &[Frusta],
     batches: usize,
@@ -119,7 +119,7 @@ fn sampled_cycles<P: Program>(
 
 /// The machine of a 16-lane MFT report: `--machine`, or the Larrabee model
 /// when the default (8-lane Haswell) was left in place.
-fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::MachineConfig> {
+pub(crate) fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::MachineConfig> {
     let m = a.machine.load()?;
     if m.flavour().lanes() == 16 {
         return Ok(m);
@@ -141,16 +141,22 @@ fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::MachineConfig> {
 /// One scene made ready for the MFT reports: at `res` x `res`, its quad
 /// light, the shallow (MFT) and deep (packet) BVHs, the primary frusta sets
 /// and the soft-shadow sets with a hit.
-struct Prepared {
-    scene: Scene,
+pub(crate) struct Prepared {
+    pub(crate) scene: Scene,
+    pub(crate) light: [[f32; 3]; 3],
     shallow: Bvh2,
     deep: Bvh2,
-    primary: Vec<Frusta>,
-    shadow: Vec<Frusta>,
+    pub(crate) primary: Vec<Frusta>,
+    pub(crate) shadow: Vec<Frusta>,
 }
 
 impl Prepared {
-    fn new(scene_name: &str, res: u32, report: &str) -> AppResult<Prepared> {
+    pub(crate) fn new(
+        scene_name: &str,
+        res: u32,
+        report: &str,
+        with_shadow: bool,
+    ) -> AppResult<Prepared> {
         let mut scene = Scene::load(scene_name).map_err(|e| AppError(e.0))?;
         scene.config.camera.width = res;
         scene.config.camera.height = res;
@@ -168,7 +174,9 @@ impl Prepared {
             .flat_map(|by| (0..res / 16).map(move |bx| (bx, by)))
             .map(|(bx, by)| Frusta::primary(&cam, bx, by))
             .collect();
-        let shadow = {
+        let shadow = if !with_shadow {
+            Vec::new()
+        } else {
             let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
             (0..res / 4)
                 .flat_map(|gy| (0..res / 4).map(move |gx| (4 * gx, 4 * gy)))
@@ -178,6 +186,7 @@ impl Prepared {
         };
         Ok(Prepared {
             scene,
+            light: [c, e1, e2],
             shallow,
             deep,
             primary,
@@ -186,12 +195,17 @@ impl Prepared {
     }
 
     /// The front-faces-only reference (both kernels cull back faces).
-    fn reference(&self) -> Reference<'_> {
+    pub(crate) fn reference(&self) -> Reference<'_> {
         Reference::with_bvh(&self.scene.mesh, &self.shallow).front_faces_only()
     }
 
     /// MFT over `sets` on the shallow BVH.
-    fn frusta(&self, sets: Vec<Frusta>, packets256: bool, shrink: Shrink) -> FrustaRun<'_> {
+    pub(crate) fn frusta(
+        &self,
+        sets: Vec<Frusta>,
+        packets256: bool,
+        shrink: Shrink,
+    ) -> FrustaRun<'_> {
         FrustaRun {
             scene: &self.scene,
             bvh: &self.shallow,
@@ -203,7 +217,7 @@ impl Prepared {
     }
 
     /// 16-ray packets over `sets` on the deep BVH.
-    fn packets(&self, sets: Vec<Frusta>) -> PacketPrimaryRun<'_> {
+    pub(crate) fn packets(&self, sets: Vec<Frusta>) -> PacketPrimaryRun<'_> {
         PacketPrimaryRun {
             scene: &self.scene,
             bvh: &self.deep,
@@ -239,7 +253,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
     let mut ops_total = 0u64;
     let mut bad_total = 0usize;
     for (scene_name, label, paper) in PAPER {
-        let pr = Prepared::new(scene_name, res, name)?;
+        let pr = Prepared::new(scene_name, res, name, true)?;
         let refi = pr.reference();
         let (scene, primary, shadow) = (&pr.scene, &pr.primary, &pr.shadow);
         let frusta = |sets: Vec<Frusta>| pr.frusta(sets, false, Shrink::None);
@@ -439,7 +453,7 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<()> {
     let (batches, per) = if a.quick { (2, 16) } else { (4, 32) };
     let batches = a.tiles.map_or(batches, |t| t as usize);
     let scene_name = "trex";
-    let pr = Prepared::new(scene_name, res, name)?;
+    let pr = Prepared::new(scene_name, res, name, true)?;
     let refi = pr.reference();
     let mut rows = Vec::new();
     let mut notes = Vec::new();

@@ -24,7 +24,7 @@ use std::time::Instant;
 /// `rtsim reproduce` arguments.
 #[derive(Args)]
 pub struct ReproduceArgs {
-    /// Report: drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2 or mft-packet256.
+    /// Report: drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256 or mft-quality.
     pub name: String,
     /// Smaller sample (2 tiles per scene, 1 bounce) for a run of about a minute.
     #[arg(long)]
@@ -145,8 +145,9 @@ pub fn reproduce(a: &ReproduceArgs) -> AppResult<()> {
         "mft-table1" => crate::mft_report::mft_table1(a),
         "mft-packet256" => crate::mft_report::mft_packet256(a),
         "mft-table2" => crate::mft_report::mft_table2(a),
+        "mft-quality" => crate::mft_quality::mft_quality(a),
         n => Err(AppError(format!(
-            "reproduce: unknown report '{n}' (drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256)"
+            "reproduce: unknown report '{n}' (drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256, mft-quality)"
         ))),
     }
 }

@@ -622,3 +622,43 @@ fn reproduce_mft_table2_shrinking_keeps_hits_and_cr_keeps_traversal() {
     assert!(get("ray-aabb", "aabb_tests") > get("no-shrink", "aabb_tests"));
     assert!(get("fs", "tris_accessed") <= get("no-shrink", "tris_accessed"));
 }
+
+#[test]
+fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
+    let dir = std::env::temp_dir().join(format!("rtsim-mftq-{}", std::process::id()));
+    let j = json(&rtsim(&[
+        "reproduce",
+        "mft-quality",
+        "--quick",
+        "--tiles",
+        "1",
+        "--format",
+        "json",
+        "--out",
+        dir.to_str().unwrap(),
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    let get = |method: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["method"] == method && r["metric"] == metric)
+            .collect();
+        assert_eq!(r.len(), 1, "{method} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    assert_eq!(get("mft", "hit_mismatches"), 0.0);
+    assert_eq!(get("reference", "hit_mismatches"), 0.0);
+    // 16 interleaved samples need the 4 x 4 filter to approach 256 samples.
+    let (f, raw) = (get("mft", "psnr"), get("mft-unfiltered", "psnr"));
+    assert!(
+        f > raw + 3.0 && f > 30.0,
+        "filtered {f} dB, unfiltered {raw} dB"
+    );
+    assert!(get("mft", "cycles") < get("reference", "cycles"));
+    for name in ["mft", "mft-unfiltered", "reference", "diff4x"] {
+        let p = dir.join(format!("mft-quality-{name}.png"));
+        assert!(std::fs::read(&p).unwrap().starts_with(b"\x89PNG"), "{name}");
+    }
+    assert!(dir.join("mft-quality.json").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -54,12 +54,12 @@ pub const CORNER_MARGIN: f32 = 1e-3;
 /// The MFT kernel's shallow BVH: SAH with leaves of up to 32 triangles (4
 /// blocks) and a traversal cost of 32 triangle tests. Measured (quick runs,
 /// 256 x 256, this session): with leaves of at most 8 triangles and cost 8
-/// the shadow AABB reduction was 5.8 / 10.4 / 17.3 / 6.3 (T-Rex, Fern,
-/// Saloon, Fairy), with 32 / 32 it is 12.3 / 24.0 / 22.8 / 16.8, at
-/// simulated cycles within 5% except Saloon's primary frusta (+40%). A
-/// node test costs MFT one test for 16 frusta where the SAH assumes one ray,
-/// so a high traversal cost is the bundle's; the paper's 16x-plus AABB
-/// reductions need a tree this shallow.
+/// the shadow AABB reduction over 16-ray packets was 5.5 / 7.3 / 17.1 / 5.0
+/// (T-Rex, Fern, Saloon, Fairy stand-ins), with 32 / 32 it is 10.5 / 15.9 /
+/// 22.4 / 12.9, at simulated cycles within 5% except Saloon's primary frusta
+/// (+40%). A node test costs MFT one test for 16 frusta where the SAH
+/// assumes one ray, so a high traversal cost is the bundle's; the paper's
+/// 16x-plus AABB reductions need a tree this shallow.
 pub const SHALLOW_BVH: crate::bvh::BuildConfig = crate::bvh::BuildConfig {
     bins: 16,
     max_leaf: 32,

@@ -18,13 +18,13 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 /// Per-pixel primary hits: (t, prim) row-major, prim -1 for none.
-struct Hits {
-    t: Vec<f32>,
-    prim: Vec<i32>,
+pub(crate) struct Hits {
+    pub(crate) t: Vec<f32>,
+    pub(crate) prim: Vec<i32>,
 }
 
 /// The per-pixel hits of primary frusta sets' output.
-fn pixel_hits(sets: &[Frusta], out: &[(f32, i32)], w: usize) -> Hits {
+pub(crate) fn pixel_hits(sets: &[Frusta], out: &[(f32, i32)], w: usize) -> Hits {
     let mut h = Hits {
         t: vec![0.0; w * w],
         prim: vec![-1; w * w],
@@ -46,7 +46,7 @@ fn pixel_hits(sets: &[Frusta], out: &[(f32, i32)], w: usize) -> Hits {
 }
 
 /// The shadow frusta sets of the image with set rotation `rot`, origins from `hits`.
-fn shadow_sets(pr: &Prepared, hits: &Hits, w: u32, rot: u32) -> Vec<Frusta> {
+pub(crate) fn shadow_sets(pr: &Prepared, hits: &Hits, w: u32, rot: u32) -> Vec<Frusta> {
     let size = kernels::workload::scene_size(&pr.scene);
     let hit = |x: u32, y: u32| {
         let i = (y * w + x) as usize;
@@ -65,7 +65,7 @@ fn shadow_sets(pr: &Prepared, hits: &Hits, w: u32, rot: u32) -> Vec<Frusta> {
 }
 
 /// Add each ray's "reaches the light" (prim < 0) to its pixel's count.
-fn count_visible(sets: &[Frusta], out: &[(f32, i32)], w: u32, vis: &mut [u32]) {
+pub(crate) fn count_visible(sets: &[Frusta], out: &[(f32, i32)], w: u32, vis: &mut [u32]) {
     for (si, f) in sets.iter().enumerate() {
         for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
             let (x, y) = (f.pixel.0 + n as u32 % 4, f.pixel.1 + n as u32 / 4);
@@ -79,7 +79,7 @@ fn count_visible(sets: &[Frusta], out: &[(f32, i32)], w: u32, vis: &mut [u32]) {
 
 /// The shading setup of the prepared scene's camera and light: exposure so
 /// a surface facing the light at the scene's centre gets 0.8 direct light.
-fn shade_setup(pr: &Prepared, w: u32) -> ShadeSetup {
+pub(crate) fn shade_setup(pr: &Prepared, w: u32) -> ShadeSetup {
     let cam = &pr.scene.config.camera;
     let f = |v: [f64; 3]| v.map(|c| c as f32);
     let (eye, d00) = cam.ray(0.5, 0.5);
@@ -118,7 +118,7 @@ fn shade_setup(pr: &Prepared, w: u32) -> ShadeSetup {
 /// Simulated cycles of shading (and filtering) the whole image on one
 /// core: `bands` systematic bands of 16 rows, each split over the core's
 /// hardware threads, scaled to the image; (cycles, ops simulated).
-fn shade_cycles(
+pub(crate) fn shade_cycles(
     m: &sim::MachineConfig,
     pr: &Prepared,
     su: &ShadeSetup,

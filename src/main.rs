@@ -2,6 +2,7 @@
 //! `kernels` crates.
 
 mod machine_cmd;
+mod mft_light;
 mod mft_quality;
 mod mft_report;
 mod plot;

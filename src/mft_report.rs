@@ -144,7 +144,7 @@ pub(crate) fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::Machi
 pub(crate) struct Prepared {
     pub(crate) scene: Scene,
     pub(crate) light: [[f32; 3]; 3],
-    shallow: Bvh2,
+    pub(crate) shallow: Bvh2,
     deep: Bvh2,
     pub(crate) primary: Vec<Frusta>,
     pub(crate) shadow: Vec<Frusta>,

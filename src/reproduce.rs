@@ -24,7 +24,7 @@ use std::time::Instant;
 /// `rtsim reproduce` arguments.
 #[derive(Args)]
 pub struct ReproduceArgs {
-    /// Report: drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256 or mft-quality.
+    /// Report: drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256, mft-quality or mft-fig6.
     pub name: String,
     /// Smaller sample (2 tiles per scene, 1 bounce) for a run of about a minute.
     #[arg(long)]
@@ -146,8 +146,9 @@ pub fn reproduce(a: &ReproduceArgs) -> AppResult<()> {
         "mft-packet256" => crate::mft_report::mft_packet256(a),
         "mft-table2" => crate::mft_report::mft_table2(a),
         "mft-quality" => crate::mft_quality::mft_quality(a),
+        "mft-fig6" => crate::mft_light::mft_fig6(a),
         n => Err(AppError(format!(
-            "reproduce: unknown report '{n}' (drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256, mft-quality)"
+            "reproduce: unknown report '{n}' (drs-table1, drs-table2, drs-fig5, drs-fig6, mft-table1, mft-table2, mft-packet256, mft-quality, mft-fig6)"
         ))),
     }
 }
@@ -608,7 +609,7 @@ fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
 const DRS_SCENES: [&str; 4] = ["crown", "bentley", "dragon", "sanmiguel"];
 
 /// Where a figure's PNG goes: `--out DIR`, else the current directory.
-fn png_path(a: &ReproduceArgs, name: &str) -> AppResult<PathBuf> {
+pub(crate) fn png_path(a: &ReproduceArgs, name: &str) -> AppResult<PathBuf> {
     let dir = a.out.clone().unwrap_or_else(|| PathBuf::from("."));
     std::fs::create_dir_all(&dir).map_err(|e| AppError(format!("{}: {e}", dir.display())))?;
     Ok(dir.join(format!("{name}.png")))

@@ -662,3 +662,45 @@ fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
     assert!(dir.join("mft-quality.json").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn reproduce_mft_fig6_counts_grow_with_the_light() {
+    let dir = std::env::temp_dir().join(format!("rtsim-fig6-{}", std::process::id()));
+    let j = json(&rtsim(&[
+        "reproduce",
+        "mft-fig6",
+        "--quick",
+        "--tiles",
+        "1",
+        "--format",
+        "json",
+        "--out",
+        dir.to_str().unwrap(),
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    for scene in ["trex", "fern", "saloon"] {
+        let tris: Vec<f64> = rows
+            .iter()
+            .filter(|r| {
+                r["scene"] == scene && r["method"] == "s-frusta" && r["metric"] == "tris_accessed"
+            })
+            .map(|r| r["value"].as_f64().unwrap())
+            .collect();
+        assert_eq!(tris.len(), 5, "{scene}");
+        assert!(tris.windows(2).all(|w| w[1] > w[0]), "{scene}: {tris:?}");
+        // The paper's Figure 6: linear in the light's size.
+        for metric in ["tris_accessed_linear_r2", "isec_tests_linear_r2"] {
+            let r2 = rows
+                .iter()
+                .find(|r| r["scene"] == scene && r["metric"] == metric)
+                .unwrap()["value"]
+                .as_f64()
+                .unwrap();
+            assert!(r2 > 0.9, "{scene} {metric} {r2}");
+        }
+    }
+    assert!(std::fs::read(dir.join("mft-fig6.png"))
+        .unwrap()
+        .starts_with(b"\x89PNG"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

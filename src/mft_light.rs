@@ -5,14 +5,13 @@
 //! measured rather than assumed.
 
 use crate::mft_quality::{pixel_hits, shadow_sets};
-use crate::mft_report::{lrb_machine, sampled_cycles, Prepared};
-use crate::report::{Report, Row};
+use crate::mft_report::{lrb_machine, sampled_cycles, Frame, Prepared};
+use crate::report::Row;
 use crate::reproduce::{emit, png_path, ReproduceArgs};
 use crate::AppResult;
 use kernels::harness::F32Test;
 use kernels::mft::{mismatches_of, Frusta, Shrink};
 use kernels::scene::Light;
-use std::collections::BTreeMap;
 use std::time::Instant;
 
 /// Light sizes, as multiples of each scene's own light's edges.
@@ -153,28 +152,17 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
         "shadow rays only, {res}x{res}, 16 samples per pixel, each scene's quad light scaled about its centre; counts exact (hits checked against the f64 reference on {}), cycles from {batches} seeded systematic batches of {per} sets per point; the paper's Figure 6 gives curves, not numbers: both counts grow linearly with the light's size (the r2 rows measure how linearly here)",
         if check_every == 1 { "every ray".to_string() } else { format!("every {check_every}th set") }
     ));
-    let mut sample = BTreeMap::new();
-    sample.insert(
-        "resolution".into(),
-        serde_json::json!(format!("{res}x{res}")),
-    );
-    sample.insert("seed".into(), serde_json::json!(a.seed));
-    let rep = Report {
-        report: name.into(),
-        machine: Some(m.name.clone()),
-        isa: Some(fl.name().into()),
-        fidelity: "full".into(),
-        sample: Some(sample),
-        input: Some(format!(
+    let rep = Frame::new(name, &m, res, a.seed, start).report(
+        &[],
+        format!(
             "S-Frusta and S-Packet on the T-Rex, Fern, Saloon (the paper's Figure 6) and Fairy Forest stand-ins at {res}x{res}, light edges x {}, one {} core",
             SCALES.map(|x| x.to_string()).join(", "),
             m.name
-        )),
-        ops_simulated: ops_total,
-        host_seconds: start.elapsed().as_secs_f64(),
+        ),
+        ops_total,
         rows,
         notes,
-    };
+    );
     emit(a, name, &rep, bad_total as f64)
 }
 

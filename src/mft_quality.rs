@@ -5,15 +5,14 @@
 //! discontinuity filter, against a reference with all 256 samples per pixel
 //! traced as 16-ray packets; RMSE and PSNR, PNGs, host and simulated time.
 
-use crate::mft_report::{lrb_machine, sampled_cycles, Prepared};
-use crate::report::{Report, Row};
+use crate::mft_report::{lrb_machine, sampled_cycles, Frame, Prepared};
+use crate::report::Row;
 use crate::reproduce::{emit, ReproduceArgs};
 use crate::{AppError, AppResult};
 use kernels::harness::F32Test;
 use kernels::mft::{mismatches_of, Frusta, Shrink};
 use kernels::shade::{ShadeRun, ShadeSetup};
 use kernels::workload::shadow_group_with;
-use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -402,26 +401,15 @@ pub fn mft_quality(a: &ReproduceArgs) -> AppResult<()> {
         m.name, m.core.threads
     ));
     notes.push("the paper reports the quality only as images (Figure 5: 16 samples plus filter 'almost the same quality' as 256) and the filter at < 20M cycles on one core; it gives no RMSE or PSNR".into());
-    let mut sample = BTreeMap::new();
-    sample.insert(
-        "resolution".into(),
-        serde_json::json!(format!("{res}x{res}")),
-    );
-    sample.insert("seed".into(), serde_json::json!(a.seed));
-    let rep = Report {
-        report: name.into(),
-        machine: Some(m.name.clone()),
-        isa: Some(fl.name().into()),
-        fidelity: "full".into(),
-        sample: Some(sample),
-        input: Some(format!(
+    let rep = Frame::new(name, &m, res, a.seed, start).report(
+        &[],
+        format!(
             "MFT soft shadows (16 samples, filtered) against 256 samples per pixel on the T-Rex stand-in at {res}x{res}, one {} core at {} GHz",
             m.name, m.clock_ghz
-        )),
-        ops_simulated: ops_total,
-        host_seconds: start.elapsed().as_secs_f64(),
+        ),
+        ops_total,
         rows,
         notes,
-    };
+    );
     emit(a, name, &rep, bad_total as f64)
 }

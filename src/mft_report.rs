@@ -138,6 +138,67 @@ pub(crate) fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::Machi
     )))
 }
 
+/// The frame every MFT report shares: name, machine, resolution, seed and
+/// the start time; [`Frame::report`] fills in the rest.
+pub(crate) struct Frame<'a> {
+    name: &'a str,
+    m: &'a sim::MachineConfig,
+    res: u32,
+    seed: u64,
+    start: Instant,
+}
+
+impl<'a> Frame<'a> {
+    pub(crate) fn new(
+        name: &'a str,
+        m: &'a sim::MachineConfig,
+        res: u32,
+        seed: u64,
+        start: Instant,
+    ) -> Frame<'a> {
+        Frame {
+            name,
+            m,
+            res,
+            seed,
+            start,
+        }
+    }
+
+    /// The report: `sample` adds to the resolution and seed.
+    pub(crate) fn report(
+        &self,
+        sample: &[(&str, String)],
+        input: String,
+        ops_simulated: u64,
+        rows: Vec<Row>,
+        notes: Vec<String>,
+    ) -> Report {
+        let mut s = BTreeMap::new();
+        let res = self.res;
+        s.insert(
+            "resolution".into(),
+            serde_json::json!(format!("{res}x{res}")),
+        );
+        for (k, v) in sample {
+            s.insert((*k).to_string(), serde_json::json!(v));
+        }
+        s.insert("seed".into(), serde_json::json!(self.seed));
+        Report {
+            report: self.name.into(),
+            machine: Some(self.m.name.clone()),
+            isa: Some(self.m.flavour().name().into()),
+            fidelity: "full".into(),
+            sample: Some(s),
+            input: Some(input),
+            ops_simulated,
+            host_seconds: self.start.elapsed().as_secs_f64(),
+            rows,
+            notes,
+        }
+    }
+}
+
 /// One scene made ready for the MFT reports: at `res` x `res`, its quad
 /// light, the shallow (MFT) and deep (packet) BVHs, the primary frusta sets
 /// and the soft-shadow sets with a hit.
@@ -389,7 +450,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
             // frusta relative to packets, and cycles per triangle accessed.
             let q = |x: u64, y: u64| x as f64 / y.max(1) as f64;
             let (sp, sf) = (stats[2], stats[3]);
-                        let vs = |mi: usize| {
+            let vs = |mi: usize| {
                 let (st, pp) = (stats[mi], paper[mi]);
                 format!(
                     "tris {:.2}x, AABB {:.2}x, isec {:.2}x, cycles {:.2}x",
@@ -447,34 +508,24 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
     if p256 {
         notes.push("the paper (section 5.2): 256-ray packets need 3-4% fewer AABB tests than MFT on average but reach at most 50% of its speed; here the baseline rows are 256-ray packets (method packet256, key rays) on the same shallow BVH with MFT's leaves, and the reductions are packet256 over frusta; an AABB test here is one 16-wide test of one packet against one child box, so packets count up to 16 tests where MFT counts one (the paper's 3-4% comparison must count differently; it does not say how)".into());
     }
-    let mut sample = BTreeMap::new();
-    sample.insert(
-        "resolution".into(),
-        serde_json::json!(format!("{res}x{res}")),
-    );
-    sample.insert("counts".into(), serde_json::json!("exact over the image"));
-    sample.insert(
-        "cycles".into(),
-        serde_json::json!(format!(
-            "{batches} seeded batches of {per_p} primary / {per_s} shadow sets per method, scaled to the image"
-        )),
-    );
-    sample.insert("seed".into(), serde_json::json!(a.seed));
-    let rep = Report {
-        report: name.into(),
-        machine: Some(m.name.clone()),
-        isa: Some(fl.name().into()),
-        fidelity: "full".into(),
-        sample: Some(sample),
-        input: Some(format!(
+    let rep = Frame::new(name, &m, res, a.seed, start).report(
+        &[
+            ("counts", "exact over the image".into()),
+            (
+                "cycles",
+                format!(
+                    "{batches} seeded systematic batches of {per_p} primary / {per_s} shadow sets per method, scaled to the image"
+                ),
+            ),
+        ],
+        format!(
             "P-Packet, P-Frusta, S-Packet, S-Frusta on the T-Rex, Fern, Saloon, Fairy Forest stand-ins at {res}x{res}, one {} core at {} GHz with its hardware threads",
             m.name, m.clock_ghz
-        )),
-        ops_simulated: ops_total,
-        host_seconds: start.elapsed().as_secs_f64(),
+        ),
+        ops_total,
         rows,
         notes,
-    };
+    );
     emit(a, name, &rep, bad_total as f64)
 }
 
@@ -640,33 +691,23 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<()> {
         ));
     }
     notes.push("ray-aabb: each non-terminated frustum's live rays against the leaf's box before the leaf's triangles (per-ray reciprocals computed there), counted in aabb_tests and addl_tests; cr: corner rays recomputed through the live samples' 2D bounds on the light after a leaf in which rays of the frustum became occluded (addl_tests = recomputations); fs: cr plus the direction interval and reciprocals shrunk to the live rays. The paper does not give cycles per variant, only that cr paid off (at most 10% faster) and ray-aabb and fs did not".into());
-    let mut sample = BTreeMap::new();
-    sample.insert(
-        "resolution".into(),
-        serde_json::json!(format!("{res}x{res}")),
-    );
-    sample.insert("counts".into(), serde_json::json!("exact over the image"));
-    sample.insert(
-        "cycles".into(),
-        serde_json::json!(format!(
-            "{batches} seeded systematic batches of {per} shadow sets per variant, scaled to the image"
-        )),
-    );
-    sample.insert("seed".into(), serde_json::json!(a.seed));
-    let rep = Report {
-        report: name.into(),
-        machine: Some(m.name.clone()),
-        isa: Some(fl.name().into()),
-        fidelity: "full".into(),
-        sample: Some(sample),
-        input: Some(format!(
+    let rep = Frame::new(name, &m, res, a.seed, start).report(
+        &[
+            ("counts", "exact over the image".into()),
+            (
+                "cycles",
+                format!(
+                    "{batches} seeded systematic batches of {per} shadow sets per variant, scaled to the image"
+                ),
+            ),
+        ],
+        format!(
             "No shrink, Ray-AABB, CR, FS on the T-Rex stand-in's soft-shadow frusta at {res}x{res}, one {} core at {} GHz with its hardware threads",
             m.name, m.clock_ghz
-        )),
-        ops_simulated: ops_total,
-        host_seconds: start.elapsed().as_secs_f64(),
+        ),
+        ops_total,
         rows,
         notes,
-    };
+    );
     emit(a, name, &rep, bad_total as f64)
 }

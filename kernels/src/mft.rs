@@ -1041,10 +1041,7 @@ fn leaf<M: Machine>(
                     // Rays not yet occluded, t below the limit.
                     let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
                     let below = m.cmp(Cmp::Lt, t, lim);
-                    let ob = bc(m, &b.occl, 4 * n);
-                    let ob = m.bits_to_i(ob);
-                    let sel = m.iop(IOp::And, ob, lane_bits);
-                    let live = m.icmp(Cmp::Eq, sel, zero_i);
+                    let live = live_rays(m, b, n, lane_bits, zero_i);
                     hit = m.kand(hit, below);
                     hit = m.kand(hit, live);
                     let any = m.any(hit);

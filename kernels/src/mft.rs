@@ -944,24 +944,26 @@ fn leaf<M: Machine>(
             if !m.branch(site::FRONT, anyf) {
                 continue;
             }
-            // Edge normals; inside a front face: d . e <= 0 for all three.
-            let mut edges = [cross(m, a, bv), cross(m, bv, cv), cross(m, cv, a)];
-            if !cull_back {
-                // Back faces seen from the origin: flip the edge normals.
-                let flip = m.splat(-1.0);
-                for e in &mut edges {
-                    for c in e.iter_mut() {
+            // Edge normals, one edge at a time; inside a front face: d . e
+            // <= 0 for all three. Corner-ray culling after each edge, with
+            // the paper's early exit: a frustum whose 4 corner rays are all
+            // outside one edge misses the triangle, and once no frustum is
+            // left the other edges are not computed.
+            let mut edges = Vec::with_capacity(3);
+            let mut culled = false;
+            for (p, q) in [(a, bv), (bv, cv), (cv, a)] {
+                let mut e = cross(m, p, q);
+                if !cull_back {
+                    // Back faces seen from the origin: flip the edge normal.
+                    let flip = m.splat(-1.0);
+                    for c in &mut e {
                         let f = m.mul(*c, flip);
                         *c = m.select(back, f, *c);
                     }
                 }
-            }
-            // Corner-ray culling: a frustum whose 4 corner rays are all outside
-            // one edge misses the triangle.
-            for e in &edges {
                 let mut out = None;
                 for c in corner {
-                    let d = dot(m, *c, *e);
+                    let d = dot(m, *c, e);
                     let o = m.cmp(Cmp::Gt, d, zero_v);
                     out = Some(match out {
                         None => o,
@@ -970,9 +972,14 @@ fn leaf<M: Machine>(
                 }
                 let keep = m.knot(out.expect("4 corners"));
                 tmask = m.kand(tmask, keep);
+                edges.push(e);
+                let anyc = m.any(tmask);
+                if !m.branch(site::CORNER, anyc) {
+                    culled = true;
+                    break;
+                }
             }
-            let anyc = m.any(tmask);
-            if !m.branch(site::CORNER, anyc) {
+            if culled {
                 continue;
             }
             b.stats.tris_after_culling += 1;

@@ -368,9 +368,9 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
         crate::mft_quality::count_visible(shadow, &frusta_out[1], res, &mut free);
         let vis: Vec<f32> = free.iter().map(|&c| c as f32 / 16.0).collect();
         let bands = if a.quick { 2 } else { 4 };
-        let (shade_p, o1) =
+        let (shade_p, o1, _) =
             crate::mft_quality::shade_cycles(&m, &pr, &su, &hits, &lit, false, bands)?;
-        let (shade_s, o2) =
+        let (shade_s, o2, _) =
             crate::mft_quality::shade_cycles(&m, &pr, &su, &hits, &vis, true, bands)?;
         ops_total += o1 + o2;
         // The paper's soft-shadow rows include the primary rays.

@@ -110,13 +110,19 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
             ratio.iter().map(|p| format!("{:.2}", p.1)).collect::<Vec<_>>().join(" / "),
             SCALES.map(|x| x.to_string()).join(" / ")
         ));
+        // Plotted relative to the scene's own light (scale 1), so the four
+        // scenes' very different totals share one axis.
+        let rel = |pts: &[(f64, f64)]| {
+            let one = pts.iter().find(|p| p.0 == 1.0).map_or(1.0, |p| p.1.max(1.0));
+            pts.iter().map(|p| (p.0, p.1 / one)).collect::<Vec<_>>()
+        };
         s_tris.push(crate::plot::Series {
             label: scene_name.into(),
-            points: tris,
+            points: rel(&tris),
         });
         s_isec.push(crate::plot::Series {
             label: scene_name.into(),
-            points: isec,
+            points: rel(&isec),
         });
         s_ratio.push(crate::plot::Series {
             label: scene_name.into(),
@@ -130,13 +136,13 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
             crate::plot::Panel {
                 title: "MFT soft shadows: triangles accessed",
                 x: "light size (x the scene's light)",
-                y: "triangles accessed",
+                y: "triangles accessed (x at the scene's light)",
                 series: s_tris,
             },
             crate::plot::Panel {
                 title: "MFT soft shadows: 16-wide intersection tests",
                 x: "light size (x the scene's light)",
-                y: "intersection tests",
+                y: "intersection tests (x at the scene's light)",
                 series: s_isec,
             },
             crate::plot::Panel {

@@ -113,7 +113,10 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
         // Plotted relative to the scene's own light (scale 1), so the four
         // scenes' very different totals share one axis.
         let rel = |pts: &[(f64, f64)]| {
-            let one = pts.iter().find(|p| p.0 == 1.0).map_or(1.0, |p| p.1.max(1.0));
+            let one = pts
+                .iter()
+                .find(|p| p.0 == 1.0)
+                .map_or(1.0, |p| p.1.max(1.0));
             pts.iter().map(|p| (p.0, p.1 / one)).collect::<Vec<_>>()
         };
         s_tris.push(crate::plot::Series {

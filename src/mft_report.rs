@@ -308,7 +308,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
     let mut notes = Vec::new();
     let fl = m.flavour();
     let res: u32 = if a.quick { 256 } else { 1024 };
-    let (batches, per_p, per_s) = if a.quick { (2, 4, 16) } else { (4, 8, 32) };
+    let (batches, per_p, per_s) = if a.quick { (2, 4, 16) } else { (4, 32, 32) };
     let batches = a.tiles.map_or(batches, |t| t as usize);
     let mut rows = Vec::new();
     let mut ops_total = 0u64;

@@ -691,28 +691,21 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
                 let hl = to_mask(m, &mut b.scratch, lbits);
                 let hr = to_mask(m, &mut b.scratch, rbits);
                 let (l, r, which) = children(m, &s.nodes, nb, lbits, rbits);
-                match which {
-                    0 => {
-                        missed = true;
-                        break;
-                    }
-                    3 => {
-                        // Both: left first (no per-frustum entry distances here).
-                        m.s_store(&mut b.stack, At::idx(sp, 8, 0), 4, r);
-                        m.s_store(&mut b.stack, At::idx(sp, 8, 4), 4, rbits);
-                        sp = m.s_addi(sp, 1);
-                        node = l;
-                        mask = hl;
-                    }
-                    1 => {
-                        node = l;
-                        mask = hl;
-                    }
-                    _ => {
-                        node = r;
-                        mask = hr;
-                    }
-                }
+                // Both: left first (no per-frustum entry distances here).
+                let next = descend(
+                    m,
+                    &mut b.stack,
+                    &mut sp,
+                    which,
+                    (l, hl, lbits),
+                    (r, hr, rbits),
+                    |_| true,
+                );
+                let Some((n, k)) = next else {
+                    missed = true;
+                    break;
+                };
+                (node, mask) = (n, k);
                 continue;
             }
             let (nl, fl_, mut hl, pl) = test(m, 0);
@@ -743,37 +736,28 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             let lb = m.movemask(hl);
             let rb = m.movemask(hr);
             let (l, r, which) = children(m, &s.nodes, nb, lb, rb);
-            match which {
-                0 => {
-                    missed = true;
-                    break;
-                }
-                3 => {
-                    // Both: the child any frustum enters first goes first.
-                    let lt = m.cmp(Cmp::Lt, nl, nr);
-                    let both = m.kand(hl, hr);
-                    let lt = m.kand(lt, both);
-                    let left_first = m.any(lt);
-                    let (first, fmask, second, sbits) = if m.branch(site::ORDER, left_first) {
-                        (l, hl, r, rb)
-                    } else {
-                        (r, hr, l, lb)
-                    };
-                    m.s_store(&mut b.stack, At::idx(sp, 8, 0), 4, second);
-                    m.s_store(&mut b.stack, At::idx(sp, 8, 4), 4, sbits);
-                    sp = m.s_addi(sp, 1);
-                    node = first;
-                    mask = fmask;
-                }
-                1 => {
-                    node = l;
-                    mask = hl;
-                }
-                _ => {
-                    node = r;
-                    mask = hr;
-                }
-            }
+            // Both: the child any frustum enters first goes first.
+            let left_first = |m: &mut M| {
+                let lt = m.cmp(Cmp::Lt, nl, nr);
+                let both = m.kand(hl, hr);
+                let lt = m.kand(lt, both);
+                let any = m.any(lt);
+                m.branch(site::ORDER, any)
+            };
+            let next = descend(
+                m,
+                &mut b.stack,
+                &mut sp,
+                which,
+                (l, hl, lb),
+                (r, hr, rb),
+                left_first,
+            );
+            let Some((n, k)) = next else {
+                missed = true;
+                break;
+            };
+            (node, mask) = (n, k);
         }
         if missed {
             continue;
@@ -860,6 +844,37 @@ fn children<M: Machine>(
     let v = which.get();
     m.branch(site::CHILDREN, which);
     (l, r, v)
+}
+
+/// The step down from a BVH2 node to the children the frusta (or packets)
+/// reach, `which` from [`children`]: one child becomes the next node; of
+/// two, the one `left_first` picks goes next and the other (its node and
+/// frustum bits) onto the stack; `None` when neither is reached.
+fn descend<M: Machine>(
+    m: &mut M,
+    stack: &mut Buf,
+    sp: &mut M::S,
+    which: i64,
+    (l, hl, lbits): (M::S, M::K, M::S),
+    (r, hr, rbits): (M::S, M::K, M::S),
+    left_first: impl FnOnce(&mut M) -> bool,
+) -> Option<(M::S, M::K)> {
+    match which {
+        0 => None,
+        3 => {
+            let (first, fmask, second, sbits) = if left_first(m) {
+                (l, hl, r, rbits)
+            } else {
+                (r, hr, l, lbits)
+            };
+            m.s_store(stack, At::idx(*sp, 8, 0), 4, second);
+            m.s_store(stack, At::idx(*sp, 8, 4), 4, sbits);
+            *sp = m.s_addi(*sp, 1);
+            Some((first, fmask))
+        }
+        1 => Some((l, hl)),
+        _ => Some((r, hr)),
+    }
 }
 
 /// Every triangle of leaf `node` against the frusta in `mask`.

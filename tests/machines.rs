@@ -519,15 +519,7 @@ fn reproduce_drs_figures_write_their_table_and_plot() {
 
 #[test]
 fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
-    let j = json(&rtsim(&[
-        "reproduce",
-        "mft-table1",
-        "--quick",
-        "--tiles",
-        "1",
-        "--format",
-        "json",
-    ]));
+    let j = quick_report("mft-table1", None);
     assert_eq!(j["machine"], "larrabee", "defaults to the 16-lane machine");
     let rows = j["rows"].as_array().unwrap();
     let get = |scene: &str, method: &str, metric: &str| -> f64 {
@@ -561,15 +553,7 @@ fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
 
 #[test]
 fn reproduce_mft_packet256_checks_hits_and_counts_both_methods() {
-    let j = json(&rtsim(&[
-        "reproduce",
-        "mft-packet256",
-        "--quick",
-        "--tiles",
-        "1",
-        "--format",
-        "json",
-    ]));
+    let j = quick_report("mft-packet256", None);
     let rows = j["rows"].as_array().unwrap();
     for method in ["packet256", "p-frusta", "s-frusta"] {
         let n = rows
@@ -587,15 +571,7 @@ fn reproduce_mft_packet256_checks_hits_and_counts_both_methods() {
 
 #[test]
 fn reproduce_mft_table2_shrinking_keeps_hits_and_cr_keeps_traversal() {
-    let j = json(&rtsim(&[
-        "reproduce",
-        "mft-table2",
-        "--quick",
-        "--tiles",
-        "1",
-        "--format",
-        "json",
-    ]));
+    let j = quick_report("mft-table2", None);
     assert_eq!(j["machine"], "larrabee");
     let rows = j["rows"].as_array().unwrap();
     let get = |shrink: &str, metric: &str| -> f64 {
@@ -626,17 +602,7 @@ fn reproduce_mft_table2_shrinking_keeps_hits_and_cr_keeps_traversal() {
 #[test]
 fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
     let dir = std::env::temp_dir().join(format!("rtsim-mftq-{}", std::process::id()));
-    let j = json(&rtsim(&[
-        "reproduce",
-        "mft-quality",
-        "--quick",
-        "--tiles",
-        "1",
-        "--format",
-        "json",
-        "--out",
-        dir.to_str().unwrap(),
-    ]));
+    let j = quick_report("mft-quality", Some(&dir));
     let rows = j["rows"].as_array().unwrap();
     let get = |method: &str, metric: &str| -> f64 {
         let r: Vec<&serde_json::Value> = rows
@@ -666,17 +632,7 @@ fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
 #[test]
 fn reproduce_mft_fig6_counts_grow_with_the_light() {
     let dir = std::env::temp_dir().join(format!("rtsim-fig6-{}", std::process::id()));
-    let j = json(&rtsim(&[
-        "reproduce",
-        "mft-fig6",
-        "--quick",
-        "--tiles",
-        "1",
-        "--format",
-        "json",
-        "--out",
-        dir.to_str().unwrap(),
-    ]));
+    let j = quick_report("mft-fig6", Some(&dir));
     let rows = j["rows"].as_array().unwrap();
     for scene in ["trex", "fern", "saloon"] {
         let tris: Vec<f64> = rows
@@ -703,4 +659,22 @@ fn reproduce_mft_fig6_counts_grow_with_the_light() {
         .unwrap()
         .starts_with(b"\x89PNG"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `rtsim reproduce NAME --quick --tiles 1 --format json [--out DIR]`, parsed.
+fn quick_report(name: &str, dir: Option<&std::path::Path>) -> serde_json::Value {
+    let d = dir.map(|d| d.to_str().unwrap().to_string());
+    let mut args = vec![
+        "reproduce",
+        name,
+        "--quick",
+        "--tiles",
+        "1",
+        "--format",
+        "json",
+    ];
+    if let Some(d) = &d {
+        args.extend(["--out", d.as_str()]);
+    }
+    json(&rtsim(&args))
 }

@@ -817,10 +817,22 @@ fn bits_mask<M: Machine>(
     lane_bits: M::I,
     zero_i: M::I,
 ) -> M::K {
+    lane_bits_where(m, buf, at, (lane_bits, zero_i), Cmp::Ne)
+}
+
+/// Lanes whose bit in the u32 at `at` of `buf` compares with zero by `c`
+/// (`Ne`: set, `Eq`: clear).
+fn lane_bits_where<M: Machine>(
+    m: &mut M,
+    buf: &Buf,
+    at: At<M::S>,
+    (lane_bits, zero_i): (M::I, M::I),
+    c: Cmp,
+) -> M::K {
     let x = m.load_bcast(buf, at);
     let x = m.bits_to_i(x);
     let sel = m.iop(IOp::And, x, lane_bits);
-    m.icmp(Cmp::Ne, sel, zero_i)
+    m.icmp(c, sel, zero_i)
 }
 
 /// A BVH2 node's children (at byte `nb` of `nodes`) and which of them the
@@ -1137,10 +1149,7 @@ fn leaf<M: Machine>(
 
 /// The live rays of shadow frustum `n`: lanes whose occlusion bit is clear.
 fn live_rays<M: Machine>(m: &mut M, b: &MftBufs, n: usize, lane_bits: M::I, zero_i: M::I) -> M::K {
-    let ob = m.load_bcast(&b.occl, At::off(4 * n));
-    let ob = m.bits_to_i(ob);
-    let sel = m.iop(IOp::And, ob, lane_bits);
-    m.icmp(Cmp::Eq, sel, zero_i)
+    lane_bits_where(m, &b.occl, At::off(4 * n), (lane_bits, zero_i), Cmp::Eq)
 }
 
 /// Ray-AABB (Table 2): the live rays of every non-terminated frustum in

@@ -6,7 +6,7 @@
 //! Run: `cargo bench --bench sim_speed`. Results: `benches/RESULTS.md`.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
-use kernels::boxtest::BoxStream;
+use rt::boxtest::BoxStream;
 use sim::{simulate, Fidelity, MachineConfig, SimOptions};
 
 fn bench(c: &mut Criterion) {

@@ -1,102 +1,28 @@
-//! `rtsim`: the command-line app. Thin glue over the `isa`, `sim` and
-//! `kernels` crates.
+//! `rtsim`: the command-line app. Clap and dispatch only: every command is a
+//! call into `repro` or a paper's report crate, and the help texts that list
+//! reports and kernels are built from their registries.
 
-mod machine_cmd;
-mod mft_light;
-mod mft_quality;
-mod mft_report;
-mod plot;
-mod png;
-mod report;
-mod reproduce;
-mod scene_cmd;
+mod cli;
 mod trace_cmd;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches};
+use cli::{Cli, Cmd, ListWhat};
 use isa::FlavourId;
-use report::Format;
+use repro::report::{Format, Report, Row};
+use repro::{AppError, AppResult, ReportDef};
 use std::process::ExitCode;
 
-/// A user-facing error: printed as `rtsim: error: ...`, exit code 2.
-#[derive(Debug)]
-pub struct AppError(pub String);
-
-impl<T: std::fmt::Display> From<T> for AppError {
-    fn from(e: T) -> Self {
-        AppError(e.to_string())
-    }
-}
-
-/// Result of a command.
-pub type AppResult<T> = Result<T, AppError>;
-
-#[derive(Parser)]
-#[command(
-    name = "rtsim",
-    version,
-    about = "Cycle-level SIMD architecture simulator and the ray-tracing kernels that run on it"
-)]
-struct Cli {
-    #[command(subcommand)]
-    cmd: Cmd,
-}
-
-#[derive(Subcommand)]
-enum Cmd {
-    /// Record the default workload (a 4096-ray stream vs one BVH4 node's 4
-    /// boxes, the DRS inner test) on an ISA, check every ray against the
-    /// scalar reference, and report what the op stream holds.
-    Run(trace_cmd::RunArgs),
-    /// Compute a paper's table on the models (drs-table2).
-    Reproduce(reproduce::ReproduceArgs),
-    /// Record, inspect and convert op traces.
-    #[command(subcommand)]
-    Trace(trace_cmd::TraceCmd),
-    /// Time a recorded or hand-written trace on a machine.
-    Sim(machine_cmd::SimArgs),
-    /// Run the microkernels through a machine model next to what its config implies.
-    Calibrate(machine_cmd::CalibrateArgs),
-    /// Time one workload in every fidelity mode: host time and error against full.
-    Fidelity(machine_cmd::FidelityArgs),
-    /// Render primary hits of a scene with the reference intersector (PNG).
-    Render(scene_cmd::RenderArgs),
-    /// List what is built in.
-    List {
-        /// What to list.
-        #[arg(value_enum)]
-        what: ListWhat,
-        /// Output format.
-        #[arg(long, value_enum, default_value = "text")]
-        format: Format,
-    },
-}
-
-#[derive(Clone, Copy, clap::ValueEnum)]
-enum ListWhat {
-    /// Calibration microkernels.
-    Micro,
-    /// ISA flavours.
-    Isa,
-    /// Op classes.
-    Classes,
-    /// Machine configs.
-    Machines,
-    /// Scenes, with triangle counts, BVH build times and SAH costs.
-    Scenes,
-}
-
-/// Parse an ISA flavour name for clap.
-pub fn parse_isa(s: &str) -> Result<FlavourId, String> {
-    FlavourId::from_name(s).ok_or_else(|| {
-        let names: Vec<&str> = FlavourId::ALL.iter().map(|f| f.name()).collect();
-        format!("unknown ISA '{s}' (one of: {})", names.join(", "))
-    })
+/// Every paper's reports, in the order `rtsim reproduce --help` lists them.
+fn reports() -> Vec<&'static ReportDef> {
+    drs_report::REPORTS
+        .iter()
+        .chain(mft_report::REPORTS.iter())
+        .collect()
 }
 
 fn list(what: ListWhat, format: Format) -> AppResult<()> {
-    use report::{Report, Row};
     let rows: Vec<Row> = match what {
-        ListWhat::Micro => kernels::micro::list()
+        ListWhat::Micro => micro::list()
             .into_iter()
             .map(|m| {
                 Row::new("available", 1.0)
@@ -117,20 +43,11 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
                     .key("vector", if c.is_vector() { "yes" } else { "no" })
             })
             .collect(),
-        ListWhat::Machines => machine_cmd::machine_rows(),
-        ListWhat::Scenes => return scene_cmd::list_scenes(format),
+        ListWhat::Machines => repro::machine::machine_rows(),
+        ListWhat::Scenes => return repro::scenes::list_scenes(format),
     };
     let rep = Report {
-        report: format!(
-            "list-{}",
-            match what {
-                ListWhat::Micro => "micro",
-                ListWhat::Isa => "isa",
-                ListWhat::Classes => "classes",
-                ListWhat::Machines => "machines",
-                ListWhat::Scenes => "scenes",
-            }
-        ),
+        report: format!("list-{}", what.name()),
         machine: None,
         isa: None,
         fidelity: "none".into(),
@@ -145,19 +62,61 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
     Ok(())
 }
 
-fn main() -> ExitCode {
-    let cli = Cli::parse();
-    let r = match cli.cmd {
-        Cmd::Run(a) => trace_cmd::run(&a),
-        Cmd::Reproduce(a) => reproduce::reproduce(&a),
-        Cmd::Trace(t) => trace_cmd::trace(t),
-        Cmd::Sim(a) => machine_cmd::sim_cmd(&a),
-        Cmd::Calibrate(a) => machine_cmd::calibrate_cmd(&a),
-        Cmd::Fidelity(a) => machine_cmd::fidelity_cmd(&a),
-        Cmd::Render(a) => scene_cmd::render(&a),
-        Cmd::List { what, format } => list(what, format),
+fn reproduce(a: cli::ReproduceCli) -> AppResult<()> {
+    let all = reports();
+    let def = repro::options::find(&all, &a.name)?;
+    let args = def.resolve(a.given())?;
+    (def.run)(&args)
+}
+
+fn run(a: cli::RunCli) -> AppResult<()> {
+    let args = a.into_args();
+    if args.kernel == "boxtest" {
+        return repro::boxrun::run_boxtest(&args);
+    }
+    let kernels = drs_kernels::methods::Kernel::ALL;
+    match kernels.iter().find(|k| k.name() == args.kernel) {
+        Some(&k) => drs_report::run::run_traversal(&args, k),
+        None => Err(AppError(format!(
+            "--kernel: unknown kernel '{}' ({})",
+            args.kernel,
+            cli::kernel_names().join(", ")
+        ))),
+    }
+}
+
+fn dispatch(cmd: Cmd) -> AppResult<()> {
+    let show = |r: Report, f: Format| -> AppResult<()> {
+        print!("{}", r.render(f));
+        Ok(())
     };
-    match r {
+    match cmd {
+        Cmd::Run(a) => run(a),
+        Cmd::Reproduce(a) => reproduce(a),
+        Cmd::Trace(t) => trace_cmd::trace(t),
+        Cmd::Sim(a) => {
+            let m = a.machine.load()?;
+            let r = repro::machine::sim_report(&m, &a.trace, a.iterations, a.fidelity)?;
+            show(r, a.format)
+        }
+        Cmd::Calibrate(a) => {
+            let m = a.machine.load()?;
+            show(repro::machine::calibrate_report(&m)?, a.format)
+        }
+        Cmd::Fidelity(a) => {
+            let m = a.machine.load()?;
+            let r = repro::machine::fidelity_report(&m, a.trace.as_deref(), a.rays)?;
+            show(r, a.format)
+        }
+        Cmd::Render(a) => repro::scenes::render(&a.into_args()),
+        Cmd::List { what, format } => list(what, format),
+    }
+}
+
+fn main() -> ExitCode {
+    let matches = cli::with_registries(Cli::command(), &reports()).get_matches();
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
+    match dispatch(cli.cmd) {
         Ok(()) => ExitCode::SUCCESS,
         Err(AppError(msg)) => {
             eprintln!("rtsim: error: {msg}");

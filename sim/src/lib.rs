@@ -8,6 +8,8 @@
 //! penalty estimate), `full` (the out-of-order or in-order core model with the
 //! memory system). `rtsim fidelity` measures each faster mode against `full`.
 
+#![warn(missing_docs)]
+
 pub mod config;
 pub mod inorder;
 pub mod memory;

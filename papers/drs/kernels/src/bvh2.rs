@@ -1,0 +1,259 @@
+//! Dynamic ray stream traversal over a BVH2 (Barringer and Akenine-Moller
+//! 2014, Appendix A), closest hit:
+//!
+//! - one ray stream stack; items reference ranges of 3 pre-allocated ray
+//!   pointer lists of 16-bit indices (the BVH4 kernel's [`StreamBufs`], of
+//!   which 3 lists are used), appended in place, reclaimed by counter;
+//! - items in the order left-right-left: list 0 holds rays that hit the left
+//!   child nearer (or only the left), list 1 every ray that hit the right
+//!   child, list 2 rays that hit the left child farther than the right;
+//! - no direction binning (the paper: it did not pay off for BVH2): the near
+//!   and far planes are chosen per ray in the core loop by a blend on the
+//!   direction's sign, from the node's rows `[min_l, min_r, max_l, max_r]` and
+//!   their half-swapped copies;
+//! - the core loop tests LANES/4 rays per iteration (2 on AVX2), fmsub on the
+//!   premultiplied origin, scalar appends to all 3 lists advanced by their
+//!   conditions, the last index duplicated as padding;
+//! - leaves test an item's rays against the block loaded once; below
+//!   [`FALLBACK2`] rays an item is traced ray by ray;
+//! - shadow rays: one item per hit child, the larger popped first.
+//!
+//! Deviations: the paper folds near and far into one max by negating the far
+//! planes (`posNegMask`); this kernel takes a max for near and a min for far
+//! (one more op per axis); list counters live in memory between nodes.
+
+use crate::bvh4::{
+    append, for_each_ray, larger_last, leaf_item, load_rays, pad_and_push, StreamBufs,
+};
+use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
+use rt::boxtest::Pat;
+use rt::layout::SceneBufs2;
+use rt::single::trace_ray2;
+
+/// Below this many rays an item is traced ray by ray (the paper's n for BVH2).
+pub const FALLBACK2: i64 = 8;
+/// Which child each of the 3 items holds: left-right-left.
+pub const CHILD_OF_ITEM2: [usize; 3] = [0, 1, 0];
+
+/// Branch sites.
+pub mod site {
+    use isa::Site;
+    /// Initial list loop.
+    pub const INIT: Site = Site(50);
+    /// Stack empty?
+    pub const STACK: Site = Site(51);
+    /// Few rays: fall back?
+    pub const FEW: Site = Site(52);
+    /// Leaf item?
+    pub const LEAF: Site = Site(53);
+    /// Core loop back edge.
+    pub const CORE: Site = Site(54);
+    /// Padding duplicate?
+    pub const PAD: Site = Site(55);
+    /// New item non-empty?
+    pub const ITEM: Site = Site(56);
+    /// Shadow items' push order.
+    pub const ORDER: Site = Site(57);
+}
+
+/// Trace rays `[0, nrays)` through a BVH2 (records as for [`rt::single::trace`]).
+#[allow(clippy::too_many_arguments)]
+pub fn trace<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    st: &mut StreamBufs,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    nrays: usize,
+    shadow: bool,
+) {
+    match M::LANES {
+        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, shadow),
+        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, shadow),
+        n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn trace_n<M: Machine, const N: usize>(
+    m: &mut M,
+    s: &SceneBufs2,
+    st: &mut StreamBufs,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    nrays: usize,
+    shadow: bool,
+) {
+    let r = N / 4;
+    let cap2 = (st.cap * 2) as i64;
+    let zero = m.int(0);
+    // ---- every ray into list 0, one item at the root ----
+    m.region(Region::Setup);
+    let nr = m.int(nrays as i64);
+    let mut i = m.int(0);
+    loop {
+        m.s_store(&mut st.lists, At::idx(i, 2, 0), 2, i);
+        i = m.s_addi(i, 1);
+        if !m.branch_if(site::INIT, Cmp::Lt, i, nr) {
+            break;
+        }
+    }
+    let mut sp = m.int(0);
+    let root = m.int(i64::from(s.root));
+    pad_and_push(m, st, &mut sp, 0, root, zero, nr, zero, r);
+    // ---- the ray stream stack ----
+    loop {
+        m.region(Region::Traversal);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
+            break;
+        }
+        sp = m.s_addi(sp, -1);
+        let io = m.s_shift(Shift::Shl, sp, 4);
+        let node = m.s_load(&st.items, At::idx(io, 1, 0), 4, false);
+        let list = m.s_load(&st.items, At::idx(io, 1, 4), 1, false);
+        let start = m.s_load(&st.items, At::idx(io, 1, 8), 4, false);
+        let count = m.s_load(&st.items, At::idx(io, 1, 12), 4, false);
+        m.s_store(&mut st.counters, At::idx(list, 8, 0), 8, start);
+        let cap2v = m.int(cap2);
+        let lbase = m.s_op(isa::SOp::Mul, list, cap2v);
+        let first = m.s_shift(Shift::Shl, start, 1);
+        let rays_at = m.s_add(lbase, first);
+        let few = m.int(FALLBACK2);
+        if m.branch_if(site::FEW, Cmp::Lt, count, few) {
+            m.region(Region::SingleRay);
+            for_each_ray(m, &st.lists, rays_at, count, |m, ray| {
+                trace_ray2(
+                    m,
+                    s,
+                    trav,
+                    isect,
+                    hits,
+                    &mut st.stack,
+                    ray,
+                    node,
+                    &mut st.tests,
+                    shadow,
+                )
+            });
+            continue;
+        }
+        let leaf_flag = m.int(i64::from(scene::bvh::LEAF));
+        let lf = m.s_and(node, leaf_flag);
+        if m.branch(site::LEAF, lf) {
+            st.tests.leaf += count.get() as u64;
+            leaf_item(
+                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, shadow,
+            );
+            continue;
+        }
+        core_node::<M, N>(m, s, st, trav, &mut sp, node, rays_at, count, shadow);
+    }
+}
+
+/// One inner node: the core loop over the item's rays, then the new items.
+#[allow(clippy::too_many_arguments)]
+fn core_node<M: Machine, const N: usize>(
+    m: &mut M,
+    s: &SceneBufs2,
+    st: &mut StreamBufs,
+    trav: &Buf,
+    sp: &mut M::S,
+    node: M::S,
+    at: M::S,
+    count: M::S,
+    shadow: bool,
+) {
+    let r = N / 4;
+    m.region(Region::Traversal);
+    let base = m.s_shift(Shift::Shl, node, 6);
+    let sp4 = &Pat::<N>::SPLAT;
+    let (swp, swg) = (&Pat::<N>::SWAP_PAIRS, &Pat::<N>::SWAP_GROUPS);
+    // Rows [min_l, min_r, max_l, max_r] and [max_l, max_r, min_l, min_r].
+    let mut rows = Vec::with_capacity(3);
+    let mut swapped = Vec::with_capacity(3);
+    for a in 0..3 {
+        let row = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
+        swapped.push(m.permute(row, swg));
+        rows.push(row);
+    }
+    let nlists = if shadow { 2 } else { 3 };
+    let starts: Vec<M::S> = (0..nlists)
+        .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
+        .collect();
+    let mut cnt = starts.clone();
+    let zero_v = m.splat(0.0);
+    m.region(Region::CoreLoop);
+    let mut j = m.int(0);
+    loop {
+        let (idx, dir_near, org_far) = load_rays::<M, N>(m, &st.lists, trav, j, at);
+        // Lanes 0, 1 of each ray's 4: entry of left, right; lanes 2, 3: exit.
+        let mut tmax = m.permute(dir_near, &sp4[3]);
+        let mut tmin = m.permute(org_far, &sp4[3]);
+        for a in 0..3 {
+            let d = m.permute(dir_near, &sp4[a]);
+            let o = m.permute(org_far, &sp4[a]);
+            let neg = m.cmp(Cmp::Lt, d, zero_v);
+            let planes = m.select(neg, swapped[a], rows[a]);
+            let t = m.fmsub(planes, d, o);
+            tmax = m.max(tmax, t);
+            tmin = m.min(tmin, t);
+        }
+        let exit = m.permute(tmin, swg);
+        let hit = m.cmp(Cmp::Le, tmax, exit);
+        let hbits = m.movemask(hit);
+        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+        if shadow {
+            // Shadow rays: list 0 left, list 1 right, no order.
+            let conds = [hbits, shr(m, hbits, 1)];
+            append(m, st, &idx, &conds, &mut cnt, site::PAD);
+            j = m.s_addi(j, r as i64);
+            if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
+                break;
+            }
+            continue;
+        }
+        let other = m.permute(tmax, swp);
+        let right_first = m.cmp(Cmp::Lt, other, tmax);
+        let obits = m.movemask(right_first);
+        // Ray q's conditions at bit 4q: left-first, right, left-second.
+        let h1 = shr(m, hbits, 1);
+        let order = m.s_and(obits, h1);
+        let all = m.int(0xFFFF);
+        let norder = m.s_op(isa::SOp::Xor, order, all);
+        let conds = [m.s_and(hbits, norder), h1, m.s_and(hbits, order)];
+        append(m, st, &idx, &conds, &mut cnt, site::PAD);
+        j = m.s_addi(j, r as i64);
+        if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
+            break;
+        }
+    }
+    m.region(Region::Traversal);
+    let zero = m.int(0);
+    if shadow {
+        // The larger of the two items is popped first.
+        let counts: Vec<M::S> = (0..2).map(|k| m.s_sub(cnt[k], starts[k])).collect();
+        for k in larger_last(m, &counts, site::ORDER) {
+            if !m.branch_if(site::ITEM, Cmp::Gt, cnt[k], starts[k]) {
+                continue;
+            }
+            let child = m.s_load(&s.nodes, At::idx(base, 1, 48 + 4 * k), 4, false);
+            pad_and_push(m, st, sp, k, child, starts[k], cnt[k], zero, r);
+        }
+        return;
+    }
+    // New items, pushed so that item 0 is popped first.
+    for k in (0..3).rev() {
+        if !m.branch_if(site::ITEM, Cmp::Gt, cnt[k], starts[k]) {
+            continue;
+        }
+        let child = m.s_load(
+            &s.nodes,
+            At::idx(base, 1, 48 + 4 * CHILD_OF_ITEM2[k]),
+            4,
+            false,
+        );
+        pad_and_push(m, st, sp, k, child, starts[k], cnt[k], zero, r);
+    }
+}

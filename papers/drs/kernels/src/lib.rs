@@ -1,0 +1,14 @@
+//! # drs-kernels
+//!
+//! The DRS paper's simulated code (Fuetterling et al. 2015, "Efficient Ray
+//! Tracing Kernels for Modern CPU Architectures"): dynamic ray stream
+//! traversal over a BVH4 ([`bvh4`]) and a BVH2 ([`bvh2`]), and [`methods`],
+//! the seven traversal methods its Table 1 compares, run over one ray stream.
+
+#![warn(missing_docs)]
+// Component loops over x, y, z index several arrays in step.
+#![allow(clippy::needless_range_loop)]
+
+pub mod bvh2;
+pub mod bvh4;
+pub mod methods;

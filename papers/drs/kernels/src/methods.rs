@@ -1,0 +1,240 @@
+//! Run a traversal kernel on any machine over a ray stream, and compare its
+//! closest hits with the f64 reference (used by the tests and `rtsim run`).
+
+use rt::layout::{hit_records, lay_out, ray_records};
+use scene::agreement::{mismatches, shadow_mismatches};
+use scene::bvh::{Bvh2, Bvh4};
+use scene::reference::Reference;
+use scene::scene::Scene;
+use scene::workload::RayStream;
+
+use isa::{Machine, MemKind, Program};
+
+/// Which traversal kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kernel {
+    /// Single-ray BVH2.
+    Single2,
+    /// Single-ray BVH4.
+    Single,
+    /// Dynamic ray stream BVH4.
+    Drs,
+    /// Dynamic ray stream BVH2.
+    Drs2,
+    /// 8-ray (LANES-ray) packets, BVH2.
+    Packet2,
+    /// 8-ray (LANES-ray) packets, BVH4.
+    Packet,
+    /// Packets switching to single rays, BVH4.
+    Hybrid,
+}
+
+/// A kernel over a ray stream of a scene; the output is (t, prim) per ray
+/// (shadow streams: prim >= 0 when occluded) and the kernel's test counts.
+pub struct Run<'a> {
+    /// The kernel.
+    pub kernel: Kernel,
+    /// The scene.
+    pub scene: &'a Scene,
+    /// Its BVH2 (leaves of at most 8 triangles).
+    pub b2: &'a Bvh2,
+    /// The BVH4 collapsed from it.
+    pub b4: &'a Bvh4,
+    /// The rays (closest hit, or any hit for a shadow stream).
+    pub rays: RayStream,
+    /// For the packet kernels: the stream's tile (size in pixels, samples per
+    /// pixel), to form packets as a packet renderer does
+    /// ([`scene::workload::packet_slots`]); `None`: consecutive rays.
+    pub packet_tile: Option<(u32, u32)>,
+}
+
+impl<'a> Run<'a> {
+    /// `kernel` over `rays`, packets of consecutive rays.
+    #[must_use]
+    pub fn new(
+        kernel: Kernel,
+        scene: &'a Scene,
+        b2: &'a Bvh2,
+        b4: &'a Bvh4,
+        rays: RayStream,
+    ) -> Self {
+        Run {
+            kernel,
+            scene,
+            b2,
+            b4,
+            rays,
+            packet_tile: None,
+        }
+    }
+
+    /// Rays whose result differs from the reference's ([`mismatches`] for
+    /// closest hits, [`shadow_mismatches`] for shadow rays).
+    #[must_use]
+    pub fn mismatches(&self, label: &str, refi: &Reference, out: &[(f32, i32)]) -> usize {
+        if self.rays.is_shadow() {
+            shadow_mismatches(label, refi, &self.rays, out)
+        } else {
+            mismatches(label, refi, &self.rays.org, &self.rays.dir, out)
+        }
+    }
+}
+
+impl Kernel {
+    /// Every kernel.
+    pub const ALL: [Kernel; 7] = [
+        Kernel::Drs2,
+        Kernel::Drs,
+        Kernel::Single2,
+        Kernel::Single,
+        Kernel::Packet2,
+        Kernel::Packet,
+        Kernel::Hybrid,
+    ];
+    /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh2`, `drs-bvh4`,
+    /// `packet-bvh2`, `packet-bvh4`, `hybrid-bvh4`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Kernel::Single2 => "single-bvh2",
+            Kernel::Single => "single-bvh4",
+            Kernel::Drs => "drs-bvh4",
+            Kernel::Drs2 => "drs-bvh2",
+            Kernel::Packet2 => "packet-bvh2",
+            Kernel::Packet => "packet-bvh4",
+            Kernel::Hybrid => "hybrid-bvh4",
+        }
+    }
+    /// Whether it runs on machines of `lanes` lanes.
+    #[must_use]
+    pub fn supports(self, lanes: usize) -> bool {
+        match self {
+            Kernel::Single
+            | Kernel::Single2
+            | Kernel::Packet
+            | Kernel::Packet2
+            | Kernel::Hybrid => true,
+            Kernel::Drs | Kernel::Drs2 => matches!(lanes, 4 | 8),
+        }
+    }
+}
+
+impl Program for Run<'_> {
+    type Out = (Vec<(f32, i32)>, rt::stats::Tests);
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        let laid = self.lay_out(m);
+        self.trace(m, &laid)
+    }
+}
+
+/// A scene laid out in a machine's memory for one kernel: the BVH4 or BVH2
+/// records it reads.
+pub struct Laid {
+    /// BVH4 layout (BVH4 kernels).
+    pub bvh4: Option<rt::layout::SceneBufs>,
+    /// BVH2 layout (BVH2 kernels).
+    pub bvh2: Option<rt::layout::SceneBufs2>,
+}
+
+impl Run<'_> {
+    /// Lay out the tree the kernel reads (once per machine; see [`Run::trace`]).
+    pub fn lay_out<M: Machine>(&self, m: &mut M) -> Laid {
+        if matches!(
+            self.kernel,
+            Kernel::Single2 | Kernel::Drs2 | Kernel::Packet2
+        ) {
+            Laid {
+                bvh4: None,
+                bvh2: Some(rt::layout::lay_out2(m, &self.scene.mesh, self.b2)),
+            }
+        } else {
+            Laid {
+                bvh4: Some(lay_out(m, &self.scene.mesh, self.b2, self.b4)),
+                bvh2: None,
+            }
+        }
+    }
+
+    /// Trace the rays over a layout from [`Run::lay_out`] on the same machine.
+    pub fn trace<M: Machine>(&self, m: &mut M, laid: &Laid) -> (Vec<(f32, i32)>, rt::stats::Tests) {
+        let (org, dir, tmax) = (&self.rays.org, &self.rays.dir, &self.rays.tmax);
+        let s4 = || laid.bvh4.as_ref().expect("a BVH4 layout");
+        let s2 = || laid.bvh2.as_ref().expect("a BVH2 layout");
+        let shadow = self.rays.is_shadow();
+        let n = org.len();
+        let mut tests = rt::stats::Tests::default();
+        if matches!(
+            self.kernel,
+            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid
+        ) {
+            let slots = self
+                .packet_tile
+                .map(|(size, spp)| scene::workload::packet_slots(&self.rays, size, spp, M::LANES));
+            let mut pb = rt::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
+            if self.kernel == Kernel::Packet2 {
+                rt::packet::trace2(m, s2(), &mut pb, shadow);
+            } else {
+                let s = s4();
+                let hybrid = self.kernel == Kernel::Hybrid;
+                rt::packet::trace4(m, s, &mut pb, hybrid, shadow);
+            }
+            let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
+            return (out, pb.tests);
+        }
+        let (tr, is) = ray_records(org, dir, tmax);
+        let mut trav = m.space().alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
+        let isect = m.space().alloc_f32(MemKind::Rays, "rays-isect", &is, 64);
+        let mut hits = m
+            .space()
+            .alloc_bytes(MemKind::Hits, "hits", hit_records(n), 64);
+        let single_stack = |m: &mut M| {
+            m.space()
+                .alloc(MemKind::Stack, "stack", rt::single::STACK_ENTRIES * 8, 64)
+        };
+        match self.kernel {
+            Kernel::Single2 => {
+                let mut stack = single_stack(m);
+                rt::single::trace2(
+                    m,
+                    s2(),
+                    &mut trav,
+                    &isect,
+                    &mut hits,
+                    &mut stack,
+                    n,
+                    &mut tests,
+                    shadow,
+                );
+            }
+            Kernel::Single => {
+                let mut stack = single_stack(m);
+                rt::single::trace(
+                    m,
+                    s4(),
+                    &mut trav,
+                    &isect,
+                    &mut hits,
+                    &mut stack,
+                    n,
+                    &mut tests,
+                    shadow,
+                );
+            }
+            Kernel::Drs => {
+                let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
+                crate::bvh4::trace(m, s4(), &mut st, &mut trav, &isect, &mut hits, n, shadow);
+                tests = st.tests;
+            }
+            Kernel::Drs2 => {
+                let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
+                crate::bvh2::trace(m, s2(), &mut st, &mut trav, &isect, &mut hits, n, shadow);
+                tests = st.tests;
+            }
+            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => unreachable!("handled above"),
+        }
+        let out = (0..n)
+            .map(|i| (hits.f32_at(16 * i), hits.u32_at(16 * i + 12) as i32))
+            .collect();
+        (out, tests)
+    }
+}

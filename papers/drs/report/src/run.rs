@@ -1,0 +1,116 @@
+//! `rtsim run --kernel METHOD`: one of the paper's traversal methods over
+//! one tile's stream of a scene, checked against the reference on both
+//! backends, timed, with its test counts.
+
+use drs_kernels::methods::{Kernel, Run};
+use repro::boxrun::{finish, Recorded, RunArgs};
+use repro::{AppError, AppResult, Row};
+use scene::bvh::{BuildConfig, Bvh2, Bvh4};
+use scene::workload::{path_trace_tile, primary_tile, StreamKind, Tile};
+use std::time::Instant;
+
+/// `rtsim run --kernel METHOD`: a traversal method over one tile's ray stream of a scene.
+pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
+    let start = Instant::now();
+    let m = a.machine.load()?;
+    let fl = a.isa.unwrap_or_else(|| m.flavour());
+    if !kernel.supports(fl.lanes()) {
+        return Err(AppError(format!(
+            "--kernel {}: runs on 4- and 8-lane ISAs, {fl} has {} lanes",
+            kernel.name(),
+            fl.lanes()
+        )));
+    }
+    if a.tile == 0 || a.tile > 256 || a.spp == 0 || a.spp > 256 {
+        return Err(AppError("--tile and --spp: must be 1 to 256".into()));
+    }
+    let scene = scene::scene::Scene::load(&a.scene).map_err(|e| AppError(e.0))?;
+    let b2 = Bvh2::build(
+        &scene.mesh,
+        &BuildConfig {
+            max_leaf: 8,
+            ..BuildConfig::default()
+        },
+    )
+    .map_err(AppError)?;
+    let b4 = Bvh4::collapse(&b2);
+    let cam = &scene.config.camera;
+    let tile = Tile {
+        x: cam.width / 2 / a.tile,
+        y: cam.height / 2 / a.tile,
+        size: a.tile,
+    };
+    let stream = match a.stream.as_str() {
+        "primary" => primary_tile(cam, tile.x, tile.y, tile.size, a.spp, a.seed),
+        "bounce" => path_trace_tile(&scene, &b2, tile, a.spp, 1, a.seed)
+            .into_iter()
+            .find(|s| s.kind == StreamKind::Bounce(1))
+            .ok_or_else(|| {
+                AppError("--stream bounce: no path survives the first hit in this tile".into())
+            })?,
+        "shadow" => path_trace_tile(&scene, &b2, tile, a.spp, 0, a.seed)
+            .into_iter()
+            .find(|s| s.kind == StreamKind::Shadow(0))
+            .ok_or_else(|| AppError("--stream shadow: no primary ray hits in this tile".into()))?,
+        s => {
+            return Err(AppError(format!(
+                "--stream: '{s}' is not primary, bounce or shadow"
+            )))
+        }
+    };
+    if stream.is_empty() || stream.len() > 65536 {
+        return Err(AppError(format!(
+            "the stream has {} rays (1 to 65536 needed)",
+            stream.len()
+        )));
+    }
+    let mut run = Run::new(kernel, &scene, &b2, &b4, stream.clone());
+    run.packet_tile = Some((tile.size, a.spp));
+    let (t, (traced, tests)) = isa::record(&run, fl, kernel.name());
+    let (native, native_tests) = isa::run_native(&run, fl);
+    if native_tests != tests {
+        return Err(AppError(format!(
+            "{}: traced and native backends counted different tests ({tests:?} vs {native_tests:?})",
+            kernel.name()
+        )));
+    }
+    let refi = scene::reference::Reference::with_bvh(&scene.mesh, &b2);
+    let bad = run.mismatches(kernel.name(), &refi, &traced);
+    let native_bad = traced.iter().zip(&native).filter(|(x, y)| x != y).count();
+    let rays = stream.len() as u64;
+    let rows = vec![
+        Row::new("rays", rays as f64),
+        Row::new("hit_mismatches", bad as f64).key("backend", "traced"),
+        Row::new("hit_mismatches", native_bad as f64).key("backend", "native"),
+        Row::new("ops_per_ray", t.ops.len() as f64 / rays as f64).unit("ops"),
+        Row::new("ray_node_tests", tests.node_tests() as f64),
+        Row::new("ray_node_tests", tests.core_loop as f64).key("region", "core-loop"),
+        Row::new("core_loop_share", tests.core_loop_share()),
+        Row::new("ray_leaf_tests", tests.leaf as f64),
+        Row::new("culled_pops", tests.culled as f64),
+    ];
+    finish(Recorded {
+        args: a,
+        name: format!("run-{}", kernel.name()),
+        input: format!(
+            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}",
+            kernel.name(),
+            scene.config.name,
+            a.stream,
+            tile.x,
+            tile.y,
+            a.spp,
+            a.seed
+        ),
+        trace: t,
+        rays,
+        rows,
+        start,
+    })?;
+    if bad + native_bad > 0 {
+        return Err(AppError(format!(
+            "{bad} rays differ from the reference, {native_bad} between traced and native"
+        )));
+    }
+    Ok(())
+}

@@ -1,0 +1,111 @@
+//! `drs-table2`: the paper's Table 2, CPI and s/Gray of Single BVH4, Our
+//! BVH4 and its core loop, and the core loop's share of ray-node tests.
+
+use crate::measure::*;
+use crate::paper::*;
+use drs_kernels::methods::Kernel;
+use repro::sampling::ratio_ci;
+use repro::{AppResult, ReproduceArgs, Row};
+use std::time::Instant;
+
+pub fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
+    let start = Instant::now();
+    let smp = sample(a)?;
+    let m = &smp.m;
+    let kernels = [Kernel::Single, Kernel::Drs];
+    let mut rows = Vec::new();
+    let mut notes = Vec::new();
+    let mut ops_total = 0u64;
+    for (scene_name, paper) in PAPER_TABLE2 {
+        let acc = measure(a, &smp, scene_name, &kernels, &mut ops_total)?;
+        // s/Gray for the whole chip: per-core seconds per ray over the cores
+        // (the paper measured 4 threads on 4 cores).
+        let sgray = |cycles: u64, rays: u64| {
+            cycles as f64 / (m.clock_ghz * 1e9) / rays.max(1) as f64 * 1e9 / f64::from(m.cores)
+        };
+        for (ki, &k) in kernels.iter().enumerate() {
+            let ac = &acc[ki];
+            let row = |metric: &str, v: f64| {
+                Row::new(metric, v)
+                    .key("scene", scene_name)
+                    .key("method", k.name())
+            };
+            // Time per ray = cycles / rays, scaled like `sgray`.
+            let pairs: Vec<(f64, f64)> = ac
+                .tiles
+                .iter()
+                .map(|&(r, c)| (c as f64, r as f64))
+                .collect();
+            let ci = ratio_ci(&pairs).map(|h| h * sgray(1, 1));
+            let (pc, ps) = if k == Kernel::Single {
+                (paper[0], paper[1])
+            } else {
+                (paper[2], paper[3])
+            };
+            let mut r = row("cpi", ac.cycles as f64 / ac.ops.max(1) as f64);
+            r.paper = Some(pc);
+            rows.push(r);
+            let mut r = row("s_per_gray", sgray(ac.cycles, ac.rays)).unit("s/Gray");
+            r.paper = Some(ps);
+            r.ci95 = ci;
+            rows.push(r);
+            rows.push(row("bytes_per_ray", ac.dram as f64 / ac.rays.max(1) as f64).unit("B/ray"));
+            rows.push(row("rays", ac.rays as f64));
+            rows.push(row("hit_mismatches", ac.bad as f64));
+            if k == Kernel::Drs {
+                let mut r = row(
+                    "core_loop_cpi",
+                    ac.core_cycles as f64 / ac.core_ops.max(1) as f64,
+                );
+                r.paper = Some(paper[4]);
+                rows.push(r);
+                let mut r = row("s_per_gray", sgray(ac.core_cycles, ac.rays))
+                    .key("region", "core-loop")
+                    .unit("s/Gray");
+                r.paper = Some(paper[5]);
+                rows.push(r);
+                let mut r = row(
+                    "core_loop_share",
+                    ac.core_tests as f64 / ac.node_tests.max(1) as f64,
+                );
+                r.paper = Some(paper[6] / 100.0);
+                rows.push(r);
+                rows.push(
+                    row(
+                        "core_loop_ops_per_test",
+                        ac.core_ops as f64 / ac.core_tests.max(1) as f64,
+                    )
+                    .unit("ops"),
+                );
+            }
+        }
+        let (s1, s2) = (
+            sgray(acc[0].cycles, acc[0].rays),
+            sgray(acc[1].cycles, acc[1].rays),
+        );
+        notes.push(format!(
+            "{scene_name}: Our BVH4 {:+.0}% ray-query time against Single BVH4 (paper {:+.0}%); ray-node tests {} vs {}",
+            100.0 * (s2 / s1 - 1.0),
+            100.0 * (paper[3] / paper[1] - 1.0),
+            acc[1].node_tests,
+            acc[0].node_tests
+        ));
+    }
+    notes.push("why absolute figures differ: the scenes are stand-ins (rtsim list scenes), each stream is simulated alone on one core from cold caches with no shading code or other threads sharing L3; s/Gray is one core's simulated time over the 4 cores, as the paper ran 4 threads".into());
+    notes.push("Single BVH4 culls popped stack entries farther than its hit (no test), Our BVH4 re-tests those rays in the core loop, which can make its ray-node test count the larger (per-scene counts above, Our BVH4 first); it wins by testing them at lower CPI and fetching each node once per stream. On primary streams alone (rtsim run --stream primary) Single BVH4 is faster on dragon: the tile's nodes stay in L1 and its branches predict well".into());
+    let input = format!(
+        "Single BVH4 vs Our BVH4 (DRS) on crown, bentley, dragon, sanmiguel stand-ins; s/Gray is chip time over {} cores at {} GHz, ray queries only (the paper's Table 2 likewise times only the ray query kernels)",
+        m.cores, m.clock_ghz
+    );
+    finish(
+        a,
+        "drs-table2",
+        &input,
+        "s_per_gray over tiles",
+        &smp,
+        start,
+        ops_total,
+        rows,
+        notes,
+    )
+}

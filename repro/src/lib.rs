@@ -1,0 +1,41 @@
+//! # repro
+//!
+//! What every report shares, from op stream to printed rows: the report
+//! schema ([`report`]), report options checked against what a report uses
+//! and the registry entry each paper declares ([`options`]), sampling and
+//! confidence intervals ([`sampling`]), machine-level reports and the
+//! statistics rows of a timed run ([`machine`]), trace files ([`traces`]),
+//! the default `rtsim run` workload ([`boxrun`]), scene listing and
+//! rendering ([`scenes`]), plots and PNG images, and files written whole or
+//! not at all ([`io`]). It never holds a paper's figures: those live in each
+//! paper's report crate.
+
+#![warn(missing_docs)]
+
+pub mod boxrun;
+pub mod io;
+pub mod machine;
+pub mod options;
+pub mod plot;
+pub mod png;
+pub mod report;
+pub mod sampling;
+pub mod scenes;
+pub mod traces;
+
+pub use options::{Given, MachineSpec, Opt, ReportDef, ReproduceArgs};
+pub use report::{Format, Report, Row};
+
+/// A user-facing error: the app prints it as `rtsim: error: ...` and exits
+/// with code 2.
+#[derive(Debug)]
+pub struct AppError(pub String);
+
+impl<T: std::fmt::Display> From<T> for AppError {
+    fn from(e: T) -> Self {
+        AppError(e.to_string())
+    }
+}
+
+/// Result of a command or report.
+pub type AppResult<T> = Result<T, AppError>;

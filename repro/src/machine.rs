@@ -1,0 +1,536 @@
+//! Machine-level reports: a trace timed on a machine (`rtsim sim`), the
+//! calibration microkernels against the config (`rtsim calibrate`), every
+//! fidelity mode against full timing (`rtsim fidelity`), the machine list,
+//! and the statistics rows every timed report shares.
+
+use crate::report::{Report, Row};
+use crate::traces::{boxstream, load_trace_loop};
+use crate::{AppError, AppResult};
+use isa::{OpClass, Region, Trace};
+use micro::{ChainOp, Kind, Micro, MicroParams, CHAIN_OPS};
+use sim::config::{CoreKind, MachineConfig};
+use sim::{simulate, Fidelity, PerRay, SimOptions, Stall, Stats};
+use std::path::Path;
+use std::time::Instant;
+
+/// Report rows of a run's statistics; per-ray figures when `rays` is given.
+#[must_use]
+pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
+    let mut rows = vec![
+        Row::new("cycles", s.cycles as f64).unit("cycles"),
+        Row::new("instructions", s.ops as f64),
+        Row::new("uops", s.uops as f64),
+        Row::new("cpi", s.cpi()),
+    ];
+    for r in Region::ALL {
+        if let Some(c) = s.region_cpi(r) {
+            rows.push(Row::new("cpi", c).key("region", r.name()));
+            rows.push(
+                Row::new("instructions", s.region_ops[r as usize] as f64).key("region", r.name()),
+            );
+        }
+    }
+    for st in Stall::ALL {
+        rows.push(
+            Row::new("stall_cycles", s.stalls[st as usize] as f64)
+                .key("reason", st.name())
+                .unit("cycles"),
+        );
+    }
+    rows.push(Row::new("lane_utilisation", s.lane_utilisation()));
+    rows.push(Row::new("branches", s.branches as f64));
+    rows.push(Row::new("mispredicts", s.mispredicts as f64));
+    for (l, name) in s.levels.iter().zip(&s.level_names) {
+        rows.push(Row::new("hits", l.total_hits() as f64).key("level", name));
+        rows.push(Row::new("misses", l.total_misses() as f64).key("level", name));
+    }
+    rows.push(Row::new("dram_bytes_read", s.dram_read as f64).unit("B"));
+    rows.push(Row::new("dram_bytes_written", s.dram_written as f64).unit("B"));
+    if let Some(r) = rays {
+        let p = PerRay::new(s, r, m.clock_ghz, m.cores);
+        rows.push(
+            Row::new("mray_per_s", p.mray_per_s)
+                .unit("Mray/s")
+                .key("cores", m.cores),
+        );
+        rows.push(
+            Row::new("mray_per_s", p.mray_per_s_core)
+                .unit("Mray/s")
+                .key("cores", 1),
+        );
+        rows.push(Row::new("s_per_gray", p.s_per_gray).unit("s/Gray"));
+        rows.push(Row::new("bytes_per_ray", p.bytes_per_ray).unit("B/ray"));
+    }
+    for c in OpClass::ALL {
+        let n = s.class_ops[*c as usize];
+        if n > 0 {
+            rows.push(Row::new("instructions", n as f64).key("class", c.name()));
+        }
+    }
+    rows
+}
+
+/// Hits and misses per cache level and data structure, DRAM bytes read per
+/// data structure (names from the trace's memory regions).
+#[must_use]
+pub fn region_rows(s: &Stats, t: &Trace) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for (r, reg) in t.regions.iter().enumerate() {
+        for (l, name) in s.levels.iter().zip(&s.level_names) {
+            let h = l.hits.get(r).copied().unwrap_or(0);
+            let m = l.misses.get(r).copied().unwrap_or(0);
+            if h + m > 0 {
+                rows.push(
+                    Row::new("hits", h as f64)
+                        .key("level", name)
+                        .key("mem", &reg.name),
+                );
+                rows.push(
+                    Row::new("misses", m as f64)
+                        .key("level", name)
+                        .key("mem", &reg.name),
+                );
+            }
+        }
+        let d = s.dram_read_by_region.get(r).copied().unwrap_or(0);
+        if d > 0 {
+            rows.push(
+                Row::new("dram_bytes_read", d as f64)
+                    .key("mem", &reg.name)
+                    .unit("B"),
+            );
+        }
+    }
+    rows
+}
+
+fn report(
+    name: &str,
+    m: &MachineConfig,
+    fidelity: Fidelity,
+    input: String,
+    ops: u64,
+    secs: f64,
+    rows: Vec<Row>,
+) -> Report {
+    Report {
+        report: name.into(),
+        machine: Some(m.name.clone()),
+        isa: Some(m.isa.clone()),
+        fidelity: fidelity.name().into(),
+        sample: None,
+        input: Some(input),
+        ops_simulated: ops,
+        host_seconds: secs,
+        rows,
+        notes: Vec::new(),
+    }
+}
+
+/// `rtsim sim`: `trace` (repeated `iterations` times as a loop body) timed
+/// on `m` at `fidelity`.
+pub fn sim_report(
+    m: &MachineConfig,
+    trace: &Path,
+    iterations: usize,
+    fidelity: Fidelity,
+) -> AppResult<Report> {
+    let start = Instant::now();
+    if iterations == 0 {
+        return Err(AppError("--iterations: must be at least 1".into()));
+    }
+    let body = load_trace_loop(trace, iterations > 1)?;
+    let t = if iterations > 1 {
+        sim::repeat(&body, iterations)
+    } else {
+        body.clone()
+    };
+    let s = simulate(
+        m,
+        &[&t],
+        &SimOptions {
+            fidelity,
+            warmup_ops: 0,
+        },
+    )
+    .map_err(|e| AppError(format!("{}: {e}", trace.display())))?;
+    let mut rows =
+        vec![Row::new("cycles_per_iteration", s.cycles as f64 / iterations as f64).unit("cycles")];
+    for c in OpClass::ALL {
+        let n = s.class_ops[*c as usize];
+        if n > 0 {
+            rows.push(
+                Row::new("cycles_per_op", s.cycles as f64 / n as f64)
+                    .key("class", c.name())
+                    .unit("cycles"),
+            );
+        }
+    }
+    rows.extend(stats_rows(&s, m, None));
+    rows.extend(region_rows(&s, &t));
+    let rep = report(
+        "sim",
+        m,
+        fidelity,
+        format!("{} x {}", trace.display(), iterations),
+        t.ops.len() as u64,
+        start.elapsed().as_secs_f64(),
+        rows,
+    );
+    Ok(rep)
+}
+
+/// One calibration measurement.
+struct Cal {
+    name: String,
+    metric: &'static str,
+    class: Option<&'static str>,
+    value: f64,
+    expected: f64,
+    unit: &'static str,
+}
+
+fn run_micro(m: &MachineConfig, k: &Micro, copies: usize) -> AppResult<(Stats, Trace)> {
+    let (t, ()) = isa::record(k, m.flavour(), "calibrate");
+    let traces: Vec<&Trace> = vec![&t; copies];
+    let s = simulate(m, &traces, &SimOptions::default()).map_err(AppError)?;
+    Ok((s, t))
+}
+
+fn micro(kind: Kind, p: MicroParams) -> Micro {
+    Micro { kind, params: p }
+}
+
+/// The one class a chain or stream microkernel exercises on this flavour
+/// (None when the flavour expands it into several classes).
+fn class_of(m: &MachineConfig, op: ChainOp) -> AppResult<Option<OpClass>> {
+    let k = micro(
+        Kind::Chain(op),
+        MicroParams {
+            iters: 1,
+            unroll: 4,
+            ..MicroParams::default()
+        },
+    );
+    let k = if op == ChainOp::Cmp {
+        micro(Kind::Streams(op), k.params)
+    } else {
+        k
+    };
+    let (t, ()) = isa::record(&k, m.flavour(), "probe");
+    let loop_classes = [OpClass::Alu, OpClass::Cmp, OpClass::Branch];
+    let mut body: Vec<OpClass> = t
+        .ops
+        .iter()
+        .map(|o| o.class)
+        .filter(|c| !loop_classes.contains(c))
+        .collect();
+    body.sort();
+    body.dedup();
+    Ok(match (op, body.as_slice()) {
+        (ChainOp::Alu, []) => Some(OpClass::Alu),
+        (_, [one]) => Some(*one),
+        _ => None,
+    })
+}
+
+/// Calibration rows: every microkernel through the model next to what the config implies.
+fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
+    let inorder = m.core.kind == CoreKind::InOrder;
+    let threads = if inorder { m.core.threads as usize } else { 1 };
+    let issue_gap = if inorder && m.core.no_back_to_back {
+        2.0
+    } else {
+        1.0
+    };
+    let mut out = Vec::new();
+    // Differences of two runs cancel start-up and warm-up: (n2 - n1) iterations.
+    let (n1, n2) = (20usize, 60usize);
+    for &(op, name) in CHAIN_OPS {
+        let Some(class) = class_of(m, op)? else {
+            continue;
+        };
+        let t = m.class(class);
+        let per_step = if op == ChainOp::Cvt { 2.0 } else { 1.0 };
+        if op != ChainOp::Cmp {
+            let p = |iters| MicroParams {
+                iters,
+                unroll: 64,
+                ..MicroParams::default()
+            };
+            let (a, _) = run_micro(m, &micro(Kind::Chain(op), p(n1)), 1)?;
+            let (b, _) = run_micro(m, &micro(Kind::Chain(op), p(n2)), 1)?;
+            let ops = ((n2 - n1) * 64) as f64 * per_step;
+            out.push(Cal {
+                name: format!("{name}-chain"),
+                metric: "latency",
+                class: Some(class.name()),
+                value: (b.cycles - a.cycles) as f64 / ops,
+                expected: f64::from(t.lat).max(issue_gap),
+                unit: "cycles",
+            });
+        }
+        let p = |iters| MicroParams {
+            iters,
+            unroll: 16,
+            streams: 16,
+            ..MicroParams::default()
+        };
+        let (a, _) = run_micro(m, &micro(Kind::Streams(op), p(n1)), threads)?;
+        let (b, _) = run_micro(m, &micro(Kind::Streams(op), p(n2)), threads)?;
+        let ops = ((n2 - n1) * 16 * 16 * threads) as f64 * per_step;
+        let rt = m.recip_throughput(class);
+        let lat_bound = f64::from(t.lat) / 16.0 / threads as f64;
+        out.push(Cal {
+            name: format!("{name}-streams"),
+            metric: "recip_throughput",
+            class: Some(class.name()),
+            value: (b.cycles - a.cycles) as f64 / ops,
+            expected: rt.max(lat_bound),
+            unit: "cycles",
+        });
+    }
+    // Load-to-use latency of each level: a warm chase sized to miss the level
+    // above and fit this one; DRAM: a cold chase.
+    let chase = |ws: usize, iters: usize| {
+        micro(
+            Kind::PointerChase,
+            MicroParams {
+                iters,
+                ws,
+                unroll: 256,
+                ..MicroParams::default()
+            },
+        )
+    };
+    let mut prev = 0usize;
+    for (i, l) in m.caches.iter().enumerate() {
+        let size = l.size_kib as usize * 1024;
+        let ws = if i == 0 {
+            size / 2
+        } else {
+            (2 * prev).max(size / 2)
+        };
+        prev = size;
+        let nodes = ws / micro::CHASE_STRIDE;
+        // A pass: at least one full cycle of the chase, in whole unrolls.
+        let per = nodes.div_ceil(256) * 256;
+        let passes = |n: usize| n * per;
+        let (a, _) = run_micro(m, &chase(ws, passes(1)), 1)?;
+        let (b, _) = run_micro(m, &chase(ws, passes(2)), 1)?;
+        out.push(Cal {
+            name: format!("pointer-chase-{}", l.name),
+            metric: "load_latency",
+            class: None,
+            value: (b.cycles - a.cycles) as f64 / (passes(2) - passes(1)) as f64,
+            expected: f64::from(l.latency),
+            unit: "cycles",
+        });
+    }
+    let cold = 1 << 20;
+    let (a, _) = run_micro(m, &chase(cold, 2048), 1)?;
+    let (b, _) = run_micro(m, &chase(cold, 6144), 1)?;
+    debug_assert!(6144 * micro::CHASE_STRIDE <= cold);
+    out.push(Cal {
+        name: "pointer-chase-dram".into(),
+        metric: "load_latency",
+        class: None,
+        value: (b.cycles - a.cycles) as f64 / 4096.0,
+        expected: f64::from(m.dram.latency),
+        unit: "cycles",
+    });
+    // Streaming from DRAM without the prefetcher: limited by bandwidth or by
+    // the miss slots (mshrs lines in flight per DRAM latency).
+    let np = m
+        .with_sets(&["prefetch=\"None\"".into()])
+        .map_err(|e| AppError(e.to_string()))?;
+    let stream = |iters| {
+        micro(
+            Kind::StreamLoad,
+            MicroParams {
+                iters,
+                ws: 64 << 20,
+                unroll: 8,
+                ..MicroParams::default()
+            },
+        )
+    };
+    let (a, _) = run_micro(&np, &stream(8192), 1)?;
+    let (b, _) = run_micro(&np, &stream(24576), 1)?;
+    let line = f64::from(m.caches[0].line);
+    out.push(Cal {
+        name: "stream-load-dram".into(),
+        metric: "dram_bandwidth",
+        class: None,
+        value: (b.dram_read - a.dram_read) as f64 / (b.cycles - a.cycles) as f64,
+        expected: (m.dram.bandwidth_gbs / m.clock_ghz)
+            .min(f64::from(m.mshrs) * line / f64::from(m.dram.latency)),
+        unit: "B/cycle",
+    });
+    // Mispredict cost: random minus predictable, per extra mispredict. A
+    // mispredicted iteration takes resolution + penalty instead of the
+    // predictable iteration's own time, so that time is subtracted.
+    let iters = 4000;
+    let br = |kind| {
+        micro(
+            kind,
+            MicroParams {
+                iters,
+                ..MicroParams::default()
+            },
+        )
+    };
+    let (p, _) = run_micro(m, &br(Kind::BranchPredictable), 1)?;
+    let (r, _) = run_micro(m, &br(Kind::BranchRandom), 1)?;
+    // Each iteration's load waits for the previous outcome, so a mispredict
+    // adds exactly: the branch's latency after its source, the penalty, and
+    // the redirected op's dispatch-to-issue cycle (out of order) — in order,
+    // the thread waits for the branch's latency and the penalty, less the issue
+    // gap it would have waited anyway.
+    let penalty = f64::from(m.core.mispredict_penalty);
+    let extra = (r.mispredicts - p.mispredicts).max(1) as f64;
+    let blat = f64::from(m.class(OpClass::Branch).lat);
+    let expected = if inorder {
+        penalty + blat - issue_gap
+    } else {
+        penalty + blat + 1.0
+    };
+    out.push(Cal {
+        name: "branch-random".into(),
+        metric: "mispredict_cost",
+        class: None,
+        value: (r.cycles - p.cycles) as f64 / extra,
+        expected,
+        unit: "cycles",
+    });
+    Ok(out)
+}
+
+/// Calibration report of one machine; also used by tests.
+pub fn calibrate_report(m: &MachineConfig) -> AppResult<Report> {
+    let start = Instant::now();
+    let cal = calibrate_rows(m)?;
+    if let Some(c) = cal.iter().find(|c| !c.value.is_finite()) {
+        return Err(AppError(format!(
+            "calibrate {}: measured {} (a microkernel ran no ops)",
+            c.name, c.value
+        )));
+    }
+    let rows = cal
+        .into_iter()
+        .map(|c| {
+            let mut r = Row::new(c.metric, c.value)
+                .key("name", &c.name)
+                .unit(c.unit);
+            if let Some(cl) = c.class {
+                r = r.key("class", cl);
+            }
+            r.expected = Some(c.expected);
+            r
+        })
+        .collect();
+    Ok(report(
+        "calibrate",
+        m,
+        Fidelity::Full,
+        format!("microkernels on {}", m.name),
+        0,
+        start.elapsed().as_secs_f64(),
+        rows,
+    ))
+}
+
+/// `rtsim fidelity`: every mode, host time and error against full timing,
+/// on `trace` or else the ray-vs-4-boxes workload of `rays` rays.
+pub fn fidelity_report(m: &MachineConfig, trace: Option<&Path>, rays: usize) -> AppResult<Report> {
+    let start = Instant::now();
+    let rays_in = rays;
+    let (t, rays, input) = match trace {
+        Some(p) => (load_trace_loop(p, false)?, None, p.display().to_string()),
+        None => {
+            let w = boxstream(rays_in, 7)?;
+            let (t, _) = isa::record(&w, m.flavour(), "kernel:boxtest");
+            (
+                t,
+                Some(rays_in as u64),
+                format!("boxtest, {} rays", rays_in),
+            )
+        }
+    };
+    let mut runs = Vec::new();
+    for f in Fidelity::ALL {
+        let t0 = Instant::now();
+        let s = simulate(
+            m,
+            &[&t],
+            &SimOptions {
+                fidelity: f,
+                warmup_ops: 0,
+            },
+        )
+        .map_err(AppError)?;
+        runs.push((f, s, t0.elapsed().as_secs_f64()));
+    }
+    let full = runs.last().expect("full").1.clone();
+    let per = |s: &Stats| {
+        rays.map_or(
+            (s.dram_read + s.dram_written) as f64 / s.ops.max(1) as f64,
+            |r| PerRay::new(s, r, m.clock_ghz, m.cores).bytes_per_ray,
+        )
+    };
+    let mut rows = Vec::new();
+    for (f, s, secs) in &runs {
+        let err = |a: f64, b: f64| if b == 0.0 { 0.0 } else { 100.0 * (a - b) / b };
+        let k = |r: Row| r.key("mode", f.name());
+        rows.push(k(Row::new("host_seconds", *secs).unit("s")));
+        rows.push(k(Row::new(
+            "mops_per_host_second",
+            t.ops.len() as f64 / secs / 1e6,
+        )
+        .unit("Mops/s")));
+        rows.push(k(Row::new("cycles", s.cycles as f64)));
+        rows.push(k(Row::new(
+            "cycles_error",
+            err(s.cycles as f64, full.cycles as f64),
+        )
+        .unit("%")));
+        rows.push(k(Row::new("cpi", s.cpi())));
+        rows.push(k(Row::new("cpi_error", err(s.cpi(), full.cpi())).unit("%")));
+        let (b, bf) = (per(s), per(&full));
+        rows.push(k(Row::new(
+            if rays.is_some() {
+                "bytes_per_ray"
+            } else {
+                "bytes_per_op"
+            },
+            b,
+        )));
+        rows.push(k(Row::new("bytes_error", err(b, bf)).unit("%")));
+    }
+    let rep = report(
+        "fidelity",
+        m,
+        Fidelity::Full,
+        input,
+        3 * t.ops.len() as u64,
+        start.elapsed().as_secs_f64(),
+        rows,
+    );
+    Ok(rep)
+}
+
+/// `rtsim list machines` rows.
+#[must_use]
+pub fn machine_rows() -> Vec<Row> {
+    sim::config::BUILTIN
+        .iter()
+        .map(|(name, _)| {
+            let m = MachineConfig::load(name).expect("built-in machines are valid");
+            Row::new("cores", f64::from(m.cores))
+                .key("name", name)
+                .key("isa", &m.isa)
+                .key("clock_ghz", m.clock_ghz)
+                .key("about", &m.about)
+        })
+        .collect()
+}

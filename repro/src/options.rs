@@ -1,0 +1,248 @@
+//! Report options: what a user gave, checked against what the report uses,
+//! with the report's own defaults filled in; and the registry entry each
+//! paper declares for each of its reports.
+
+use crate::report::Format;
+use crate::{AppError, AppResult};
+use sim::MachineConfig;
+use std::path::PathBuf;
+
+/// An option of `rtsim reproduce` that a report may use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Opt {
+    /// `--quick`: the smaller sample.
+    Quick,
+    /// `--machine`: another machine than the report's own.
+    Machine,
+    /// `--set field=value`: config overrides.
+    Set,
+    /// `--tiles N`: the sample size (tiles, or batches of frusta sets).
+    Tiles,
+    /// `--spp N`: samples per pixel.
+    Spp,
+    /// `--seed S`: the sample's seed.
+    Seed,
+    /// `--out DIR`: write the report (and its figures) there too.
+    Out,
+}
+
+impl Opt {
+    /// Every option.
+    pub const ALL: [Opt; 7] = [
+        Opt::Quick,
+        Opt::Machine,
+        Opt::Set,
+        Opt::Tiles,
+        Opt::Spp,
+        Opt::Seed,
+        Opt::Out,
+    ];
+    /// The command-line flag.
+    #[must_use]
+    pub fn flag(self) -> &'static str {
+        match self {
+            Opt::Quick => "--quick",
+            Opt::Machine => "--machine",
+            Opt::Set => "--set",
+            Opt::Tiles => "--tiles",
+            Opt::Spp => "--spp",
+            Opt::Seed => "--seed",
+            Opt::Out => "--out",
+        }
+    }
+}
+
+/// A report of a paper: its name, what it computes, its own default machine,
+/// the options it uses, and the function that computes it.
+pub struct ReportDef {
+    /// Name (`drs-table1`, ...).
+    pub name: &'static str,
+    /// One line saying what it computes.
+    pub about: &'static str,
+    /// The machine it runs on unless `--machine` says otherwise.
+    pub machine: &'static str,
+    /// The options it uses; any other given is an error.
+    pub options: &'static [Opt],
+    /// Compute, print and (with `--out`) write it.
+    pub run: fn(&ReproduceArgs) -> AppResult<()>,
+}
+
+/// What the user gave on the command line (`None`, `false`, empty: not given).
+#[derive(Clone, Debug, Default)]
+pub struct Given {
+    /// `--quick`.
+    pub quick: bool,
+    /// `--machine`.
+    pub machine: Option<String>,
+    /// `--set`.
+    pub sets: Vec<String>,
+    /// `--tiles`.
+    pub tiles: Option<u32>,
+    /// `--spp`.
+    pub spp: Option<u32>,
+    /// `--seed`.
+    pub seed: Option<u64>,
+    /// `--format`.
+    pub format: Format,
+    /// `--out`.
+    pub out: Option<PathBuf>,
+}
+
+impl Given {
+    /// Whether option `o` was given.
+    #[must_use]
+    pub fn has(&self, o: Opt) -> bool {
+        match o {
+            Opt::Quick => self.quick,
+            Opt::Machine => self.machine.is_some(),
+            Opt::Set => !self.sets.is_empty(),
+            Opt::Tiles => self.tiles.is_some(),
+            Opt::Spp => self.spp.is_some(),
+            Opt::Seed => self.seed.is_some(),
+            Opt::Out => self.out.is_some(),
+        }
+    }
+}
+
+/// A machine by name or RON path, with `--set` overrides.
+#[derive(Clone, Debug)]
+pub struct MachineSpec {
+    /// Built-in name or path to a RON config.
+    pub machine: String,
+    /// `field=value` overrides.
+    pub sets: Vec<String>,
+}
+
+impl MachineSpec {
+    /// Load, apply the overrides, validate.
+    pub fn load(&self) -> AppResult<MachineConfig> {
+        let m = MachineConfig::load(&self.machine).map_err(|e| AppError(e.to_string()))?;
+        m.with_sets(&self.sets).map_err(|e| AppError(e.to_string()))
+    }
+}
+
+/// The options a report runs with: checked, the report's defaults filled in.
+#[derive(Clone, Debug)]
+pub struct ReproduceArgs {
+    /// The report's name.
+    pub name: String,
+    /// The smaller sample.
+    pub quick: bool,
+    /// The machine (the report's own unless `--machine` was given).
+    pub machine: MachineSpec,
+    /// Sample size override (at least 1).
+    pub tiles: Option<u32>,
+    /// Samples per pixel override (at least 1).
+    pub spp: Option<u32>,
+    /// Sample seed (default 7).
+    pub seed: u64,
+    /// Output format.
+    pub format: Format,
+    /// Also write the report to this directory.
+    pub out: Option<PathBuf>,
+}
+
+/// The seed of a sample unless `--seed` is given.
+pub const DEFAULT_SEED: u64 = 7;
+
+/// Most tiles (or batches) a report samples.
+pub const MAX_TILES: u32 = 1024;
+
+impl ReportDef {
+    /// Check `g` against this report (an option it does not use, a value out
+    /// of range: an error naming the option) and fill in its defaults.
+    pub fn resolve(&self, g: Given) -> AppResult<ReproduceArgs> {
+        if let Some(o) = Opt::ALL
+            .into_iter()
+            .find(|&o| g.has(o) && !self.options.contains(&o))
+        {
+            let uses: Vec<&str> = self.options.iter().map(|o| o.flag()).collect();
+            return Err(AppError(format!(
+                "{}: {} does not use this option (it uses {})",
+                o.flag(),
+                self.name,
+                uses.join(", ")
+            )));
+        }
+        if let Some(t) = g.tiles {
+            if t == 0 || t > MAX_TILES {
+                return Err(AppError(format!("--tiles: {t} is not 1 to {MAX_TILES}")));
+            }
+        }
+        if g.spp == Some(0) {
+            return Err(AppError("--spp: 0 samples per pixel".into()));
+        }
+        Ok(ReproduceArgs {
+            name: self.name.into(),
+            quick: g.quick,
+            machine: MachineSpec {
+                machine: g.machine.unwrap_or_else(|| self.machine.into()),
+                sets: g.sets,
+            },
+            tiles: g.tiles,
+            spp: g.spp,
+            seed: g.seed.unwrap_or(DEFAULT_SEED),
+            format: g.format,
+            out: g.out,
+        })
+    }
+}
+
+/// The report called `name`, or an error listing them all.
+pub fn find<'a>(defs: &'a [&'a ReportDef], name: &str) -> AppResult<&'a ReportDef> {
+    defs.iter()
+        .copied()
+        .find(|d| d.name == name)
+        .ok_or_else(|| {
+            let names: Vec<&str> = defs.iter().map(|d| d.name).collect();
+            AppError(format!(
+                "reproduce: unknown report '{name}' ({})",
+                names.join(", ")
+            ))
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn nothing(_: &ReproduceArgs) -> AppResult<()> {
+        Ok(())
+    }
+
+    const DEF: ReportDef = ReportDef {
+        name: "t",
+        about: "a test report",
+        machine: "larrabee",
+        options: &[Opt::Quick, Opt::Tiles, Opt::Set],
+        run: nothing,
+    };
+
+    #[test]
+    fn an_unused_option_is_an_error_naming_it() {
+        let g = Given {
+            spp: Some(4),
+            ..Given::default()
+        };
+        let e = DEF.resolve(g).unwrap_err().0;
+        assert!(e.starts_with("--spp: t does not use"), "{e}");
+    }
+
+    #[test]
+    fn zero_tiles_is_an_error_and_defaults_are_the_reports() {
+        let g = Given {
+            tiles: Some(0),
+            ..Given::default()
+        };
+        assert!(DEF.resolve(g).unwrap_err().0.starts_with("--tiles: 0"));
+        let a = DEF
+            .resolve(Given {
+                sets: vec!["core.ports=2".into()],
+                ..Given::default()
+            })
+            .unwrap();
+        assert_eq!(a.machine.machine, "larrabee");
+        assert_eq!(a.seed, DEFAULT_SEED);
+        assert!(a.machine.load().is_ok());
+    }
+}

@@ -1,0 +1,561 @@
+//! Packet traversal (the DRS paper's "Packet BVH2/BVH4", Wald et al. 2001, as
+//! Embree 2.0's `BVH4Intersector8Chunk`) and hybrid traversal ("Hybrid BVH4",
+//! Benthin et al. 2012, as Embree 2.0's `BVH4Intersector8Hybrid`).
+//!
+//! A packet is `LANES` consecutive rays of a stream (8 on AVX2), one ray per
+//! lane, in an SoA record. All rays of a packet take one traversal order:
+//! children are tested in storage order against every ray, and a hit child
+//! replaces the current next node when *any* ray reaches it earlier, else it
+//! is pushed with its per-ray entry distances (a vector); a popped entry is
+//! culled when no ray's entry distance is below its hit distance. Leaves test
+//! all rays of the packet against one triangle at a time (triangle data
+//! broadcast). The hybrid kernel, on popping a node with at most
+//! [`SWITCH_THRESHOLD`] active rays, traces each of them alone from that node
+//! with the single-ray BVH4 kernel and carries on.
+//!
+//! Packet record (`LANES` = W lanes, rows of 4W bytes):
+//!
+//! | row | field |
+//! |---|---|
+//! | 0-2 | origin x, y, z |
+//! | 3-5 | direction x, y, z |
+//! | 6-8 | reciprocal direction x, y, z |
+//! | 9 | t_near (0) |
+//! | 10 | t_far (in: the ray's limit; out: the hit distance) |
+//! | 11, 12 | hit u, v |
+//! | 13 | hit prim (i32, -1: none) |
+//! | 14, 15 | pad (a record is 16 rows: 512 B at W = 8) |
+//!
+//! Lanes past the end of the stream are padding: t_far = -1, so no box or
+//! triangle test ever succeeds for them.
+//!
+//! Deviations: leaves are one block of <= 8 triangles (as for the other
+//! kernels) iterated triangle by triangle until an empty slot, where Embree
+//! iterates triangle4 lists by their count; the hybrid kernel's single-ray
+//! leaves test 1 ray vs 8 triangles (the paper: 1 vs 4).
+
+use crate::layout::{SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
+use crate::single::{moller_sided, walk4, Block, Moller, RayState, STACK_ENTRIES};
+use crate::stats::Tests;
+use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
+use scene::bvh::{EMPTY_SLOT, LEAF};
+
+pub use crate::layout::{packet_bytes, row};
+
+/// Embree 2.0's `SWITCH_THRESHOLD` for 8-wide hybrid BVH4 traversal: at most
+/// this many active rays switch to single-ray traversal.
+pub const SWITCH_THRESHOLD: u32 = 3;
+
+/// Branch sites.
+pub mod site {
+    use isa::Site;
+    /// More packets?
+    pub const PACKETS: Site = Site(60);
+    /// Stack sentinel reached?
+    pub const DONE: Site = Site(61);
+    /// Any ray in front of its hit (else the entry is culled)?
+    pub const CULL: Site = Site(62);
+    /// Leaf (or sentinel)?
+    pub const LEAF: Site = Site(63);
+    /// Empty child slot?
+    pub const EMPTY: Site = Site(64);
+    /// Any ray hits the child?
+    pub const HIT: Site = Site(65);
+    /// Any ray reaches the child before the current next node?
+    pub const CLOSER: Site = Site(66);
+    /// Empty triangle slot?
+    pub const TRI_SLOT: Site = Site(67);
+    /// Any ray hits the triangle?
+    pub const TRI: Site = Site(68);
+    /// Few active rays: switch to single-ray traversal?
+    pub const SWITCH: Site = Site(69);
+    /// Next active ray of a switched packet?
+    pub const SWITCH_RAY: Site = Site(70);
+    /// Shadow packet: any lane not yet occluded?
+    pub const ALIVE: Site = Site(71);
+}
+
+/// SoA packet records of rays (org, dir, t_far) for packets of `w` lanes;
+/// `slots[j]` is the ray in lane slot j (`u32::MAX`: an empty lane).
+#[must_use]
+pub fn packet_records(
+    org: &[[f32; 3]],
+    dir: &[[f32; 3]],
+    tfar: &[f32],
+    slots: &[u32],
+    w: usize,
+) -> Vec<f32> {
+    let np = slots.len().div_ceil(w).max(1);
+    let mut v = vec![0f32; np * row::ROWS * w];
+    for p in 0..np {
+        let base = p * row::ROWS * w;
+        for l in 0..w {
+            let i = slots.get(p * w + l).copied().unwrap_or(u32::MAX) as usize;
+            let at = |r: usize| base + r * w + l;
+            let (o, d, tf) = if i < org.len() {
+                (org[i], dir[i], tfar[i])
+            } else {
+                ([0.0; 3], [1.0; 3], -1.0)
+            };
+            for a in 0..3 {
+                v[at(row::ORG + a)] = o[a];
+                v[at(row::DIR + a)] = d[a];
+                v[at(row::IDIR + a)] = 1.0 / d[a];
+            }
+            v[at(row::TNEAR)] = 0.0;
+            v[at(row::TFAR)] = tf;
+            v[at(row::PRIM)] = f32::from_bits((-1i32) as u32);
+        }
+    }
+    v
+}
+
+/// The packet kernels' buffers.
+pub struct PacketBufs {
+    /// Packet records.
+    pub rays: Buf,
+    /// Packets.
+    pub packets: usize,
+    /// Stack node refs (u32).
+    pub stack_node: Buf,
+    /// Stack entry distances (one vector per entry).
+    pub stack_near: Buf,
+    /// The hybrid kernel's single-ray stack.
+    pub single_stack: Buf,
+    /// Ray-node and ray-leaf tests (active rays per packet test).
+    pub tests: Tests,
+    /// Each ray's lane slot.
+    slot_of: Vec<usize>,
+    /// Back-face culling at leaves (front faces only), for the MFT
+    /// comparison's packet baseline.
+    pub one_sided: bool,
+    /// The MFT paper's counters for the packet baseline: box tests (one per
+    /// child box per packet), triangles tested per packet (all of them are
+    /// 16-wide intersection tests; no culling).
+    pub frusta_stats: crate::stats::MftStats,
+}
+
+impl PacketBufs {
+    /// Packet records of the rays in `m`'s memory, and the stacks. `slots`
+    /// places rays in lanes (see [`scene::workload::packet_slots`]); `None`:
+    /// consecutive rays fill each packet.
+    pub fn new<M: Machine>(
+        m: &mut M,
+        org: &[[f32; 3]],
+        dir: &[[f32; 3]],
+        tfar: &[f32],
+        slots: Option<&[u32]>,
+    ) -> PacketBufs {
+        let w = M::LANES;
+        let seq: Vec<u32>;
+        let slots = match slots {
+            Some(s) => s,
+            None => {
+                seq = (0..org.len() as u32).collect();
+                &seq
+            }
+        };
+        let mut slot_of = vec![usize::MAX; org.len()];
+        for (j, &i) in slots.iter().enumerate() {
+            if (i as usize) < org.len() {
+                slot_of[i as usize] = j;
+            }
+        }
+        assert!(
+            slot_of.iter().all(|&j| j != usize::MAX),
+            "every ray has a lane"
+        );
+        let recs = packet_records(org, dir, tfar, slots, w);
+        let packets = recs.len() / (row::ROWS * w);
+        let sp = m.space();
+        PacketBufs {
+            rays: sp.alloc_f32(MemKind::Rays, "packets", &recs, 64),
+            packets,
+            stack_node: sp.alloc(MemKind::Stack, "stack-node", STACK_ENTRIES * 4, 64),
+            stack_near: sp.alloc(MemKind::Stack, "stack-near", STACK_ENTRIES * 4 * w, 64),
+            single_stack: sp.alloc(MemKind::Stack, "stack-single", STACK_ENTRIES * 8, 64),
+            tests: Tests::default(),
+            slot_of,
+            one_sided: false,
+            frusta_stats: crate::stats::MftStats::default(),
+        }
+    }
+
+    /// Reuse the buffers for other rays (at most as many packets as they
+    /// were made for): the records are rewritten in place (host side, like
+    /// the initial contents) and the counters kept.
+    ///
+    /// # Panics
+    /// If the rays need more packets than the buffer holds.
+    pub fn reload(
+        &mut self,
+        w: usize,
+        org: &[[f32; 3]],
+        dir: &[[f32; 3]],
+        tfar: &[f32],
+        slots: Option<&[u32]>,
+    ) {
+        let seq: Vec<u32>;
+        let slots = match slots {
+            Some(s) => s,
+            None => {
+                seq = (0..org.len() as u32).collect();
+                &seq
+            }
+        };
+        let recs = packet_records(org, dir, tfar, slots, w);
+        let bytes: Vec<u8> = recs.iter().flat_map(|x| x.to_le_bytes()).collect();
+        assert!(bytes.len() <= self.rays.len(), "rays fit the packet buffer");
+        self.rays.write(0, &bytes);
+        self.packets = recs.len() / (row::ROWS * w);
+        self.slot_of = vec![usize::MAX; org.len()];
+        for (j, &i) in slots.iter().enumerate() {
+            if (i as usize) < org.len() {
+                self.slot_of[i as usize] = j;
+            }
+        }
+    }
+
+    /// (t, prim) of ray `i` after a kernel ran.
+    #[must_use]
+    pub fn hit(&self, w: usize, i: usize) -> (f32, i32) {
+        let j = self.slot_of[i];
+        let (p, l) = (j / w, j % w);
+        let base = p * packet_bytes(w) + 4 * l;
+        (
+            self.rays.f32_at(base + row(w, row::TFAR)),
+            self.rays.u32_at(base + row(w, row::PRIM)) as i32,
+        )
+    }
+}
+
+/// Which node format a packet kernel walks.
+#[derive(Clone, Copy)]
+enum Tree<'a> {
+    Bvh4(&'a SceneBufs),
+    Bvh2(&'a SceneBufs2),
+}
+
+/// Packet BVH4 (`hybrid`: switch to single rays at few active rays;
+/// `shadow`: any hit, a lane stops at its first hit, the packet when all have).
+pub fn trace4<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    pb: &mut PacketBufs,
+    hybrid: bool,
+    shadow: bool,
+) {
+    trace(m, Tree::Bvh4(s), pb, hybrid, shadow);
+}
+
+/// Packet BVH2.
+pub fn trace2<M: Machine>(m: &mut M, s: &SceneBufs2, pb: &mut PacketBufs, shadow: bool) {
+    trace(m, Tree::Bvh2(s), pb, false, shadow);
+}
+
+/// One packet's vector registers.
+struct Packet<M: Machine> {
+    org: [M::F; 3],
+    dir: [M::F; 3],
+    idir: [M::F; 3],
+    oid: [M::F; 3],
+    tnear: M::F,
+    tfar: M::F,
+}
+
+fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool, shadow: bool) {
+    let w = M::LANES;
+    let mut p = m.int(0);
+    let np = m.int(pb.packets as i64);
+    loop {
+        m.region(Region::Traversal);
+        let base = m.s_shift(Shift::Shl, p, packet_bytes(w).trailing_zeros());
+        trace_packet(m, tree, pb, base, hybrid, shadow);
+        p = m.s_addi(p, 1);
+        if !m.branch_if(site::PACKETS, Cmp::Lt, p, np) {
+            break;
+        }
+    }
+}
+
+#[allow(clippy::too_many_lines)]
+fn trace_packet<M: Machine>(
+    m: &mut M,
+    tree: Tree,
+    pb: &mut PacketBufs,
+    base: M::S,
+    hybrid: bool,
+    shadow: bool,
+) {
+    let w = M::LANES;
+    let ld = |m: &mut M, rays: &Buf, r: usize| m.load(rays, At::idx(base, 1, row(w, r)));
+    let org = [0, 1, 2].map(|a| ld(m, &pb.rays, row::ORG + a));
+    let dir = [0, 1, 2].map(|a| ld(m, &pb.rays, row::DIR + a));
+    let idir = [0, 1, 2].map(|a| ld(m, &pb.rays, row::IDIR + a));
+    let oid = [0, 1, 2].map(|a| m.mul(org[a], idir[a]));
+    let tnear = ld(m, &pb.rays, row::TNEAR);
+    let tfar = ld(m, &pb.rays, row::TFAR);
+    let mut pk = Packet::<M> {
+        org,
+        dir,
+        idir,
+        oid,
+        tnear,
+        tfar,
+    };
+    let inf = m.splat(f32::INFINITY);
+    // Stack: the sentinel, then the root with the rays' t_near.
+    let sentinel = m.int(i64::from(EMPTY_SLOT));
+    let root = m.int(match tree {
+        Tree::Bvh4(_) => 0,
+        Tree::Bvh2(s) => i64::from(s.root),
+    });
+    let (sn, snear) = (&mut pb.stack_node, &mut pb.stack_near);
+    m.s_store(sn, At::off(0), 4, sentinel);
+    m.store(snear, At::off(0), inf);
+    m.s_store(sn, At::off(4), 4, root);
+    m.store(snear, At::off(4 * w), pk.tnear);
+    let mut sp = m.int(2);
+    let tests = &mut pb.tests;
+    let (mut aabb, mut tri_tests) = (0u64, 0u64);
+    let one_sided = pb.one_sided;
+    let leaf_flag = m.int(i64::from(LEAF));
+    loop {
+        m.region(Region::Traversal);
+        sp = m.s_addi(sp, -1);
+        let near_off = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
+        let mut cur = m.s_load(sn, At::idx(sp, 4, 0), 4, false);
+        let mut cur_d = m.load(snear, At::idx(near_off, 1, 0));
+        let done = m.s_cmp(Cmp::Eq, cur, sentinel);
+        if m.branch(site::DONE, done) {
+            break;
+        }
+        let active = m.cmp(Cmp::Lt, cur_d, pk.tfar);
+        let any = m.any(active);
+        if !m.branch(site::CULL, any) {
+            tests.culled += 1;
+            continue;
+        }
+        if hybrid {
+            let bits = m.movemask(active);
+            let cnt = m.s_popcnt(bits);
+            let few = m.int(i64::from(SWITCH_THRESHOLD));
+            if m.branch_if(site::SWITCH, Cmp::Le, cnt, few) {
+                let Tree::Bvh4(s) = tree else {
+                    unreachable!("hybrid traversal is BVH4 only")
+                };
+                let mut bits = bits;
+                loop {
+                    let lane = m.s_tzcnt(bits);
+                    let k = lane.get() as usize;
+                    let mut st = RayState::load_packet(m, &pb.rays, base, k);
+                    walk4(m, s, &mut st, &mut pb.single_stack, cur, tests, shadow);
+                    m.region(Region::SingleRay);
+                    st.write_packet(m, &mut pb.rays);
+                    let lm1 = m.s_addi(bits, -1);
+                    bits = m.s_and(bits, lm1);
+                    let zero = m.int(0);
+                    if !m.branch_if(site::SWITCH_RAY, Cmp::Ne, bits, zero) {
+                        break;
+                    }
+                }
+                m.region(Region::Traversal);
+                pk.tfar = m.load(&pb.rays, At::idx(base, 1, row(w, row::TFAR)));
+                continue;
+            }
+        }
+        // Down traversal: test the node's children, keep the one any ray
+        // reaches first as the next node, push the others.
+        loop {
+            let lf = m.s_and(cur, leaf_flag);
+            if m.branch(site::LEAF, lf) {
+                break;
+            }
+            let valid_node = m.cmp(Cmp::Gt, pk.tfar, cur_d);
+            tests.other += u64::from(m.bits(valid_node).count_ones());
+            let node = cur;
+            // Pop the next node now; a hit child may take its place.
+            sp = m.s_addi(sp, -1);
+            let near_off = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
+            cur = m.s_load(sn, At::idx(sp, 4, 0), 4, false);
+            cur_d = m.load(snear, At::idx(near_off, 1, 0));
+            let children: &[usize] = match tree {
+                Tree::Bvh4(_) => &[0, 1, 2, 3],
+                Tree::Bvh2(_) => &[0, 1],
+            };
+            for &i in children {
+                let (child, lnear, lhit) = match tree {
+                    Tree::Bvh4(s) => {
+                        let nb = m.s_shift(Shift::Shl, node, NODE_BYTES.trailing_zeros());
+                        let child = m.s_load(&s.nodes, At::idx(nb, 1, 96 + 4 * i), 4, false);
+                        let empty = m.s_cmp(Cmp::Eq, child, sentinel);
+                        if m.branch(site::EMPTY, empty) {
+                            break;
+                        }
+                        // Rows min_x max_x min_y max_y min_z max_z, child i at 4i.
+                        let plane = |m: &mut M, r: usize| {
+                            m.load_bcast(&s.nodes, At::idx(nb, 1, 16 * r + 4 * i))
+                        };
+                        let (lnear, lhit) = box_test(m, &pk, plane);
+                        (child, lnear, lhit)
+                    }
+                    Tree::Bvh2(s) => {
+                        let nb = m.s_shift(Shift::Shl, node, 6);
+                        let child = m.s_load(&s.nodes, At::idx(nb, 1, 48 + 4 * i), 4, false);
+                        // Per axis [min_l, min_r, max_l, max_r]: min at 4i, max at 8 + 4i.
+                        let plane = |m: &mut M, r: usize| {
+                            let off = 16 * (r / 2) + 8 * (r % 2) + 4 * i;
+                            m.load_bcast(&s.nodes, At::idx(nb, 1, off))
+                        };
+                        let (lnear, lhit) = box_test(m, &pk, plane);
+                        (child, lnear, lhit)
+                    }
+                };
+                aabb += 1;
+                let any = m.any(lhit);
+                if !m.branch(site::HIT, any) {
+                    continue;
+                }
+                let child_d = m.select(lhit, lnear, inf);
+                let closer = m.cmp(Cmp::Lt, child_d, cur_d);
+                let anyc = m.any(closer);
+                let (push, push_d) = if m.branch(site::CLOSER, anyc) {
+                    let old = (cur, cur_d);
+                    cur = child;
+                    cur_d = child_d;
+                    old
+                } else {
+                    (child, child_d)
+                };
+                let near_off = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
+                m.s_store(sn, At::idx(sp, 4, 0), 4, push);
+                m.store(snear, At::idx(near_off, 1, 0), push_d);
+                sp = m.s_addi(sp, 1);
+            }
+        }
+        let done = m.s_cmp(Cmp::Eq, cur, sentinel);
+        if m.branch(site::DONE, done) {
+            break;
+        }
+        // Leaf: every ray still in front of its hit against each triangle.
+        let valid_leaf = m.cmp(Cmp::Gt, pk.tfar, cur_d);
+        tests.leaf += u64::from(m.bits(valid_leaf).count_ones());
+        let blocks = match tree {
+            Tree::Bvh4(s) => &s.tris,
+            Tree::Bvh2(s) => &s.tris,
+        };
+        leaf(
+            m,
+            blocks,
+            cur,
+            valid_leaf,
+            &mut pk,
+            &mut pb.rays,
+            base,
+            (shadow, one_sided),
+            &mut tri_tests,
+        );
+        if shadow {
+            // Done when every lane is occluded (t_far = -1) or padding.
+            let zero_v = m.splat(0.0);
+            let alive = m.cmp(Cmp::Ge, pk.tfar, zero_v);
+            let any = m.any(alive);
+            if !m.branch(site::ALIVE, any) {
+                break;
+            }
+        }
+    }
+    pb.frusta_stats.aabb_tests += aabb;
+    pb.frusta_stats.tris_accessed += tri_tests;
+    pb.frusta_stats.tris_after_culling += tri_tests;
+    pb.frusta_stats.isec_tests += tri_tests;
+}
+
+/// One child box against every ray of the packet: (entry distances, hit
+/// mask). `plane(m, r)` broadcasts the box's row r (min_x, max_x, min_y,
+/// max_y, min_z, max_z).
+fn box_test<M: Machine>(
+    m: &mut M,
+    pk: &Packet<M>,
+    mut plane: impl FnMut(&mut M, usize) -> M::F,
+) -> (M::F, M::K) {
+    let mut near = pk.tnear;
+    let mut far = pk.tfar;
+    for a in 0..3 {
+        let lo = plane(m, 2 * a);
+        let hi = plane(m, 2 * a + 1);
+        let t0 = m.fmsub(lo, pk.idir[a], pk.oid[a]);
+        let t1 = m.fmsub(hi, pk.idir[a], pk.oid[a]);
+        let mn = m.min(t0, t1);
+        let mx = m.max(t0, t1);
+        near = m.max(near, mn);
+        far = m.min(far, mx);
+    }
+    let hit = m.cmp(Cmp::Le, near, far);
+    (near, hit)
+}
+
+/// The packet against each triangle of leaf `node`'s block (8 rays vs one
+/// broadcast triangle per step), lanes `valid` only; hits are written to the
+/// packet record at byte `base` of `rays` with masked stores (memory holds
+/// the hits, as in Embree, so the hybrid kernel's single rays see them). A
+/// shadow lane that hits gets t_far = -1: it is done.
+#[allow(clippy::too_many_arguments)]
+fn leaf<M: Machine>(
+    m: &mut M,
+    tris: &Buf,
+    node: M::S,
+    valid: M::K,
+    pk: &mut Packet<M>,
+    rays: &mut Buf,
+    base: M::S,
+    (shadow, one_sided): (bool, bool),
+    tri_tests: &mut u64,
+) {
+    let w = M::LANES;
+    let mut valid = valid;
+    m.region(Region::Leaf);
+    let mask_idx = m.int(i64::from(!LEAF));
+    let blk = m.s_and(node, mask_idx);
+    let bytes = m.int(BLOCK_BYTES as i64);
+    let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+    for j in 0..crate::layout::BLOCK {
+        let id = m.s_load(tris, At::idx(bb, 1, 32 * 9 + 4 * j), 4, true);
+        let zero = m.int(0);
+        if m.branch_if(site::TRI_SLOT, Cmp::Lt, id, zero) {
+            break;
+        }
+        let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
+        let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
+        let pf = r(9);
+        let prim = m.bits_to_i(pf);
+        let blk = Block::<M> { v0, e1, e2, prim };
+        let Moller {
+            t,
+            u: tu,
+            v: tv,
+            valid: hit,
+        } = moller_sided(m, &blk, &pk.org, &pk.dir, pk.tfar, one_sided);
+        *tri_tests += 1;
+        let hit = m.kand(hit, valid);
+        let any = m.any(hit);
+        if !m.branch(site::TRI, any) {
+            continue;
+        }
+        let at = |r: usize| At::idx(base, 1, row(w, r));
+        if shadow {
+            let done = m.splat(-1.0);
+            pk.tfar = m.select(hit, done, pk.tfar);
+            m.store_masked(hit, rays, at(row::TFAR), done);
+            m.store_masked(hit, rays, at(row::PRIM), pf);
+            let miss = m.knot(hit);
+            valid = m.kand(valid, miss);
+            continue;
+        }
+        pk.tfar = m.select(hit, t, pk.tfar);
+        m.store_masked(hit, rays, at(row::TFAR), t);
+        m.store_masked(hit, rays, at(row::U), tu);
+        m.store_masked(hit, rays, at(row::V), tv);
+        m.store_masked(hit, rays, at(row::PRIM), pf);
+    }
+}

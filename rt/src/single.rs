@@ -1,0 +1,647 @@
+//! Single-ray BVH4 traversal, Embree style (the DRS paper's "Single BVH4"):
+//! an ordered stack, the 4 child boxes tested with one set of 4-wide ops
+//! (repeated across the lanes), closest hit first, farther hits pushed with
+//! their entry distance and culled on pop; leaves are 8-wide SoA
+//! Moller-Trumbore blocks (1 ray vs 8 triangles).
+//!
+//! Deviations: the closest child is chosen by scalar compares over the hit
+//! lanes (Embree uses a sorting network); a leaf is one block of <= 8 triangles.
+
+use crate::layout::{is_leaf, SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
+use crate::stats::Tests;
+use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, Region};
+use scene::bvh::EMPTY_SLOT;
+
+/// Branch sites of the kernel.
+pub mod site {
+    use isa::Site;
+    /// More rays?
+    pub const RAYS: Site = Site(20);
+    /// Stack empty?
+    pub const STACK: Site = Site(21);
+    /// Popped entry farther than the current hit?
+    pub const CULL: Site = Site(22);
+    /// Leaf or inner?
+    pub const LEAF: Site = Site(23);
+    /// Any child hit?
+    pub const ANY_CHILD: Site = Site(24);
+    /// Next hit child?
+    pub const CHILD: Site = Site(25);
+    /// Closer than the best so far?
+    pub const CLOSER: Site = Site(26);
+    /// Any triangle hit?
+    pub const TRI: Site = Site(27);
+    /// Another block pass (narrow flavours)?
+    pub const PASS: Site = Site(28);
+    /// BVH2: the only hit child is the left one?
+    pub const SIDE: Site = Site(29);
+}
+
+/// Stack entries one ray can need (3 pushes per level x 64 levels, rounded up).
+pub const STACK_ENTRIES: usize = 256;
+
+/// Trace rays `[0, nrays)`: `trav`/`isect` are the ray records of
+/// [`crate::layout::ray_records`]; `hits` holds one 16-byte record per ray
+/// ([`crate::layout::hit_records`]); `stack` needs `STACK_ENTRIES * 8` bytes.
+#[allow(clippy::too_many_arguments)]
+pub fn trace<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    nrays: usize,
+    tests: &mut Tests,
+    shadow: bool,
+) {
+    let root = m.int(0);
+    each_ray(m, nrays, |m, ray| {
+        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests, shadow);
+    });
+}
+
+/// Call `f` with each ray index `0..nrays` (a counted loop, at least once).
+fn each_ray<M: Machine>(m: &mut M, nrays: usize, mut f: impl FnMut(&mut M, M::S)) {
+    let mut ray = m.int(0);
+    let nr = m.int(nrays as i64);
+    loop {
+        f(m, ray);
+        ray = m.s_addi(ray, 1);
+        if !m.branch_if(site::RAYS, Cmp::Lt, ray, nr) {
+            break;
+        }
+    }
+}
+
+/// Trace one ray from node `start` (a BVH4 node index or leaf ref), keeping the
+/// best hit already in its hit record and its current `t_far`; writes back
+/// the hit record and `t_far` (so ray-stream kernels can fall back to this).
+#[allow(clippy::too_many_arguments)]
+pub fn trace_ray<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    ray: M::S,
+    start: M::S,
+    tests: &mut Tests,
+    shadow: bool,
+) {
+    let mut st = RayState::load(m, trav, isect, hits, ray);
+    walk4(m, s, &mut st, stack, start, tests, shadow);
+    // Write the hit record and the new t_far.
+    m.region(Region::SingleRay);
+    st.write(m, trav, hits);
+}
+
+/// The BVH4 stack loop of [`trace_ray`] for a loaded ray, from node `start`
+/// (`shadow`: stop at the first hit).
+pub fn walk4<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    st: &mut RayState<M>,
+    stack: &mut Buf,
+    start: M::S,
+    tests: &mut Tests,
+    shadow: bool,
+) {
+    let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
+    // Push the start node.
+    let mut sp = m.int(0);
+    m.s_store(stack, At::off(0), 4, start);
+    let z = m.float(0.0);
+    m.x_store(stack, At::off(4), z);
+    sp = m.s_addi(sp, 1);
+    loop {
+        m.region(Region::Traversal);
+        let zero = m.int(0);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
+            break;
+        }
+        sp = m.s_addi(sp, -1);
+        let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
+        let tn = m.x_load(stack, At::idx(sp, 8, 4));
+        let cull = m.x_cmp(Cmp::Gt, tn, st.tfar_x);
+        if m.branch(site::CULL, cull) {
+            tests.culled += 1;
+            continue;
+        }
+        // Descend through inner nodes.
+        loop {
+            let leaf_flag = m.int(i64::from(scene::bvh::LEAF));
+            let lf = m.s_and(node, leaf_flag);
+            if m.branch(site::LEAF, lf) {
+                break;
+            }
+            // node * 128: a shift.
+            let base = m.s_shift(isa::Shift::Shl, node, NODE_BYTES.trailing_zeros());
+            tests.other += 1;
+            let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
+            let mut tn_v = tnear_ray;
+            let mut tf_v = st.tfar;
+            for a in 0..3 {
+                let lo = b(m, 2 * a);
+                let hi = b(m, 2 * a + 1);
+                let t0 = m.fmsub(lo, idir[a], oid[a]);
+                let t1 = m.fmsub(hi, idir[a], oid[a]);
+                let mn = m.min(t0, t1);
+                let mx = m.max(t0, t1);
+                tn_v = m.max(tn_v, mn);
+                tf_v = m.min(tf_v, mx);
+            }
+            let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
+            let bits = m.movemask(hitk);
+            let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
+            let mut bits = m.s_and(bits, valid);
+            let none = m.s_cmp(Cmp::Eq, bits, zero);
+            if m.branch(site::ANY_CHILD, none) {
+                node = m.int(i64::from(EMPTY_SLOT));
+                break;
+            }
+            // Closest hit child: scalar compares over the hit lanes; the rest are pushed.
+            let mut best_c: Option<(M::S, M::X)> = None;
+            loop {
+                let lane = m.s_tzcnt(bits);
+                let l = lane.get() as usize;
+                let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
+                let d = m.extract(tn_v, l);
+                match best_c {
+                    None => best_c = Some((child, d)),
+                    Some((bc_, bd)) => {
+                        let closer = m.x_cmp(Cmp::Lt, d, bd);
+                        let (push_c, push_d, keep) = if m.branch(site::CLOSER, closer) {
+                            (bc_, bd, (child, d))
+                        } else {
+                            (child, d, (bc_, bd))
+                        };
+                        m.s_store(stack, At::idx(sp, 8, 0), 4, push_c);
+                        m.x_store(stack, At::idx(sp, 8, 4), push_d);
+                        sp = m.s_addi(sp, 1);
+                        best_c = Some(keep);
+                    }
+                }
+                let lm1 = m.s_addi(bits, -1);
+                bits = m.s_and(bits, lm1);
+                let more = m.s_cmp(Cmp::Ne, bits, zero);
+                if !m.branch(site::CHILD, more) {
+                    break;
+                }
+            }
+            node = best_c.expect("a hit child").0;
+        }
+        if !is_leaf(node.get() as u32) {
+            continue;
+        }
+        // Leaf: one block of 8 triangles, in passes of the lanes there are.
+        tests.leaf += 1;
+        if st.leaf(m, &s.tris, node, shadow) && shadow {
+            break;
+        }
+    }
+}
+
+/// One ray's registers in the single-ray kernels: its data broadcast per
+/// component (vbroadcastss m32) and its best hit so far.
+pub struct RayState<M: Machine> {
+    /// Lane of an SoA packet record the ray came from (hybrid kernel), or
+    /// `None` for the AoS ray records.
+    lane: Option<usize>,
+    ro: M::S,
+    ho: M::S,
+    idir: [M::F; 3],
+    oid: [M::F; 3],
+    tnear: M::F,
+    org: [M::F; 3],
+    dir: [M::F; 3],
+    tfar_x: M::X,
+    tfar: M::F,
+    best_u: M::X,
+    best_v: M::X,
+    best_prim: M::S,
+}
+
+impl<M: Machine> RayState<M> {
+    /// Load ray `ray`'s records and its hit record.
+    fn load(m: &mut M, trav: &Buf, isect: &Buf, hits: &Buf, ray: M::S) -> Self {
+        m.region(Region::SingleRay);
+        let ro = m.s_shift(isa::Shift::Shl, ray, 5);
+        let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
+        let idir = [bc(m, trav, 0), bc(m, trav, 1), bc(m, trav, 2)];
+        let oid = [bc(m, trav, 4), bc(m, trav, 5), bc(m, trav, 6)];
+        let tnear = bc(m, trav, 3);
+        let org = [bc(m, isect, 0), bc(m, isect, 1), bc(m, isect, 2)];
+        let dir = [bc(m, isect, 4), bc(m, isect, 5), bc(m, isect, 6)];
+        let tfar_x = m.x_load(trav, At::idx(ro, 1, 28));
+        let tfar = m.broadcast(tfar_x);
+        let ho = m.s_shift(isa::Shift::Shl, ray, 4);
+        let best_u = m.x_load(hits, At::idx(ho, 1, 4));
+        let best_v = m.x_load(hits, At::idx(ho, 1, 8));
+        let best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
+        RayState {
+            lane: None,
+            ro,
+            ho,
+            idir,
+            oid,
+            tnear,
+            org,
+            dir,
+            tfar_x,
+            tfar,
+            best_u,
+            best_v,
+            best_prim,
+        }
+    }
+
+    /// Load lane `k` of the SoA packet record at byte `pb` of `pk`
+    /// ([`crate::packet`] layout): broadcasts of its rows; the premultiplied
+    /// origin is computed (Embree's hybrid kernel does the same in registers).
+    pub fn load_packet(m: &mut M, pk: &Buf, pb: M::S, k: usize) -> Self {
+        use crate::layout::row;
+        m.region(Region::SingleRay);
+        let w = M::LANES;
+        let bc = |m: &mut M, r: usize| m.load_bcast(pk, At::idx(pb, 1, row(w, r) + 4 * k));
+        let org = [bc(m, row::ORG), bc(m, row::ORG + 1), bc(m, row::ORG + 2)];
+        let dir = [bc(m, row::DIR), bc(m, row::DIR + 1), bc(m, row::DIR + 2)];
+        let idir = [bc(m, row::IDIR), bc(m, row::IDIR + 1), bc(m, row::IDIR + 2)];
+        let oid = [
+            m.mul(org[0], idir[0]),
+            m.mul(org[1], idir[1]),
+            m.mul(org[2], idir[2]),
+        ];
+        let tnear = bc(m, row::TNEAR);
+        let x = |m: &mut M, r: usize| m.x_load(pk, At::idx(pb, 1, row(w, r) + 4 * k));
+        let tfar_x = x(m, row::TFAR);
+        let tfar = m.broadcast(tfar_x);
+        let best_u = x(m, row::U);
+        let best_v = x(m, row::V);
+        let best_prim = m.s_load(pk, At::idx(pb, 1, row(w, row::PRIM) + 4 * k), 4, true);
+        RayState {
+            lane: Some(k),
+            ro: pb,
+            ho: pb,
+            idir,
+            oid,
+            tnear,
+            org,
+            dir,
+            tfar_x,
+            tfar,
+            best_u,
+            best_v,
+            best_prim,
+        }
+    }
+
+    /// Leaf `node`: one block of 8 triangles, in passes of the lanes there
+    /// are; whether a triangle was hit. A shadow ray's t_far becomes -1 on a
+    /// hit (it is done).
+    fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S, shadow: bool) -> bool {
+        let mut any = false;
+        let width = M::LANES.min(8);
+        m.region(Region::Leaf);
+        let mask_idx = m.int(i64::from(!scene::bvh::LEAF));
+        let blk = m.s_and(node, mask_idx);
+        let bytes = m.int(BLOCK_BYTES as i64);
+        let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+        for p in 0..8 / width {
+            let blk = load_block(m, tris, bb, p);
+            if let Some(h) = intersect(m, &blk, &self.org, &self.dir, self.tfar) {
+                self.tfar_x = h.t;
+                self.tfar = h.tb;
+                self.best_u = h.u;
+                self.best_v = h.v;
+                let off = 32 * 9 + 4 * (width * p + h.lane);
+                self.best_prim = m.s_load(tris, At::idx(bb, 1, off), 4, true);
+                any = true;
+                if shadow {
+                    self.tfar_x = m.float(-1.0);
+                    self.tfar = m.splat(-1.0);
+                    return true;
+                }
+            }
+        }
+        any
+    }
+
+    /// Write the hit (t_far, u, v, prim) back to lane `k` of its packet record.
+    pub fn write_packet(self, m: &mut M, pk: &mut Buf) {
+        use crate::layout::row;
+        let (w, k, pb) = (M::LANES, self.lane.expect("a packet lane"), self.ro);
+        let at = |r: usize| At::idx(pb, 1, row(w, r) + 4 * k);
+        m.x_store(pk, at(row::TFAR), self.tfar_x);
+        m.x_store(pk, at(row::U), self.best_u);
+        m.x_store(pk, at(row::V), self.best_v);
+        m.s_store(pk, at(row::PRIM), 4, self.best_prim);
+    }
+
+    /// Write the hit record and the new t_far.
+    fn write(self, m: &mut M, trav: &mut Buf, hits: &mut Buf) {
+        let (ro, ho) = (self.ro, self.ho);
+        m.x_store(hits, At::idx(ho, 1, 0), self.tfar_x);
+        m.x_store(trav, At::idx(ro, 1, 28), self.tfar_x);
+        m.x_store(hits, At::idx(ho, 1, 4), self.best_u);
+        m.x_store(hits, At::idx(ho, 1, 8), self.best_v);
+        m.s_store(hits, At::idx(ho, 1, 12), 4, self.best_prim);
+    }
+}
+
+/// The rows of one 8-wide triangle block (one pass of `min(LANES, 8)` lanes).
+pub struct Block<M: Machine> {
+    /// First vertex.
+    pub v0: [M::F; 3],
+    /// First edge.
+    pub e1: [M::F; 3],
+    /// Second edge.
+    pub e2: [M::F; 3],
+    /// Triangle ids as i32 (-1: empty slot).
+    pub prim: M::I,
+}
+
+/// Load pass `p` of the block at byte `bb` of `tris`.
+pub fn load_block<M: Machine>(m: &mut M, tris: &Buf, bb: M::S, p: usize) -> Block<M> {
+    let n = M::LANES;
+    let width = n.min(8);
+    let mut row = |r: usize| {
+        let at = At::idx(bb, 1, 32 * r + 4 * width * p);
+        if n > 8 {
+            m.load_repeat(tris, at, 8)
+        } else {
+            m.load(tris, at)
+        }
+    };
+    let v0 = [row(0), row(1), row(2)];
+    let e1 = [row(3), row(4), row(5)];
+    let e2 = [row(6), row(7), row(8)];
+    let pf = row(9);
+    let prim = m.bits_to_i(pf);
+    Block { v0, e1, e2, prim }
+}
+
+/// The closest hit in a block pass.
+pub struct BlockHit<M: Machine> {
+    /// Its t.
+    pub t: M::X,
+    /// Its t in every lane.
+    pub tb: M::F,
+    /// Its lane.
+    pub lane: usize,
+    /// Barycentric u.
+    pub u: M::X,
+    /// Barycentric v.
+    pub v: M::X,
+}
+
+/// Lane-wise Moller-Trumbore: rays `org`, `dir` against triangles `b`, either
+/// side broadcast (one ray vs 8 triangles, or a packet vs one triangle).
+pub fn moller<M: Machine>(
+    m: &mut M,
+    b: &Block<M>,
+    org: &[M::F; 3],
+    dir: &[M::F; 3],
+    tfar: M::F,
+) -> Moller<M> {
+    moller_sided(m, b, org, dir, tfar, false)
+}
+
+/// [`moller`], with `front_only`: front faces only (det > 0, i.e. the ray
+/// meets the side the winding's normal points to), as back-face culling.
+pub fn moller_sided<M: Machine>(
+    m: &mut M,
+    b: &Block<M>,
+    org: &[M::F; 3],
+    dir: &[M::F; 3],
+    tfar: M::F,
+    front_only: bool,
+) -> Moller<M> {
+    let zero_v = m.splat(0.0);
+    let one_v = m.splat(1.0);
+    let cross = |m: &mut M, a: [M::F; 3], c: [M::F; 3]| {
+        let x0 = m.mul(a[2], c[1]);
+        let x = m.fmsub(a[1], c[2], x0);
+        let y0 = m.mul(a[0], c[2]);
+        let y = m.fmsub(a[2], c[0], y0);
+        let z0 = m.mul(a[1], c[0]);
+        let zz = m.fmsub(a[0], c[1], z0);
+        [x, y, zz]
+    };
+    let dot = |m: &mut M, a: [M::F; 3], c: [M::F; 3]| {
+        let d0 = m.mul(a[0], c[0]);
+        let d1 = m.fmadd(a[1], c[1], d0);
+        m.fmadd(a[2], c[2], d1)
+    };
+    let pv = cross(m, *dir, b.e2);
+    let det = dot(m, b.e1, pv);
+    let inv = m.rcp(det);
+    let sv = [
+        m.sub(org[0], b.v0[0]),
+        m.sub(org[1], b.v0[1]),
+        m.sub(org[2], b.v0[2]),
+    ];
+    let u0 = dot(m, sv, pv);
+    let u = m.mul(u0, inv);
+    let qv = cross(m, sv, b.e1);
+    let v0_ = dot(m, *dir, qv);
+    let v = m.mul(v0_, inv);
+    let t0 = dot(m, b.e2, qv);
+    let t = m.mul(t0, inv);
+    let uv = m.add(u, v);
+    let ok_det = m.cmp(if front_only { Cmp::Gt } else { Cmp::Ne }, det, zero_v);
+    let ok_u = m.cmp(Cmp::Ge, u, zero_v);
+    let ok_v = m.cmp(Cmp::Ge, v, zero_v);
+    let ok_uv = m.cmp(Cmp::Le, uv, one_v);
+    let ok_t0 = m.cmp(Cmp::Gt, t, zero_v);
+    let ok_t1 = m.cmp(Cmp::Lt, t, tfar);
+    let zi = m.splat_i(0);
+    let ok_p = m.icmp(Cmp::Ge, b.prim, zi);
+    let mut valid = m.klogic(Logic::And, ok_det, ok_u);
+    for k in [ok_v, ok_uv, ok_t0, ok_t1, ok_p] {
+        valid = m.klogic(Logic::And, valid, k);
+    }
+    Moller { t, u, v, valid }
+}
+
+/// Per-lane result of [`moller`].
+pub struct Moller<M: Machine> {
+    /// Distance.
+    pub t: M::F,
+    /// Barycentric u.
+    pub u: M::F,
+    /// Barycentric v.
+    pub v: M::F,
+    /// Lanes with a hit: det != 0, u, v >= 0, u + v <= 1, 0 < t < t_far, prim >= 0.
+    pub valid: M::K,
+}
+
+/// 8-wide Moller-Trumbore of one ray (`org`, `dir` broadcast) against a
+/// block, hits with 0 < t < `tfar`; the closest, if any (a recorded branch).
+pub fn intersect<M: Machine>(
+    m: &mut M,
+    b: &Block<M>,
+    org: &[M::F; 3],
+    dir: &[M::F; 3],
+    tfar: M::F,
+) -> Option<BlockHit<M>> {
+    let n = M::LANES;
+    let inf = m.splat(f32::INFINITY);
+    let Moller { t, u, v, mut valid } = moller(m, b, org, dir, tfar);
+    if n > 8 {
+        let low = m.mask(0xFF);
+        valid = m.klogic(Logic::And, valid, low);
+    }
+    let any = m.any(valid);
+    if !m.branch(site::TRI, any) {
+        return None;
+    }
+    let tv = m.select(valid, t, inf);
+    let tmin = m.reduce(BinOp::Min, tv);
+    let tb = m.broadcast(tmin);
+    let eq = m.cmp(Cmp::Eq, tv, tb);
+    let at_min = m.klogic(Logic::And, eq, valid);
+    let lane = m.bitscan(at_min).get() as usize;
+    let uu = m.extract(u, lane);
+    let vv = m.extract(v, lane);
+    Some(BlockHit {
+        t: tmin,
+        tb,
+        lane,
+        u: uu,
+        v: vv,
+    })
+}
+
+/// Trace rays `[0, nrays)` through a BVH2 (the DRS paper's "Single BVH2"):
+/// as [`trace`], buffers the same.
+#[allow(clippy::too_many_arguments)]
+pub fn trace2<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    nrays: usize,
+    tests: &mut Tests,
+    shadow: bool,
+) {
+    each_ray(m, nrays, |m, ray| {
+        let root = m.int(i64::from(s.root));
+        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests, shadow);
+    });
+}
+
+/// One ray through a BVH2 from node `start` (a node index or leaf ref;
+/// hit record and `t_far` kept and written back as in [`trace_ray`]): per node one 16-byte load per axis
+/// (`[min_l, min_r, max_l, max_r]`, repeated across the lanes), one FMA per
+/// axis for all four planes, a lane swap (`vpermilps`) to pair each min with
+/// its max, so lanes 0 and 1 hold the two children's entry and exit; the
+/// nearer hit child is taken, the farther pushed with its entry distance.
+///
+/// Deviation: the node test uses the lanes there are (4 of them carry
+/// data), as Embree's BVH2 path does with SSE.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_ray2<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    ray: M::S,
+    start: M::S,
+    tests: &mut Tests,
+    shadow: bool,
+) {
+    let n = M::LANES;
+    let swap: Vec<u8> = (0..n).map(|i| (i ^ 2) as u8).collect();
+    let mut st = RayState::load(m, trav, isect, hits, ray);
+    let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
+    let mut sp = m.int(0);
+    m.s_store(stack, At::off(0), 4, start);
+    let z = m.float(0.0);
+    m.x_store(stack, At::off(4), z);
+    sp = m.s_addi(sp, 1);
+    loop {
+        m.region(Region::Traversal);
+        let zero = m.int(0);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
+            break;
+        }
+        sp = m.s_addi(sp, -1);
+        let mut node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
+        let tn = m.x_load(stack, At::idx(sp, 8, 4));
+        let cull = m.x_cmp(Cmp::Gt, tn, st.tfar_x);
+        if m.branch(site::CULL, cull) {
+            tests.culled += 1;
+            continue;
+        }
+        let mut missed = false;
+        loop {
+            let leaf_flag = m.int(i64::from(scene::bvh::LEAF));
+            let lf = m.s_and(node, leaf_flag);
+            if m.branch(site::LEAF, lf) {
+                break;
+            }
+            let base = m.s_shift(isa::Shift::Shl, node, 6);
+            tests.other += 1;
+            let mut tn_v = tnear_ray;
+            let mut tf_v = st.tfar;
+            for a in 0..3 {
+                let planes = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
+                let t = m.fmsub(planes, idir[a], oid[a]);
+                let sw = m.permute(t, &swap);
+                let mn = m.min(t, sw);
+                let mx = m.max(t, sw);
+                tn_v = m.max(tn_v, mn);
+                tf_v = m.min(tf_v, mx);
+            }
+            let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
+            let bits = m.movemask(hitk);
+            let lr = m.int(3);
+            let bits = m.s_and(bits, lr);
+            let none = m.s_cmp(Cmp::Eq, bits, zero);
+            if m.branch(site::ANY_CHILD, none) {
+                missed = true;
+                break;
+            }
+            let l = m.s_load(&s.nodes, At::idx(base, 1, 48), 4, false);
+            let r = m.s_load(&s.nodes, At::idx(base, 1, 52), 4, false);
+            let is_both = m.s_cmp(Cmp::Eq, bits, lr);
+            if m.branch(site::CHILD, is_both) {
+                let dl = m.extract(tn_v, 0);
+                let dr = m.extract(tn_v, 1);
+                let right_closer = m.x_cmp(Cmp::Lt, dr, dl);
+                let (near, far, dfar) = if m.branch(site::CLOSER, right_closer) {
+                    (r, l, dl)
+                } else {
+                    (l, r, dr)
+                };
+                m.s_store(stack, At::idx(sp, 8, 0), 4, far);
+                m.x_store(stack, At::idx(sp, 8, 4), dfar);
+                sp = m.s_addi(sp, 1);
+                node = near;
+            } else {
+                let one = m.int(1);
+                let only_left = m.s_cmp(Cmp::Eq, bits, one);
+                node = if m.branch(site::SIDE, only_left) {
+                    l
+                } else {
+                    r
+                };
+            }
+        }
+        if missed {
+            continue;
+        }
+        tests.leaf += 1;
+        if st.leaf(m, &s.tris, node, shadow) && shadow {
+            break;
+        }
+    }
+    m.region(Region::SingleRay);
+    st.write(m, trav, hits);
+}

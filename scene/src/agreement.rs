@@ -1,0 +1,270 @@
+//! Hit agreement: when an f32 kernel's answer counts as the f64 reference's.
+//! Every paper checks its kernels with these rules.
+
+use crate::mesh::Mesh;
+use crate::reference::{Ray, Reference, TriGeom};
+use crate::workload::RayStream;
+use glam::DVec3;
+
+/// Least barycentric distance to an edge within which an f32 kernel may
+/// miss a triangle the f64 watertight reference hits (or hit one it misses).
+pub const EDGE_EPS: f64 = 1e-5;
+
+/// The barycentric tolerance of f32 Moller-Trumbore on triangle `prim` for a
+/// ray from `org`: [`EDGE_EPS`], or more for small or thin triangles far from
+/// the origin, where the f32 rounding of the edges and of the origin offset
+/// (about 2^-24 of the largest coordinate each) is a larger fraction of the
+/// triangle's least altitude.
+#[must_use]
+pub fn tri_eps(mesh: &Mesh, prim: u32, org: [f64; 3]) -> f64 {
+    tri_eps_for(F32Test::MollerTrumbore, mesh, prim, org, [0.0; 3])
+}
+
+/// Which f32 ray-triangle test a kernel runs: it sets how far from an edge
+/// the kernel may disagree with the f64 reference.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum F32Test {
+    /// Moller-Trumbore relative to v0 (single, packet, DRS kernels).
+    MollerTrumbore,
+    /// Edge normals of origin-relative vertices (the MFT paper's common-origin
+    /// Pluecker test): cross products of two long, nearly parallel vectors,
+    /// so the error grows with the squared distance over the triangle's area.
+    Pluecker,
+}
+
+/// [`tri_eps`] for a test, and (Pluecker) a ray direction `dir`.
+#[must_use]
+pub fn tri_eps_for(test: F32Test, mesh: &Mesh, prim: u32, org: [f64; 3], dir: [f64; 3]) -> f64 {
+    let g = TriGeom::of(mesh, prim);
+    let longest =
+        g.e1.length()
+            .max(g.e2.length())
+            .max((g.v[2] - g.v[1]).length());
+    let altitude = g.n.length() / longest.max(1e-300);
+    let reach =
+        g.v.iter()
+            .map(|v| v.abs().max_element())
+            .fold(DVec3::from(org).abs().max_element(), f64::max);
+    let f32_err = 16.0 * f64::from(f32::EPSILON) * reach / altitude.max(1e-300);
+    let eps = EDGE_EPS.max(f32_err);
+    let eps = if test == F32Test::Pluecker {
+        // |d . E| carries about eps * |d| * reach^2 of rounding; the signal
+        // is lambda * |d . n| (n = e1 x e2).
+        let d = DVec3::from(dir);
+        let r = reach.max((g.v[0] - DVec3::from(org)).length());
+        let dn = g.n.dot(d).abs();
+        eps.max(4.0 * f64::from(f32::EPSILON) * d.length() * r * r / dn.max(1e-300))
+    } else {
+        eps
+    };
+    eps.min(0.5)
+}
+
+/// Whether the reference hit `h` of a ray from `org` lies within the f32
+/// tolerance of an edge of its triangle.
+fn grazing(test: F32Test, mesh: &Mesh, ray: &Ray, h: &crate::reference::Hit) -> bool {
+    h.u.min(h.v).min(1.0 - h.u - h.v) <= tri_eps_for(test, mesh, h.prim, ray.org, ray.dir)
+}
+
+/// [`grazing`], or (one-sided reference) met nearly edge-on, where a
+/// back-face culling kernel may drop it.
+fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &crate::reference::Hit) -> bool {
+    grazing(test, refi.mesh(), ray, h)
+        || (refi.is_one_sided() && refi.edge_on(h.prim, ray.dir))
+        || (test == F32Test::Pluecker && pluecker_unreliable(refi.mesh(), h.prim, ray))
+}
+
+/// Whether the MFT kernel's common-origin test cannot resolve `ray` against
+/// triangle `prim`: |d . n| within 8 ulp x |v0 - o|^2 x |d| (twice the
+/// noise floor the kernel rejects below).
+fn pluecker_unreliable(mesh: &Mesh, prim: u32, ray: &Ray) -> bool {
+    let g = TriGeom::of(mesh, prim);
+    let (o, d) = (DVec3::from(ray.org), DVec3::from(ray.dir));
+    d.dot(g.n).abs() <= 8.0 * f64::from(f32::EPSILON) * (g.v[0] - o).length_squared() * d.length()
+}
+
+/// Whether triangle `prim` is hit at about `t` (`None`: anywhere in
+/// (0, tmax]) by `ray` in f64 with its edges widened by the f32 tolerance (a
+/// hit the reference calls a near miss).
+fn near_hit(test: F32Test, refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
+    // One-sided: a back face counts only when nearly edge-on, where the
+    // kernel's f32 orientation test may go either way.
+    if !refi.faces(prim, ray.dir) && !refi.edge_on(prim, ray.dir) {
+        return false;
+    }
+    // f64 Moller-Trumbore barycentrics, edges widened by the tolerance.
+    let g = TriGeom::of(refi.mesh(), prim);
+    let (o, d) = (DVec3::from(ray.org), DVec3::from(ray.dir));
+    let p = d.cross(g.e2);
+    let det = g.e1.dot(p);
+    if det == 0.0 || !det.is_finite() {
+        return false;
+    }
+    let s = o - g.v[0];
+    let u = s.dot(p) / det;
+    let q = s.cross(g.e1);
+    let v = d.dot(q) / det;
+    let th = g.e2.dot(q) / det;
+    let eps = tri_eps_for(test, refi.mesh(), prim, ray.org, ray.dir);
+    let at_t = match t {
+        Some(t) => (th - t).abs() <= 1e-4 * t.abs().max(1.0),
+        None => th > 0.0 && th <= ray.tmax * (1.0 + 1e-4),
+    };
+    u >= -eps && v >= -eps && u + v <= 1.0 + eps && at_t
+}
+
+/// Rays whose kernel hit differs from the reference's closest hit. Agreement:
+/// both miss; or both hit with t within 1e-4 relative and the same triangle —
+/// or, at a shared edge where two triangles tie, a triangle the reference also
+/// hits at that t, or one it misses by less than the f32 tolerance
+/// ([`tri_eps`]); or the reference's hit lies within the tolerance of an
+/// edge (a crack for f32 Moller-Trumbore) and the kernel returns the next hit
+/// the reference finds behind it (or a miss when every later hit grazes too).
+pub fn mismatches(
+    label: &str,
+    refi: &Reference,
+    org: &[[f32; 3]],
+    dir: &[[f32; 3]],
+    out: &[(f32, i32)],
+) -> usize {
+    mismatches_for(F32Test::MollerTrumbore, label, refi, org, dir, out)
+}
+
+/// [`mismatches`] with the tolerance of triangle test `test`.
+pub fn mismatches_for(
+    test: F32Test,
+    label: &str,
+    refi: &Reference,
+    org: &[[f32; 3]],
+    dir: &[[f32; 3]],
+    out: &[(f32, i32)],
+) -> usize {
+    let mut bad = 0;
+    for i in 0..org.len() {
+        let ray = Ray::new(org[i].map(f64::from), dir[i].map(f64::from));
+        let want = refi.closest(&ray);
+        let (t, prim) = out[i];
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1.0);
+        let kt = if prim < 0 {
+            f64::INFINITY
+        } else {
+            f64::from(t)
+        };
+        // The kernel's hit is real: the reference hits that triangle there,
+        // or misses it by less than the f32 tolerance.
+        let real = |all: &[crate::reference::Hit]| {
+            prim < 0
+                || all.iter().any(|a| a.prim == prim as u32 && close(a.t, kt))
+                || near_hit(test, refi, &ray, prim as u32, Some(kt))
+        };
+        let ok = match want {
+            None => prim < 0 || near_hit(test, refi, &ray, prim as u32, Some(kt)),
+            Some(h) => {
+                let all = refi.all(&ray);
+                let exact = prim >= 0 && close(kt, h.t) && real(&all);
+                // f32 Moller-Trumbore is not watertight: a hit near an edge
+                // may fall into the crack between two triangles; then the
+                // kernel sees the next surface behind it.
+                let skipped_graze = all
+                    .iter()
+                    .filter(|a| prim < 0 || (a.t < kt && !close(a.t, kt)))
+                    .all(|a| may_skip(test, refi, &ray, a));
+                // The mirror case: the kernel hits, in front of the reference's
+                // hit, a triangle the reference misses by less than the tolerance.
+                let near_front =
+                    prim >= 0 && kt < h.t && near_hit(test, refi, &ray, prim as u32, Some(kt));
+                exact
+                    || near_front
+                    || (may_skip(test, refi, &ray, &h) && skipped_graze && real(&all))
+            }
+        };
+        if !ok {
+            bad += 1;
+            if bad <= 3 {
+                eprintln!("{label} ray {i}: kernel ({t}, {prim}) reference {want:?}");
+            }
+        }
+    }
+    bad
+}
+
+/// Shadow rays whose occlusion (kernel: prim >= 0) differs from the
+/// reference's any-hit over (0, tmax]. Allowed: a miss where every blocker
+/// the reference finds grazes an edge within [`tri_eps`] (an f32 crack),
+/// and a hit within 1e-4 relative of `tmax` (the light sample's end).
+#[must_use]
+pub fn shadow_mismatches(
+    label: &str,
+    refi: &Reference,
+    rays: &RayStream,
+    out: &[(f32, i32)],
+) -> usize {
+    shadow_mismatches_for(F32Test::MollerTrumbore, label, refi, rays, out)
+}
+
+/// [`shadow_mismatches`] with the tolerance of triangle test `test`.
+#[must_use]
+pub fn shadow_mismatches_for(
+    test: F32Test,
+    label: &str,
+    refi: &Reference,
+    rays: &RayStream,
+    out: &[(f32, i32)],
+) -> usize {
+    let mut bad = 0;
+    for (i, &(_, prim)) in out.iter().enumerate() {
+        let ray = rays.ray(i);
+        let want = refi.any(&ray);
+        let got = prim >= 0;
+        let ok = want == got
+            || (want && refi.all(&ray).iter().all(|h| may_skip(test, refi, &ray, h)))
+            || (got && {
+                let mut longer = ray;
+                longer.tmax *= 1.0 + 1e-4;
+                refi.any(&longer) || near_hit(test, refi, &ray, prim as u32, None)
+            });
+        if !ok {
+            bad += 1;
+            if bad <= 3 {
+                eprintln!("{label} shadow ray {i}: kernel occluded {got}, reference {want}");
+            }
+        }
+    }
+    bad
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::{BuildConfig, Bvh2};
+
+    /// Two triangles sharing the edge x = 0 at z = 0, a wall behind at z = -1.
+    fn crack_scene() -> Mesh {
+        let obj = b"v 0 -1 0\nv 0 1 0\nv -1 0 0\nv 1 0 0\n\
+v -5 -5 -1\nv 5 -5 -1\nv 0 5 -1\n\
+f 1 2 3\nf 1 4 2\nf 5 6 7\n";
+        crate::mesh::parse_obj(obj, "crack.obj").unwrap()
+    }
+
+    #[test]
+    fn a_crack_at_a_shared_edge_may_show_the_surface_behind_it_and_nothing_else() {
+        let mesh = crack_scene();
+        let b2 = Bvh2::build(&mesh, &BuildConfig::default()).unwrap();
+        let refi = Reference::with_bvh(&mesh, &b2);
+        let down = [[0.0, 0.0, -1.0]];
+        let on_edge = [[0.0, 0.2, 1.0]];
+        let inside = [[-0.3, 0.0, 1.0]];
+        let check =
+            |org: &[[f32; 3]; 1], out: (f32, i32)| mismatches("t", &refi, org, &down, &[out]);
+        // On the edge: either triangle at t = 1, or the wall behind the crack.
+        assert_eq!(check(&on_edge, (1.0, 0)), 0);
+        assert_eq!(check(&on_edge, (1.0, 1)), 0);
+        assert_eq!(check(&on_edge, (2.0, 2)), 0);
+        // Not a miss: the wall is a real hit behind the crack.
+        assert_eq!(check(&on_edge, (f32::INFINITY, -1)), 1);
+        // Away from an edge nothing is skipped.
+        assert_eq!(check(&inside, (1.0, 0)), 0);
+        assert_eq!(check(&inside, (2.0, 2)), 1);
+        assert_eq!(check(&inside, (1.0, 1)), 1);
+    }
+}

@@ -1,0 +1,19 @@
+//! # scene
+//!
+//! The host side of rtsim, in f64 where it matters: meshes and their loaders,
+//! scene files, BVH builders with named presets, the reference intersector,
+//! the hit-agreement rules every paper checks its kernels with, and the ray
+//! workloads. Nothing here is simulated.
+
+#![warn(missing_docs)]
+// Component loops over x, y, z index several arrays in step.
+#![allow(clippy::needless_range_loop)]
+
+pub mod agreement;
+pub mod bvh;
+pub mod mesh;
+pub mod reference;
+pub mod scene;
+pub mod workload;
+
+pub use scene::Scene;

@@ -1,0 +1,379 @@
+//! The command line: clap definitions, and their conversion into the
+//! libraries' plain option structs.
+
+use clap::{Args, Parser, Subcommand};
+use isa::FlavourId;
+use repro::report::Format;
+use repro::scenes::{RenderArgs, Shade};
+use repro::{AppResult, Given, MachineSpec, ReportDef};
+use sim::{Fidelity, MachineConfig};
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(
+    name = "rtsim",
+    version,
+    about = "Cycle-level SIMD architecture simulator and the ray-tracing kernels that run on it"
+)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+pub enum Cmd {
+    /// Record the default workload (a 4096-ray stream vs one BVH4 node's 4
+    /// boxes, the DRS inner test) or a traversal kernel on an ISA, check every
+    /// ray against the scalar reference, and report what the op stream holds.
+    Run(RunCli),
+    /// Compute a paper's table or figure on the models.
+    Reproduce(ReproduceCli),
+    /// Record, inspect and convert op traces.
+    #[command(subcommand)]
+    Trace(TraceCmd),
+    /// Time a recorded or hand-written trace on a machine.
+    Sim(SimCli),
+    /// Run the microkernels through a machine model next to what its config implies.
+    Calibrate(CalibrateCli),
+    /// Time one workload in every fidelity mode: host time and error against full.
+    Fidelity(FidelityCli),
+    /// Render primary hits of a scene with the reference intersector (PNG).
+    Render(RenderCli),
+    /// List what is built in.
+    List {
+        /// What to list.
+        #[arg(value_enum)]
+        what: ListWhat,
+        /// Output format: text, json or csv.
+        #[arg(long, value_parser = Format::from_name, default_value = "text")]
+        format: Format,
+    },
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum ListWhat {
+    /// Calibration microkernels.
+    Micro,
+    /// ISA flavours.
+    Isa,
+    /// Op classes.
+    Classes,
+    /// Machine configs.
+    Machines,
+    /// Scenes, with triangle counts, BVH build times and SAH costs.
+    Scenes,
+}
+
+impl ListWhat {
+    /// The name in the report's title.
+    pub fn name(self) -> &'static str {
+        match self {
+            ListWhat::Micro => "micro",
+            ListWhat::Isa => "isa",
+            ListWhat::Classes => "classes",
+            ListWhat::Machines => "machines",
+            ListWhat::Scenes => "scenes",
+        }
+    }
+}
+
+/// Parse an ISA flavour name for clap.
+pub fn parse_isa(s: &str) -> Result<FlavourId, String> {
+    FlavourId::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = FlavourId::ALL.iter().map(|f| f.name()).collect();
+        format!("unknown ISA '{s}' (one of: {})", names.join(", "))
+    })
+}
+
+/// Parse a fidelity name for clap.
+fn parse_fidelity(s: &str) -> Result<Fidelity, String> {
+    Fidelity::from_name(s).ok_or_else(|| format!("unknown fidelity '{s}' (counts, caches, full)"))
+}
+
+/// A machine and its overrides.
+#[derive(Args)]
+pub struct MachineCli {
+    /// A built-in machine (`rtsim list machines`) or a path to a RON config.
+    #[arg(long, default_value = "haswell-i7-4750hq")]
+    pub machine: String,
+    /// Override a config field: `--set core.width=6 --set l2.size_kib=128`.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    pub sets: Vec<String>,
+}
+
+impl MachineCli {
+    fn spec(&self) -> MachineSpec {
+        MachineSpec {
+            machine: self.machine.clone(),
+            sets: self.sets.clone(),
+        }
+    }
+    /// Load, apply overrides, validate.
+    pub fn load(&self) -> AppResult<MachineConfig> {
+        self.spec().load()
+    }
+}
+
+/// The kernels `rtsim run` accepts.
+pub fn kernel_names() -> Vec<&'static str> {
+    let mut v = vec!["boxtest"];
+    v.extend(drs_kernels::methods::Kernel::ALL.map(|k| k.name()));
+    v
+}
+
+/// `rtsim run` arguments.
+#[derive(Args)]
+pub struct RunCli {
+    /// Machine to time it on (its ISA is the kernel's).
+    #[command(flatten)]
+    pub machine: MachineCli,
+    /// Record on this ISA instead and do not time it (e.g. avx512, which no
+    /// shipped machine runs).
+    #[arg(long, value_parser = parse_isa)]
+    pub isa: Option<FlavourId>,
+    /// Kernel (set from the registry in `with_registries`).
+    #[arg(long, default_value = "boxtest")]
+    pub kernel: String,
+    /// Scene for the traversal kernels (`rtsim list scenes`, a .ron or a mesh file).
+    #[arg(long, default_value = "sphere")]
+    pub scene: String,
+    /// Ray stream for the traversal kernels: primary, bounce (the first bounce of the path
+    /// tracer) or shadow (shadow rays from the primary hits, any hit).
+    #[arg(long, default_value = "primary")]
+    pub stream: String,
+    /// Tile side in pixels (traversal kernels): the stream is one tile at the image centre.
+    #[arg(long, default_value_t = 16)]
+    pub tile: u32,
+    /// Samples per pixel (traversal kernels).
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// Rays in the stream (boxtest; a multiple of 4).
+    #[arg(long, default_value_t = 4096)]
+    pub rays: usize,
+    /// Seed of the generated node and rays.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Also write the recorded trace here (binary; `.txt` for the text form), for every kernel.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+impl RunCli {
+    /// The library's options.
+    pub fn into_args(self) -> repro::boxrun::RunArgs {
+        repro::boxrun::RunArgs {
+            machine: self.machine.spec(),
+            isa: self.isa,
+            kernel: self.kernel,
+            scene: self.scene,
+            stream: self.stream,
+            tile: self.tile,
+            spp: self.spp,
+            rays: self.rays,
+            seed: self.seed,
+            out: self.out,
+            format: self.format,
+        }
+    }
+}
+
+/// `rtsim reproduce` arguments.
+#[derive(Args)]
+pub struct ReproduceCli {
+    /// Report (set from the registry in `with_registries`).
+    pub name: String,
+    /// Smaller sample for a run of about a minute.
+    #[arg(long)]
+    pub quick: bool,
+    /// A built-in machine (`rtsim list machines`) or a path to a RON config
+    /// (default: the report's own machine).
+    #[arg(long)]
+    pub machine: Option<String>,
+    /// Override a config field of the report's machine: `--set core.width=6`.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    pub sets: Vec<String>,
+    /// Tiles per scene, or batches of frusta sets (overrides the sample size).
+    #[arg(long)]
+    pub tiles: Option<u32>,
+    /// Samples per pixel (DRS reports; overrides 16).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// Sample seed (default 7).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+    /// Also write the report (and its figures) to DIR.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+}
+
+impl ReproduceCli {
+    /// What was given, for the report to check.
+    pub fn given(self) -> Given {
+        Given {
+            quick: self.quick,
+            machine: self.machine,
+            sets: self.sets,
+            tiles: self.tiles,
+            spp: self.spp,
+            seed: self.seed,
+            format: self.format,
+            out: self.out,
+        }
+    }
+}
+
+/// `rtsim sim` arguments.
+#[derive(Args)]
+pub struct SimCli {
+    /// Machine.
+    #[command(flatten)]
+    pub machine: MachineCli,
+    /// A recorded or hand-written trace (binary or text).
+    #[arg(long)]
+    pub trace: PathBuf,
+    /// Repeat the trace as a loop body this many times (loop-carried values
+    /// are sources defined later in the body).
+    #[arg(long, default_value_t = 1)]
+    pub iterations: usize,
+    /// Fidelity: counts, caches, full.
+    #[arg(long, value_parser = parse_fidelity, default_value = "full")]
+    pub fidelity: Fidelity,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+/// `rtsim calibrate` arguments.
+#[derive(Args)]
+pub struct CalibrateCli {
+    /// Machine.
+    #[command(flatten)]
+    pub machine: MachineCli,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+/// `rtsim fidelity` arguments.
+#[derive(Args)]
+pub struct FidelityCli {
+    /// Machine.
+    #[command(flatten)]
+    pub machine: MachineCli,
+    /// A trace to time; default: the ray-vs-4-boxes workload recorded on the machine's ISA.
+    #[arg(long)]
+    pub trace: Option<PathBuf>,
+    /// Rays of the default workload.
+    #[arg(long, default_value_t = 16384)]
+    pub rays: usize,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+/// `rtsim render` arguments.
+#[derive(Args)]
+pub struct RenderCli {
+    /// A built-in scene (`rtsim list scenes`), a scene .ron, or a mesh file.
+    #[arg(long)]
+    pub scene: String,
+    /// PNG to write.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Shading: normals, depth or hits (surfaces crossed).
+    #[arg(long, value_parser = Shade::from_name, default_value = "normals")]
+    pub shade: Shade,
+    /// Image width (default: the scene camera's).
+    #[arg(long)]
+    pub width: Option<u32>,
+    /// Image height (default: the scene camera's, scaled with --width).
+    #[arg(long)]
+    pub height: Option<u32>,
+}
+
+impl RenderCli {
+    /// The library's options.
+    pub fn into_args(self) -> RenderArgs {
+        RenderArgs {
+            scene: self.scene,
+            out: self.out,
+            shade: self.shade,
+            width: self.width,
+            height: self.height,
+        }
+    }
+}
+
+/// `rtsim trace ...`.
+#[derive(Subcommand)]
+pub enum TraceCmd {
+    /// Record a built-in microkernel or kernel to a trace file.
+    Record {
+        /// A microkernel (`rtsim list micro`).
+        #[arg(long, conflicts_with = "kernel", required_unless_present = "kernel")]
+        micro: Option<String>,
+        /// A kernel: `boxtest` (ray stream vs 4 boxes).
+        #[arg(long)]
+        kernel: Option<String>,
+        /// ISA flavour: lrb16, avx512, avx2, sse4.
+        #[arg(long, value_parser = parse_isa, default_value = "avx2")]
+        isa: FlavourId,
+        /// Parameters as key=value (microkernels: iters, unroll, streams, ws, seed;
+        /// boxtest: rays, seed).
+        #[arg(long = "param", value_name = "KEY=VALUE")]
+        params: Vec<String>,
+        /// Output file (binary; a name ending in `.txt` gets the text form).
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Summarise a trace: ops per class and region, lanes, bytes per region.
+    Info {
+        /// A binary or text trace.
+        file: PathBuf,
+        /// Output format.
+        #[arg(long, value_parser = Format::from_name, default_value = "text")]
+        format: Format,
+    },
+    /// Convert binary to text or text to binary (the input's form decides).
+    Text {
+        /// Input trace.
+        input: PathBuf,
+        /// Output trace.
+        output: PathBuf,
+    },
+}
+
+/// Help texts built from the registries: the reports (name, what it
+/// computes, its machine, the options it reads) and the kernels.
+pub fn with_registries(cmd: clap::Command, reports: &[&ReportDef]) -> clap::Command {
+    let list: Vec<String> = reports
+        .iter()
+        .map(|d| {
+            let opts: Vec<&str> = d.options.iter().map(|o| o.flag()).collect();
+            format!(
+                "  {}: {} [machine {}; {}]",
+                d.name,
+                d.about,
+                d.machine,
+                opts.join(" ")
+            )
+        })
+        .collect();
+    let names: Vec<&str> = reports.iter().map(|d| d.name).collect();
+    let report_help = format!("Report: {}\n{}", names.join(", "), list.join("\n"));
+    let kernel_help = format!("Kernel: {}", kernel_names().join(", "));
+    cmd.mut_subcommand("reproduce", |c| {
+        c.about(format!(
+            "Compute a paper's table or figure on the models ({})",
+            names.join(", ")
+        ))
+        .mut_arg("name", |a| a.help(report_help))
+    })
+    .mut_subcommand("run", |c| c.mut_arg("kernel", |a| a.help(kernel_help)))
+}

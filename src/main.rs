@@ -66,7 +66,7 @@ fn reproduce(a: cli::ReproduceCli) -> AppResult<()> {
     let all = reports();
     let def = repro::options::find(&all, &a.name)?;
     let args = def.resolve(a.given())?;
-    (def.run)(&args)
+    def.produce(&args)
 }
 
 fn run(a: cli::RunCli) -> AppResult<()> {

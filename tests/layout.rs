@@ -1,6 +1,7 @@
 //! The layout rules of ARCHITECTURE.md, checked on the source tree: no
 //! import cycle between the files of any crate, an app under 1,000 lines,
-//! and `#![warn(missing_docs)]` in every library crate.
+//! `#![warn(missing_docs)]` in every library crate, and branch sites unique
+//! and inside their module's block of the plan (`isa::sites`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -169,5 +170,30 @@ fn the_app_is_thin_and_every_library_warns_on_missing_docs() {
             "{}",
             root.display()
         );
+    }
+}
+
+#[test]
+fn branch_sites_are_unique_and_inside_their_modules_block() {
+    use isa::sites;
+    let modules: [(&[isa::Site], sites::SiteBlock); 7] = [
+        (&micro::SITES, sites::MICRO),
+        (&rt::boxtest::SITES, sites::BOXTEST),
+        (&rt::single::site::ALL, sites::SINGLE),
+        (&drs_kernels::bvh4::site::ALL, sites::DRS_BVH4),
+        (&drs_kernels::bvh2::site::ALL, sites::DRS_BVH2),
+        (&rt::packet::site::ALL, sites::PACKET),
+        (&mft_kernels::site::ALL, sites::MFT),
+    ];
+    let mut seen = BTreeSet::new();
+    for (all, block) in modules {
+        for s in all {
+            assert!(
+                block.contains(*s),
+                "{}: {s:?} outside its block",
+                block.owner
+            );
+            assert!(seen.insert(s.0), "{}: {s:?} used twice", block.owner);
+        }
     }
 }

@@ -22,6 +22,7 @@ pub mod mem;
 pub mod native;
 pub mod program;
 pub mod rng;
+pub mod sites;
 pub mod trace;
 pub mod trace_file;
 pub mod trace_text;

@@ -13,9 +13,12 @@ use isa::{At, BinOp, Cmp, IOp, Machine, MemKind, Program, Region, Shift, Site};
 use std::fmt;
 
 /// Loop-back branch site of every microkernel.
-pub const SITE_LOOP: Site = Site(1);
+pub const SITE_LOOP: Site = isa::sites::MICRO.at(0);
 /// The data-dependent branch of the branch microkernels.
-pub const SITE_DATA: Site = Site(2);
+pub const SITE_DATA: Site = isa::sites::MICRO.at(1);
+
+/// Every branch site of the module (checked for duplicates by the layout test).
+pub const SITES: [Site; 2] = [SITE_LOOP, SITE_DATA];
 
 /// The op a chain or stream microkernel repeats.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

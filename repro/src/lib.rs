@@ -23,7 +23,7 @@ pub mod sampling;
 pub mod scenes;
 pub mod traces;
 
-pub use options::{Given, MachineSpec, Opt, ReportDef, ReproduceArgs};
+pub use options::{Given, MachineSpec, Opt, Produced, ReportDef, ReproduceArgs};
 pub use report::{Format, Report, Row};
 
 /// A user-facing error: the app prints it as `rtsim: error: ...` and exits

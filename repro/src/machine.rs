@@ -48,17 +48,14 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
     rows.push(Row::new("dram_bytes_written", s.dram_written as f64).unit("B"));
     if let Some(r) = rays {
         let p = PerRay::new(s, r, m.clock_ghz, m.cores);
-        rows.push(
-            Row::new("mray_per_s", p.mray_per_s)
-                .unit("Mray/s")
-                .key("cores", m.cores),
-        );
-        rows.push(
-            Row::new("mray_per_s", p.mray_per_s_core)
-                .unit("Mray/s")
-                .key("cores", 1),
-        );
-        rows.push(Row::new("s_per_gray", p.s_per_gray).unit("s/Gray"));
+        let chip =
+            |metric: &str, v: f64, unit: &str| Row::new(metric, v).unit(unit).key("cores", m.cores);
+        let core =
+            |metric: &str, v: f64, unit: &str| Row::new(metric, v).unit(unit).key("cores", 1);
+        rows.push(chip("mray_per_s", p.mray_per_s_chip, "Mray/s"));
+        rows.push(core("mray_per_s", p.mray_per_s_core, "Mray/s"));
+        rows.push(chip("s_per_gray", p.s_per_gray_chip, "s/Gray"));
+        rows.push(core("s_per_gray", p.s_per_gray_core, "s/Gray"));
         rows.push(Row::new("bytes_per_ray", p.bytes_per_ray).unit("B/ray"));
     }
     for c in OpClass::ALL {

@@ -2,7 +2,8 @@
 //! with the report's own defaults filled in; and the registry entry each
 //! paper declares for each of its reports.
 
-use crate::report::Format;
+use crate::io::write_atomic;
+use crate::report::{Format, Report};
 use crate::{AppError, AppResult};
 use sim::MachineConfig;
 use std::path::PathBuf;
@@ -63,8 +64,19 @@ pub struct ReportDef {
     pub machine: &'static str,
     /// The options it uses; any other given is an error.
     pub options: &'static [Opt],
-    /// Compute, print and (with `--out`) write it.
-    pub run: fn(&ReproduceArgs) -> AppResult<()>,
+    /// Compute it (figures written with `--out` go to the directory).
+    pub run: fn(&ReproduceArgs) -> AppResult<Produced>,
+}
+
+/// What a report computed: the report, and how many rays (or hits) differed
+/// from the reference (a report with any is printed, then an error).
+#[derive(Debug)]
+#[must_use]
+pub struct Produced {
+    /// The report.
+    pub report: Report,
+    /// Rays whose answer differed from the reference.
+    pub mismatches: f64,
 }
 
 /// What the user gave on the command line (`None`, `false`, empty: not given).
@@ -142,6 +154,15 @@ pub struct ReproduceArgs {
     pub out: Option<PathBuf>,
 }
 
+impl ReproduceArgs {
+    /// Where a figure's PNG goes: `--out DIR`, else the current directory.
+    pub fn png_path(&self, name: &str) -> AppResult<PathBuf> {
+        let dir = self.out.clone().unwrap_or_else(|| PathBuf::from("."));
+        std::fs::create_dir_all(&dir).map_err(|e| AppError(format!("{}: {e}", dir.display())))?;
+        Ok(dir.join(format!("{name}.png")))
+    }
+}
+
 /// The seed of a sample unless `--seed` is given.
 pub const DEFAULT_SEED: u64 = 7;
 
@@ -188,6 +209,29 @@ impl ReportDef {
     }
 }
 
+impl ReportDef {
+    /// Compute the report with `a`, print it, and with `--out` write it to
+    /// DIR/NAME.{txt,json,csv}; an error if any ray differed from the reference.
+    pub fn produce(&self, a: &ReproduceArgs) -> AppResult<()> {
+        let p = (self.run)(a)?;
+        let text = p.report.render(a.format);
+        if let Some(dir) = &a.out {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| AppError(format!("{}: {e}", dir.display())))?;
+            let ext = a.format.ext();
+            write_atomic(&dir.join(format!("{}.{ext}", self.name)), text.as_bytes())?;
+        }
+        print!("{text}");
+        if p.mismatches > 0.0 {
+            return Err(AppError(format!(
+                "{} rays differ from the reference",
+                p.mismatches
+            )));
+        }
+        Ok(())
+    }
+}
+
 /// The report called `name`, or an error listing them all.
 pub fn find<'a>(defs: &'a [&'a ReportDef], name: &str) -> AppResult<&'a ReportDef> {
     defs.iter()
@@ -206,8 +250,8 @@ pub fn find<'a>(defs: &'a [&'a ReportDef], name: &str) -> AppResult<&'a ReportDe
 mod tests {
     use super::*;
 
-    fn nothing(_: &ReproduceArgs) -> AppResult<()> {
-        Ok(())
+    fn nothing(_: &ReproduceArgs) -> AppResult<Produced> {
+        Err(AppError("not computed".into()))
     }
 
     const DEF: ReportDef = ReportDef {

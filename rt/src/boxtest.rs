@@ -19,7 +19,10 @@ use isa::lanes::{fmax, fmin};
 use isa::{At, Buf, Cmp, Machine, MemKind, Program, Region, Shift, Site};
 
 /// Loop-back branch of the ray loop.
-pub const SITE_RAYS: Site = Site(10);
+pub const SITE_RAYS: Site = isa::sites::BOXTEST.at(0);
+
+/// Every branch site of the module (checked for duplicates by the layout test).
+pub const SITES: [Site; 1] = [SITE_RAYS];
 /// Bytes of a node.
 pub const NODE_BYTES: usize = 96;
 /// Bytes of a traversal ray.

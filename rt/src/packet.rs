@@ -39,6 +39,8 @@ use crate::single::{moller_sided, walk4, Block, Moller, RayState, STACK_ENTRIES}
 use crate::stats::Tests;
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use scene::bvh::{EMPTY_SLOT, LEAF};
+use scene::Hit;
+use scene::HitPolicy;
 
 pub use crate::layout::{packet_bytes, row};
 
@@ -50,29 +52,34 @@ pub const SWITCH_THRESHOLD: u32 = 3;
 pub mod site {
     use isa::Site;
     /// More packets?
-    pub const PACKETS: Site = Site(60);
+    pub const PACKETS: Site = isa::sites::PACKET.at(0);
     /// Stack sentinel reached?
-    pub const DONE: Site = Site(61);
+    pub const DONE: Site = isa::sites::PACKET.at(1);
     /// Any ray in front of its hit (else the entry is culled)?
-    pub const CULL: Site = Site(62);
+    pub const CULL: Site = isa::sites::PACKET.at(2);
     /// Leaf (or sentinel)?
-    pub const LEAF: Site = Site(63);
+    pub const LEAF: Site = isa::sites::PACKET.at(3);
     /// Empty child slot?
-    pub const EMPTY: Site = Site(64);
+    pub const EMPTY: Site = isa::sites::PACKET.at(4);
     /// Any ray hits the child?
-    pub const HIT: Site = Site(65);
+    pub const HIT: Site = isa::sites::PACKET.at(5);
     /// Any ray reaches the child before the current next node?
-    pub const CLOSER: Site = Site(66);
+    pub const CLOSER: Site = isa::sites::PACKET.at(6);
     /// Empty triangle slot?
-    pub const TRI_SLOT: Site = Site(67);
+    pub const TRI_SLOT: Site = isa::sites::PACKET.at(7);
     /// Any ray hits the triangle?
-    pub const TRI: Site = Site(68);
+    pub const TRI: Site = isa::sites::PACKET.at(8);
     /// Few active rays: switch to single-ray traversal?
-    pub const SWITCH: Site = Site(69);
+    pub const SWITCH: Site = isa::sites::PACKET.at(9);
     /// Next active ray of a switched packet?
-    pub const SWITCH_RAY: Site = Site(70);
+    pub const SWITCH_RAY: Site = isa::sites::PACKET.at(10);
     /// Shadow packet: any lane not yet occluded?
-    pub const ALIVE: Site = Site(71);
+    pub const ALIVE: Site = isa::sites::PACKET.at(11);
+
+    /// Every site of the module (checked for duplicates by the layout test).
+    pub const ALL: [Site; 12] = [
+        PACKETS, DONE, CULL, LEAF, EMPTY, HIT, CLOSER, TRI_SLOT, TRI, SWITCH, SWITCH_RAY, ALIVE,
+    ];
 }
 
 /// SoA packet records of rays (org, dir, t_far) for packets of `w` lanes;
@@ -216,15 +223,15 @@ impl PacketBufs {
         }
     }
 
-    /// (t, prim) of ray `i` after a kernel ran.
+    /// Ray `i`'s hit after a kernel ran.
     #[must_use]
-    pub fn hit(&self, w: usize, i: usize) -> (f32, i32) {
+    pub fn hit(&self, w: usize, i: usize) -> Hit {
         let j = self.slot_of[i];
         let (p, l) = (j / w, j % w);
         let base = p * packet_bytes(w) + 4 * l;
-        (
+        Hit::from_record(
             self.rays.f32_at(base + row(w, row::TFAR)),
-            self.rays.u32_at(base + row(w, row::PRIM)) as i32,
+            self.rays.u32_at(base + row(w, row::PRIM)),
         )
     }
 }
@@ -243,14 +250,14 @@ pub fn trace4<M: Machine>(
     s: &SceneBufs,
     pb: &mut PacketBufs,
     hybrid: bool,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
-    trace(m, Tree::Bvh4(s), pb, hybrid, shadow);
+    trace(m, Tree::Bvh4(s), pb, hybrid, policy);
 }
 
 /// Packet BVH2.
-pub fn trace2<M: Machine>(m: &mut M, s: &SceneBufs2, pb: &mut PacketBufs, shadow: bool) {
-    trace(m, Tree::Bvh2(s), pb, false, shadow);
+pub fn trace2<M: Machine>(m: &mut M, s: &SceneBufs2, pb: &mut PacketBufs, policy: HitPolicy) {
+    trace(m, Tree::Bvh2(s), pb, false, policy);
 }
 
 /// One packet's vector registers.
@@ -263,14 +270,14 @@ struct Packet<M: Machine> {
     tfar: M::F,
 }
 
-fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool, shadow: bool) {
+fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool, policy: HitPolicy) {
     let w = M::LANES;
     let mut p = m.int(0);
     let np = m.int(pb.packets as i64);
     loop {
         m.region(Region::Traversal);
         let base = m.s_shift(Shift::Shl, p, packet_bytes(w).trailing_zeros());
-        trace_packet(m, tree, pb, base, hybrid, shadow);
+        trace_packet(m, tree, pb, base, hybrid, policy);
         p = m.s_addi(p, 1);
         if !m.branch_if(site::PACKETS, Cmp::Lt, p, np) {
             break;
@@ -285,7 +292,7 @@ fn trace_packet<M: Machine>(
     pb: &mut PacketBufs,
     base: M::S,
     hybrid: bool,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let w = M::LANES;
     let ld = |m: &mut M, rays: &Buf, r: usize| m.load(rays, At::idx(base, 1, row(w, r)));
@@ -349,7 +356,7 @@ fn trace_packet<M: Machine>(
                     let lane = m.s_tzcnt(bits);
                     let k = lane.get() as usize;
                     let mut st = RayState::load_packet(m, &pb.rays, base, k);
-                    walk4(m, s, &mut st, &mut pb.single_stack, cur, tests, shadow);
+                    walk4(m, s, &mut st, &mut pb.single_stack, cur, tests, policy);
                     m.region(Region::SingleRay);
                     st.write_packet(m, &mut pb.rays);
                     let lm1 = m.s_addi(bits, -1);
@@ -452,10 +459,10 @@ fn trace_packet<M: Machine>(
             &mut pk,
             &mut pb.rays,
             base,
-            (shadow, one_sided),
+            (policy, one_sided),
             &mut tri_tests,
         );
-        if shadow {
+        if policy.is_any() {
             // Done when every lane is occluded (t_far = -1) or padding.
             let zero_v = m.splat(0.0);
             let alive = m.cmp(Cmp::Ge, pk.tfar, zero_v);
@@ -509,7 +516,7 @@ fn leaf<M: Machine>(
     pk: &mut Packet<M>,
     rays: &mut Buf,
     base: M::S,
-    (shadow, one_sided): (bool, bool),
+    (policy, one_sided): (HitPolicy, bool),
     tri_tests: &mut u64,
 ) {
     let w = M::LANES;
@@ -543,7 +550,7 @@ fn leaf<M: Machine>(
             continue;
         }
         let at = |r: usize| At::idx(base, 1, row(w, r));
-        if shadow {
+        if policy.is_any() {
             let done = m.splat(-1.0);
             pk.tfar = m.select(hit, done, pk.tfar);
             m.store_masked(hit, rays, at(row::TFAR), done);

@@ -11,30 +11,36 @@ use crate::layout::{is_leaf, SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
 use crate::stats::Tests;
 use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, Region};
 use scene::bvh::EMPTY_SLOT;
+use scene::HitPolicy;
 
 /// Branch sites of the kernel.
 pub mod site {
     use isa::Site;
     /// More rays?
-    pub const RAYS: Site = Site(20);
+    pub const RAYS: Site = isa::sites::SINGLE.at(0);
     /// Stack empty?
-    pub const STACK: Site = Site(21);
+    pub const STACK: Site = isa::sites::SINGLE.at(1);
     /// Popped entry farther than the current hit?
-    pub const CULL: Site = Site(22);
+    pub const CULL: Site = isa::sites::SINGLE.at(2);
     /// Leaf or inner?
-    pub const LEAF: Site = Site(23);
+    pub const LEAF: Site = isa::sites::SINGLE.at(3);
     /// Any child hit?
-    pub const ANY_CHILD: Site = Site(24);
+    pub const ANY_CHILD: Site = isa::sites::SINGLE.at(4);
     /// Next hit child?
-    pub const CHILD: Site = Site(25);
+    pub const CHILD: Site = isa::sites::SINGLE.at(5);
     /// Closer than the best so far?
-    pub const CLOSER: Site = Site(26);
+    pub const CLOSER: Site = isa::sites::SINGLE.at(6);
     /// Any triangle hit?
-    pub const TRI: Site = Site(27);
+    pub const TRI: Site = isa::sites::SINGLE.at(7);
     /// Another block pass (narrow flavours)?
-    pub const PASS: Site = Site(28);
+    pub const PASS: Site = isa::sites::SINGLE.at(8);
     /// BVH2: the only hit child is the left one?
-    pub const SIDE: Site = Site(29);
+    pub const SIDE: Site = isa::sites::SINGLE.at(9);
+
+    /// Every site of the module (checked for duplicates by the layout test).
+    pub const ALL: [Site; 10] = [
+        RAYS, STACK, CULL, LEAF, ANY_CHILD, CHILD, CLOSER, TRI, PASS, SIDE,
+    ];
 }
 
 /// Stack entries one ray can need (3 pushes per level x 64 levels, rounded up).
@@ -53,11 +59,11 @@ pub fn trace<M: Machine>(
     stack: &mut Buf,
     nrays: usize,
     tests: &mut Tests,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let root = m.int(0);
     each_ray(m, nrays, |m, ray| {
-        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests, shadow);
+        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests, policy);
     });
 }
 
@@ -88,10 +94,10 @@ pub fn trace_ray<M: Machine>(
     ray: M::S,
     start: M::S,
     tests: &mut Tests,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let mut st = RayState::load(m, trav, isect, hits, ray);
-    walk4(m, s, &mut st, stack, start, tests, shadow);
+    walk4(m, s, &mut st, stack, start, tests, policy);
     // Write the hit record and the new t_far.
     m.region(Region::SingleRay);
     st.write(m, trav, hits);
@@ -106,7 +112,7 @@ pub fn walk4<M: Machine>(
     stack: &mut Buf,
     start: M::S,
     tests: &mut Tests,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     // Push the start node.
@@ -197,7 +203,7 @@ pub fn walk4<M: Machine>(
         }
         // Leaf: one block of 8 triangles, in passes of the lanes there are.
         tests.leaf += 1;
-        if st.leaf(m, &s.tris, node, shadow) && shadow {
+        if st.leaf(m, &s.tris, node, policy) && policy.is_any() {
             break;
         }
     }
@@ -300,7 +306,7 @@ impl<M: Machine> RayState<M> {
     /// Leaf `node`: one block of 8 triangles, in passes of the lanes there
     /// are; whether a triangle was hit. A shadow ray's t_far becomes -1 on a
     /// hit (it is done).
-    fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S, shadow: bool) -> bool {
+    fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S, policy: HitPolicy) -> bool {
         let mut any = false;
         let width = M::LANES.min(8);
         m.region(Region::Leaf);
@@ -318,7 +324,7 @@ impl<M: Machine> RayState<M> {
                 let off = 32 * 9 + 4 * (width * p + h.lane);
                 self.best_prim = m.s_load(tris, At::idx(bb, 1, off), 4, true);
                 any = true;
-                if shadow {
+                if policy.is_any() {
                     self.tfar_x = m.float(-1.0);
                     self.tfar = m.splat(-1.0);
                     return true;
@@ -526,11 +532,11 @@ pub fn trace2<M: Machine>(
     stack: &mut Buf,
     nrays: usize,
     tests: &mut Tests,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     each_ray(m, nrays, |m, ray| {
         let root = m.int(i64::from(s.root));
-        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests, shadow);
+        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests, policy);
     });
 }
 
@@ -554,7 +560,7 @@ pub fn trace_ray2<M: Machine>(
     ray: M::S,
     start: M::S,
     tests: &mut Tests,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let n = M::LANES;
     let swap: Vec<u8> = (0..n).map(|i| (i ^ 2) as u8).collect();
@@ -638,7 +644,7 @@ pub fn trace_ray2<M: Machine>(
             continue;
         }
         tests.leaf += 1;
-        if st.leaf(m, &s.tris, node, shadow) && shadow {
+        if st.leaf(m, &s.tris, node, policy) && policy.is_any() {
             break;
         }
     }

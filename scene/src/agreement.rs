@@ -1,8 +1,9 @@
 //! Hit agreement: when an f32 kernel's answer counts as the f64 reference's.
 //! Every paper checks its kernels with these rules.
 
+use crate::hit::Hit;
 use crate::mesh::Mesh;
-use crate::reference::{Ray, Reference, TriGeom};
+use crate::reference::{Ray, RefHit, Reference, TriGeom};
 use crate::workload::RayStream;
 use glam::DVec3;
 
@@ -62,13 +63,13 @@ pub fn tri_eps_for(test: F32Test, mesh: &Mesh, prim: u32, org: [f64; 3], dir: [f
 
 /// Whether the reference hit `h` of a ray from `org` lies within the f32
 /// tolerance of an edge of its triangle.
-fn grazing(test: F32Test, mesh: &Mesh, ray: &Ray, h: &crate::reference::Hit) -> bool {
+fn grazing(test: F32Test, mesh: &Mesh, ray: &Ray, h: &RefHit) -> bool {
     h.u.min(h.v).min(1.0 - h.u - h.v) <= tri_eps_for(test, mesh, h.prim, ray.org, ray.dir)
 }
 
 /// [`grazing`], or (one-sided reference) met nearly edge-on, where a
 /// back-face culling kernel may drop it.
-fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &crate::reference::Hit) -> bool {
+fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &RefHit) -> bool {
     grazing(test, refi.mesh(), ray, h)
         || (refi.is_one_sided() && refi.edge_on(h.prim, ray.dir))
         || (test == F32Test::Pluecker && pluecker_unreliable(refi.mesh(), h.prim, ray))
@@ -125,7 +126,7 @@ pub fn mismatches(
     refi: &Reference,
     org: &[[f32; 3]],
     dir: &[[f32; 3]],
-    out: &[(f32, i32)],
+    out: &[Hit],
 ) -> usize {
     mismatches_for(F32Test::MollerTrumbore, label, refi, org, dir, out)
 }
@@ -137,42 +138,36 @@ pub fn mismatches_for(
     refi: &Reference,
     org: &[[f32; 3]],
     dir: &[[f32; 3]],
-    out: &[(f32, i32)],
+    out: &[Hit],
 ) -> usize {
     let mut bad = 0;
     for i in 0..org.len() {
         let ray = Ray::new(org[i].map(f64::from), dir[i].map(f64::from));
         let want = refi.closest(&ray);
-        let (t, prim) = out[i];
+        let Hit { t, prim } = out[i];
         let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1.0);
-        let kt = if prim < 0 {
-            f64::INFINITY
-        } else {
-            f64::from(t)
-        };
+        let kt = prim.map_or(f64::INFINITY, |_| f64::from(t));
+        let near = |p: u32| near_hit(test, refi, &ray, p, Some(kt));
         // The kernel's hit is real: the reference hits that triangle there,
         // or misses it by less than the f32 tolerance.
-        let real = |all: &[crate::reference::Hit]| {
-            prim < 0
-                || all.iter().any(|a| a.prim == prim as u32 && close(a.t, kt))
-                || near_hit(test, refi, &ray, prim as u32, Some(kt))
+        let real = |all: &[RefHit]| {
+            prim.is_none_or(|p| all.iter().any(|a| a.prim == p && close(a.t, kt)) || near(p))
         };
         let ok = match want {
-            None => prim < 0 || near_hit(test, refi, &ray, prim as u32, Some(kt)),
+            None => prim.is_none_or(near),
             Some(h) => {
                 let all = refi.all(&ray);
-                let exact = prim >= 0 && close(kt, h.t) && real(&all);
+                let exact = prim.is_some() && close(kt, h.t) && real(&all);
                 // f32 Moller-Trumbore is not watertight: a hit near an edge
                 // may fall into the crack between two triangles; then the
                 // kernel sees the next surface behind it.
                 let skipped_graze = all
                     .iter()
-                    .filter(|a| prim < 0 || (a.t < kt && !close(a.t, kt)))
+                    .filter(|a| prim.is_none() || (a.t < kt && !close(a.t, kt)))
                     .all(|a| may_skip(test, refi, &ray, a));
                 // The mirror case: the kernel hits, in front of the reference's
                 // hit, a triangle the reference misses by less than the tolerance.
-                let near_front =
-                    prim >= 0 && kt < h.t && near_hit(test, refi, &ray, prim as u32, Some(kt));
+                let near_front = prim.is_some_and(|p| kt < h.t && near(p));
                 exact
                     || near_front
                     || (may_skip(test, refi, &ray, &h) && skipped_graze && real(&all))
@@ -181,7 +176,7 @@ pub fn mismatches_for(
         if !ok {
             bad += 1;
             if bad <= 3 {
-                eprintln!("{label} ray {i}: kernel ({t}, {prim}) reference {want:?}");
+                eprintln!("{label} ray {i}: kernel ({t}, {prim:?}) reference {want:?}");
             }
         }
     }
@@ -193,12 +188,7 @@ pub fn mismatches_for(
 /// the reference finds grazes an edge within [`tri_eps`] (an f32 crack),
 /// and a hit within 1e-4 relative of `tmax` (the light sample's end).
 #[must_use]
-pub fn shadow_mismatches(
-    label: &str,
-    refi: &Reference,
-    rays: &RayStream,
-    out: &[(f32, i32)],
-) -> usize {
+pub fn shadow_mismatches(label: &str, refi: &Reference, rays: &RayStream, out: &[Hit]) -> usize {
     shadow_mismatches_for(F32Test::MollerTrumbore, label, refi, rays, out)
 }
 
@@ -209,19 +199,19 @@ pub fn shadow_mismatches_for(
     label: &str,
     refi: &Reference,
     rays: &RayStream,
-    out: &[(f32, i32)],
+    out: &[Hit],
 ) -> usize {
     let mut bad = 0;
-    for (i, &(_, prim)) in out.iter().enumerate() {
+    for (i, h) in out.iter().enumerate() {
         let ray = rays.ray(i);
         let want = refi.any(&ray);
-        let got = prim >= 0;
+        let got = h.is_hit();
         let ok = want == got
             || (want && refi.all(&ray).iter().all(|h| may_skip(test, refi, &ray, h)))
             || (got && {
                 let mut longer = ray;
                 longer.tmax *= 1.0 + 1e-4;
-                refi.any(&longer) || near_hit(test, refi, &ray, prim as u32, None)
+                refi.any(&longer) || h.prim.is_some_and(|p| near_hit(test, refi, &ray, p, None))
             });
         if !ok {
             bad += 1;
@@ -254,8 +244,9 @@ f 1 2 3\nf 1 4 2\nf 5 6 7\n";
         let down = [[0.0, 0.0, -1.0]];
         let on_edge = [[0.0, 0.2, 1.0]];
         let inside = [[-0.3, 0.0, 1.0]];
-        let check =
-            |org: &[[f32; 3]; 1], out: (f32, i32)| mismatches("t", &refi, org, &down, &[out]);
+        let check = |org: &[[f32; 3]; 1], (t, p): (f32, i32)| {
+            mismatches("t", &refi, org, &down, &[Hit::from_record(t, p as u32)])
+        };
         // On the edge: either triangle at t = 1, or the wall behind the crack.
         assert_eq!(check(&on_edge, (1.0, 0)), 0);
         assert_eq!(check(&on_edge, (1.0, 1)), 0);

@@ -11,9 +11,11 @@
 
 pub mod agreement;
 pub mod bvh;
+pub mod hit;
 pub mod mesh;
 pub mod reference;
 pub mod scene;
 pub mod workload;
 
+pub use hit::{Hit, HitPolicy};
 pub use scene::Scene;

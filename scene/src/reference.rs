@@ -45,7 +45,7 @@ impl Ray {
 
 /// A hit.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Hit {
+pub struct RefHit {
     /// Distance along the ray.
     pub t: f64,
     /// Barycentric u (weight of the second vertex).
@@ -332,12 +332,12 @@ impl<'a> Reference<'a> {
 
     /// The closest hit (ties: the lowest triangle index).
     #[must_use]
-    pub fn closest(&self, r: &Ray) -> Option<Hit> {
+    pub fn closest(&self, r: &Ray) -> Option<RefHit> {
         if r.dir == [0.0; 3] || r.org.iter().chain(&r.dir).any(|x| !x.is_finite()) {
             return None;
         }
         let w = Watertight::new(r);
-        let mut best: Option<Hit> = None;
+        let mut best: Option<RefHit> = None;
         self.visit(r, |p| {
             let tmax = best.map_or(r.tmax, |b| b.t);
             if !self.faces(p, r.dir) {
@@ -346,7 +346,7 @@ impl<'a> Reference<'a> {
             let (t, u, v) = w.hit(self.mesh.tri(p as usize), r.tmin, tmax)?;
             let better = best.is_none_or(|b| t < b.t || (t == b.t && p < b.prim));
             if better {
-                best = Some(Hit { t, u, v, prim: p });
+                best = Some(RefHit { t, u, v, prim: p });
             }
             Some(t)
         });
@@ -361,7 +361,7 @@ impl<'a> Reference<'a> {
 
     /// Every hit, sorted by t then triangle.
     #[must_use]
-    pub fn all(&self, r: &Ray) -> Vec<Hit> {
+    pub fn all(&self, r: &Ray) -> Vec<RefHit> {
         if r.dir == [0.0; 3] || r.org.iter().chain(&r.dir).any(|x| !x.is_finite()) {
             return Vec::new();
         }
@@ -372,7 +372,7 @@ impl<'a> Reference<'a> {
                 return None;
             }
             if let Some((t, u, v)) = w.hit(self.mesh.tri(p as usize), r.tmin, r.tmax) {
-                hits.push(Hit { t, u, v, prim: p });
+                hits.push(RefHit { t, u, v, prim: p });
             }
             None
         });

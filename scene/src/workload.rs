@@ -91,6 +91,16 @@ impl RayStream {
     pub fn is_shadow(&self) -> bool {
         matches!(self.kind, StreamKind::Shadow(_))
     }
+    /// The hit a kernel looks for on these rays: any for shadow rays, else
+    /// the closest.
+    #[must_use]
+    pub fn policy(&self) -> crate::hit::HitPolicy {
+        if self.is_shadow() {
+            crate::hit::HitPolicy::Any
+        } else {
+            crate::hit::HitPolicy::Closest
+        }
+    }
     /// Number of rays.
     #[must_use]
     pub fn len(&self) -> usize {

@@ -375,8 +375,8 @@ impl MachineConfig {
             if t.occ == 0 {
                 return Err((format!("{f}.occ"), "must be at least 1".into()));
             }
-            if t.lat > 10_000 {
-                return Err((format!("{f}.lat"), "latency over 10000 cycles".into()));
+            if t.lat == 0 || t.lat > 10_000 {
+                return Err((format!("{f}.lat"), "must be 1 to 10000 cycles".into()));
             }
         }
         if let Some(k) = self

@@ -136,15 +136,20 @@ impl Stats {
     }
 }
 
-/// Per-ray figures from a run that traced `rays` rays.
+/// Per-ray figures of a run that traced `rays` rays on one core: the one
+/// place they are computed. A chip figure assumes every core of the config
+/// runs the same work at the simulated core's rate (the papers ran one
+/// thread per core over whole frames); `_core` and `_chip` name them apart.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PerRay {
     /// Million rays per second on one core at the config's clock.
     pub mray_per_s_core: f64,
-    /// Million rays per second on all the config's cores (per-core rate times cores).
-    pub mray_per_s: f64,
+    /// Million rays per second on all the config's cores.
+    pub mray_per_s_chip: f64,
     /// Seconds per 10^9 rays on one core.
-    pub s_per_gray: f64,
+    pub s_per_gray_core: f64,
+    /// Seconds per 10^9 rays on all the config's cores.
+    pub s_per_gray_chip: f64,
     /// DRAM bytes (read + written) per ray.
     pub bytes_per_ray: f64,
 }
@@ -153,13 +158,28 @@ impl PerRay {
     /// From a run's counters.
     #[must_use]
     pub fn new(s: &Stats, rays: u64, clock_ghz: f64, cores: u32) -> PerRay {
-        let secs = s.cycles as f64 / (clock_ghz * 1e9);
-        let per_core = rays as f64 / secs / 1e6;
+        PerRay::of(
+            s.cycles,
+            s.dram_read + s.dram_written,
+            rays,
+            clock_ghz,
+            cores,
+        )
+    }
+    /// From one core's `cycles` and DRAM bytes for `rays` rays (a rate over
+    /// 0 cycles counts 1 cycle, a time over 0 rays counts 1 ray, so an empty
+    /// sample gives finite figures).
+    #[must_use]
+    pub fn of(cycles: u64, dram_bytes: u64, rays: u64, clock_ghz: f64, cores: u32) -> PerRay {
+        let hz = clock_ghz * 1e9;
+        let per_core = rays as f64 / (cycles.max(1) as f64 / hz) / 1e6;
+        let s_core = cycles as f64 / hz / rays.max(1) as f64 * 1e9;
         PerRay {
             mray_per_s_core: per_core,
-            mray_per_s: per_core * f64::from(cores),
-            s_per_gray: secs / rays as f64 * 1e9,
-            bytes_per_ray: (s.dram_read + s.dram_written) as f64 / rays as f64,
+            mray_per_s_chip: per_core * f64::from(cores),
+            s_per_gray_core: s_core,
+            s_per_gray_chip: s_core / f64::from(cores),
+            bytes_per_ray: dram_bytes as f64 / rays.max(1) as f64,
         }
     }
 }

@@ -29,6 +29,7 @@ use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::SceneBufs2;
 use rt::single::trace_ray2;
+use scene::HitPolicy;
 
 /// Below this many rays an item is traced ray by ray (the paper's n for BVH2).
 pub const FALLBACK2: i64 = 8;
@@ -39,21 +40,24 @@ pub const CHILD_OF_ITEM2: [usize; 3] = [0, 1, 0];
 pub mod site {
     use isa::Site;
     /// Initial list loop.
-    pub const INIT: Site = Site(50);
+    pub const INIT: Site = isa::sites::DRS_BVH2.at(0);
     /// Stack empty?
-    pub const STACK: Site = Site(51);
+    pub const STACK: Site = isa::sites::DRS_BVH2.at(1);
     /// Few rays: fall back?
-    pub const FEW: Site = Site(52);
+    pub const FEW: Site = isa::sites::DRS_BVH2.at(2);
     /// Leaf item?
-    pub const LEAF: Site = Site(53);
+    pub const LEAF: Site = isa::sites::DRS_BVH2.at(3);
     /// Core loop back edge.
-    pub const CORE: Site = Site(54);
+    pub const CORE: Site = isa::sites::DRS_BVH2.at(4);
     /// Padding duplicate?
-    pub const PAD: Site = Site(55);
+    pub const PAD: Site = isa::sites::DRS_BVH2.at(5);
     /// New item non-empty?
-    pub const ITEM: Site = Site(56);
+    pub const ITEM: Site = isa::sites::DRS_BVH2.at(6);
     /// Shadow items' push order.
-    pub const ORDER: Site = Site(57);
+    pub const ORDER: Site = isa::sites::DRS_BVH2.at(7);
+
+    /// Every site of the module (checked for duplicates by the layout test).
+    pub const ALL: [Site; 8] = [INIT, STACK, FEW, LEAF, CORE, PAD, ITEM, ORDER];
 }
 
 /// Trace rays `[0, nrays)` through a BVH2 (records as for [`rt::single::trace`]).
@@ -66,11 +70,11 @@ pub fn trace<M: Machine>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     match M::LANES {
-        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, shadow),
-        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, shadow),
+        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, policy),
+        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, policy),
         n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
     }
 }
@@ -84,7 +88,7 @@ fn trace_n<M: Machine, const N: usize>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let r = N / 4;
     let cap2 = (st.cap * 2) as i64;
@@ -134,7 +138,7 @@ fn trace_n<M: Machine, const N: usize>(
                     ray,
                     node,
                     &mut st.tests,
-                    shadow,
+                    policy,
                 )
             });
             continue;
@@ -144,11 +148,11 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch(site::LEAF, lf) {
             st.tests.leaf += count.get() as u64;
             leaf_item(
-                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, shadow,
+                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, policy,
             );
             continue;
         }
-        core_node::<M, N>(m, s, st, trav, &mut sp, node, rays_at, count, shadow);
+        core_node::<M, N>(m, s, st, trav, &mut sp, node, rays_at, count, policy);
     }
 }
 
@@ -163,7 +167,7 @@ fn core_node<M: Machine, const N: usize>(
     node: M::S,
     at: M::S,
     count: M::S,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let r = N / 4;
     m.region(Region::Traversal);
@@ -178,7 +182,7 @@ fn core_node<M: Machine, const N: usize>(
         swapped.push(m.permute(row, swg));
         rows.push(row);
     }
-    let nlists = if shadow { 2 } else { 3 };
+    let nlists = if policy.is_any() { 2 } else { 3 };
     let starts: Vec<M::S> = (0..nlists)
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
@@ -204,7 +208,7 @@ fn core_node<M: Machine, const N: usize>(
         let hit = m.cmp(Cmp::Le, tmax, exit);
         let hbits = m.movemask(hit);
         let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
-        if shadow {
+        if policy.is_any() {
             // Shadow rays: list 0 left, list 1 right, no order.
             let conds = [hbits, shr(m, hbits, 1)];
             append(m, st, &idx, &conds, &mut cnt, site::PAD);
@@ -231,7 +235,7 @@ fn core_node<M: Machine, const N: usize>(
     }
     m.region(Region::Traversal);
     let zero = m.int(0);
-    if shadow {
+    if policy.is_any() {
         // The larger of the two items is popped first.
         let counts: Vec<M::S> = (0..2).map(|k| m.s_sub(cnt[k], starts[k])).collect();
         for k in larger_last(m, &counts, site::ORDER) {

@@ -28,6 +28,7 @@ use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::{SceneBufs, BLOCK_BYTES};
 use rt::single::{intersect, load_block, trace_ray};
+use scene::HitPolicy;
 
 /// Below this many rays an item is traced ray by ray (the paper's n for BVH4).
 pub const FALLBACK: i64 = 16;
@@ -40,25 +41,28 @@ pub const CHILD_OF_ITEM: [usize; 9] = [0, 1, 0, 2, 3, 2, 0, 1, 0];
 pub mod site {
     use isa::Site;
     /// Binning loop.
-    pub const BIN: Site = Site(40);
+    pub const BIN: Site = isa::sites::DRS_BVH4.at(0);
     /// Octant item non-empty?
-    pub const OCTANT: Site = Site(41);
+    pub const OCTANT: Site = isa::sites::DRS_BVH4.at(1);
     /// Stack empty?
-    pub const STACK: Site = Site(42);
+    pub const STACK: Site = isa::sites::DRS_BVH4.at(2);
     /// Few rays: fall back?
-    pub const FEW: Site = Site(43);
+    pub const FEW: Site = isa::sites::DRS_BVH4.at(3);
     /// Leaf item?
-    pub const LEAF: Site = Site(44);
+    pub const LEAF: Site = isa::sites::DRS_BVH4.at(4);
     /// Core loop back edge.
-    pub const CORE: Site = Site(45);
+    pub const CORE: Site = isa::sites::DRS_BVH4.at(5);
     /// Padding duplicate?
-    pub const PAD: Site = Site(46);
+    pub const PAD: Site = isa::sites::DRS_BVH4.at(6);
     /// New item non-empty?
-    pub const ITEM: Site = Site(47);
+    pub const ITEM: Site = isa::sites::DRS_BVH4.at(7);
     /// Ray loop of a leaf or fallback item.
-    pub const RAYS: Site = Site(48);
+    pub const RAYS: Site = isa::sites::DRS_BVH4.at(8);
     /// Shadow items' push order (count compares).
-    pub const ORDER: Site = Site(49);
+    pub const ORDER: Site = isa::sites::DRS_BVH4.at(9);
+
+    /// Every site of the module (checked for duplicates by the layout test).
+    pub const ALL: [Site; 10] = [BIN, OCTANT, STACK, FEW, LEAF, CORE, PAD, ITEM, RAYS, ORDER];
 }
 
 /// The ray stream's own buffers.
@@ -115,11 +119,11 @@ pub fn trace<M: Machine>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     match M::LANES {
-        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, shadow),
-        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, shadow),
+        4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, policy),
+        8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, policy),
         n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
     }
 }
@@ -133,7 +137,7 @@ fn trace_n<M: Machine, const N: usize>(
     isect: &Buf,
     hits: &mut Buf,
     nrays: usize,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let r = N / 4;
     let cap2 = (st.cap * 2) as i64;
@@ -207,7 +211,7 @@ fn trace_n<M: Machine, const N: usize>(
                     ray,
                     node,
                     &mut st.tests,
-                    shadow,
+                    policy,
                 )
             });
             continue;
@@ -217,12 +221,12 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch(site::LEAF, lf) {
             st.tests.leaf += count.get() as u64;
             leaf_item(
-                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, shadow,
+                m, &s.tris, trav, isect, hits, &st.lists, node, rays_at, count, policy,
             );
             continue;
         }
         core_node::<M, N>(
-            m, s, st, trav, &mut sp, node, oct, rays_at, count, inf, shadow,
+            m, s, st, trav, &mut sp, node, oct, rays_at, count, inf, policy,
         );
     }
 }
@@ -294,7 +298,7 @@ pub(crate) fn leaf_item<M: Machine>(
     node: M::S,
     at: M::S,
     count: M::S,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     m.region(Region::Leaf);
     let width = M::LANES.min(8);
@@ -330,7 +334,7 @@ pub(crate) fn leaf_item<M: Machine>(
             m.x_store(hits, At::idx(ho, 1, 8), h.v);
             m.s_store(hits, At::idx(ho, 1, 12), 4, prim);
             // A shadow ray is done: t_far = -1 fails every later box test.
-            let tf = if shadow { m.float(-1.0) } else { h.t };
+            let tf = if policy.is_any() { m.float(-1.0) } else { h.t };
             m.x_store(trav, At::idx(ro, 1, 28), tf);
         }
     });
@@ -364,7 +368,7 @@ fn core_node<M: Machine, const N: usize>(
     at: M::S,
     count: M::S,
     inf: M::F,
-    shadow: bool,
+    policy: HitPolicy,
 ) {
     let r = N / 4;
     m.region(Region::Traversal);
@@ -387,7 +391,7 @@ fn core_node<M: Machine, const N: usize>(
         vmask = m.s_op(isa::SOp::Or, vmask, sh);
     }
     // List counters into registers: each new item starts where its list ends.
-    let nlists = if shadow { 4 } else { 9 };
+    let nlists = if policy.is_any() { 4 } else { 9 };
     let starts: Vec<M::S> = (0..nlists)
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
@@ -413,7 +417,7 @@ fn core_node<M: Machine, const N: usize>(
         let hbits = m.movemask(hit);
         let hbits = m.s_and(hbits, vmask);
         let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
-        if shadow {
+        if policy.is_any() {
             // Shadow rays: one list per child, no order.
             let conds = [hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
             append(m, st, &idx, &conds, &mut cnt, site::PAD);
@@ -459,7 +463,7 @@ fn core_node<M: Machine, const N: usize>(
         }
     }
     m.region(Region::Traversal);
-    if shadow {
+    if policy.is_any() {
         // List k holds child k's rays; the largest item is popped first.
         let counts: Vec<M::S> = (0..4).map(|k| m.s_sub(cnt[k], starts[k])).collect();
         for k in larger_last(m, &counts, site::ORDER) {

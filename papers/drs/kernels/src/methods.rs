@@ -7,6 +7,7 @@ use scene::bvh::{Bvh2, Bvh4};
 use scene::reference::Reference;
 use scene::scene::Scene;
 use scene::workload::RayStream;
+use scene::Hit;
 
 use isa::{Machine, MemKind, Program};
 
@@ -71,7 +72,7 @@ impl<'a> Run<'a> {
     /// Rays whose result differs from the reference's ([`mismatches`] for
     /// closest hits, [`shadow_mismatches`] for shadow rays).
     #[must_use]
-    pub fn mismatches(&self, label: &str, refi: &Reference, out: &[(f32, i32)]) -> usize {
+    pub fn mismatches(&self, label: &str, refi: &Reference, out: &[Hit]) -> usize {
         if self.rays.is_shadow() {
             shadow_mismatches(label, refi, &self.rays, out)
         } else {
@@ -120,7 +121,7 @@ impl Kernel {
 }
 
 impl Program for Run<'_> {
-    type Out = (Vec<(f32, i32)>, rt::stats::Tests);
+    type Out = (Vec<Hit>, rt::stats::Tests);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let laid = self.lay_out(m);
         self.trace(m, &laid)
@@ -156,11 +157,11 @@ impl Run<'_> {
     }
 
     /// Trace the rays over a layout from [`Run::lay_out`] on the same machine.
-    pub fn trace<M: Machine>(&self, m: &mut M, laid: &Laid) -> (Vec<(f32, i32)>, rt::stats::Tests) {
+    pub fn trace<M: Machine>(&self, m: &mut M, laid: &Laid) -> (Vec<Hit>, rt::stats::Tests) {
         let (org, dir, tmax) = (&self.rays.org, &self.rays.dir, &self.rays.tmax);
         let s4 = || laid.bvh4.as_ref().expect("a BVH4 layout");
         let s2 = || laid.bvh2.as_ref().expect("a BVH2 layout");
-        let shadow = self.rays.is_shadow();
+        let policy = self.rays.policy();
         let n = org.len();
         let mut tests = rt::stats::Tests::default();
         if matches!(
@@ -172,11 +173,11 @@ impl Run<'_> {
                 .map(|(size, spp)| scene::workload::packet_slots(&self.rays, size, spp, M::LANES));
             let mut pb = rt::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
             if self.kernel == Kernel::Packet2 {
-                rt::packet::trace2(m, s2(), &mut pb, shadow);
+                rt::packet::trace2(m, s2(), &mut pb, policy);
             } else {
                 let s = s4();
                 let hybrid = self.kernel == Kernel::Hybrid;
-                rt::packet::trace4(m, s, &mut pb, hybrid, shadow);
+                rt::packet::trace4(m, s, &mut pb, hybrid, policy);
             }
             let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
             return (out, pb.tests);
@@ -203,7 +204,7 @@ impl Run<'_> {
                     &mut stack,
                     n,
                     &mut tests,
-                    shadow,
+                    policy,
                 );
             }
             Kernel::Single => {
@@ -217,23 +218,23 @@ impl Run<'_> {
                     &mut stack,
                     n,
                     &mut tests,
-                    shadow,
+                    policy,
                 );
             }
             Kernel::Drs => {
                 let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
-                crate::bvh4::trace(m, s4(), &mut st, &mut trav, &isect, &mut hits, n, shadow);
+                crate::bvh4::trace(m, s4(), &mut st, &mut trav, &isect, &mut hits, n, policy);
                 tests = st.tests;
             }
             Kernel::Drs2 => {
                 let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
-                crate::bvh2::trace(m, s2(), &mut st, &mut trav, &isect, &mut hits, n, shadow);
+                crate::bvh2::trace(m, s2(), &mut st, &mut trav, &isect, &mut hits, n, policy);
                 tests = st.tests;
             }
             Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => unreachable!("handled above"),
         }
         let out = (0..n)
-            .map(|i| (hits.f32_at(16 * i), hits.u32_at(16 * i + 12) as i32))
+            .map(|i| Hit::from_record(hits.f32_at(16 * i), hits.u32_at(16 * i + 12)))
             .collect();
         (out, tests)
     }

@@ -4,20 +4,19 @@
 use crate::measure::*;
 use crate::paper::*;
 use drs_kernels::methods::Kernel;
-use repro::io::png_path;
 use repro::sampling::ratio_ci;
-use repro::{AppResult, ReproduceArgs, Row};
+use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
 /// Chip Mray/s of `rays` in `cycles` of one core (times the cores).
 fn chip_mray(m: &sim::MachineConfig, cycles: u64, rays: u64) -> f64 {
-    rays as f64 / (cycles.max(1) as f64 / (m.clock_ghz * 1e9)) / 1e6 * f64::from(m.cores)
+    sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).mray_per_s_chip
 }
 
 /// `drs-fig5`: Our BVH4's Mray/s and B/ray against the tile size (4 x 4 to
 /// 28 x 28 pixels at 16 spp, so streams of 256 to 12544 rays); each size is
 /// sampled with about the same number of rays (tiles x size^2 constant).
-pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<()> {
+pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
     let base = sample(a)?;
     let sizes = [4u32, 8, 12, 16, 20, 24, 28];
@@ -39,7 +38,7 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<()> {
                     .key("tile", format!("{size}x{size}"))
             };
             let rate = chip_mray(&base.m, ac.cycles, ac.rays);
-            let bpr = ac.dram as f64 / ac.rays.max(1) as f64;
+            let bpr = ac.per_ray(&base.m).bytes_per_ray;
             let pairs: Vec<(f64, f64)> = ac
                 .tiles
                 .iter()
@@ -81,7 +80,7 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<()> {
             points: pb,
         });
     }
-    let png = png_path(a, "drs-fig5")?;
+    let png = a.png_path("drs-fig5")?;
     repro::plot::write(
         &png,
         &[
@@ -121,7 +120,7 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<()> {
 /// `drs-fig6`: Mray/s of Our BVH4, Single BVH4 and Hybrid BVH4 against the
 /// camera's field of view (8 to 64 degrees) on the dragon stand-in (a
 /// reflective dragon on a large floor: the floor fills the wide views).
-pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<()> {
+pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
     let base = sample(a)?;
     let kernels = [Kernel::Drs, Kernel::Single, Kernel::Hybrid];
@@ -167,7 +166,7 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<()> {
             }
         }
     }
-    let png = png_path(a, "drs-fig6")?;
+    let png = a.png_path("drs-fig6")?;
     repro::plot::write(
         &png,
         &[repro::plot::Panel {

@@ -4,9 +4,8 @@
 
 use drs_kernels::methods::{Kernel, Run};
 use isa::Region;
-use repro::io::emit;
 use repro::sampling::mix;
-use repro::{AppError, AppResult, Report, ReproduceArgs, Row};
+use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::bvh::{BuildConfig, Bvh2, Bvh4};
 use scene::reference::Reference;
 use scene::scene::Scene;
@@ -30,6 +29,13 @@ pub(crate) struct Acc {
     pub(crate) tiles: Vec<(u64, u64)>,
     /// Per stream kind (primary, bounce, shadow): (rays, cycles).
     pub(crate) kinds: BTreeMap<&'static str, (u64, u64)>,
+}
+
+impl Acc {
+    /// The sums' per-ray figures on machine `m` (chip figures: all its cores).
+    pub(crate) fn per_ray(&self, m: &sim::MachineConfig) -> sim::PerRay {
+        sim::PerRay::of(self.cycles, self.dram, self.rays, m.clock_ghz, m.cores)
+    }
 }
 
 /// The machine and tile sample of a reproduce run.
@@ -241,7 +247,7 @@ pub(crate) fn finish(
     ops_total: u64,
     rows: Vec<Row>,
     notes: Vec<String>,
-) -> AppResult<()> {
+) -> AppResult<Produced> {
     let bad: f64 = rows
         .iter()
         .filter(|r| r.metric == "hit_mismatches")
@@ -277,5 +283,8 @@ pub(crate) fn finish(
         rows,
         notes,
     };
-    emit(a, name, &rep, bad)
+    Ok(Produced {
+        report: rep,
+        mismatches: bad,
+    })
 }

@@ -4,7 +4,7 @@
 use crate::measure::*;
 use crate::paper::*;
 use repro::sampling::ratio_ci;
-use repro::{AppResult, ReproduceArgs, Row};
+use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
 /// The paper compares Our BVH4 with the best of single, packet and hybrid
@@ -17,7 +17,7 @@ fn best_other_of(acc: &[Acc], rate: &dyn Fn(usize) -> f64) -> usize {
         .expect("five rows")
 }
 
-pub fn drs_table1(a: &ReproduceArgs) -> AppResult<()> {
+pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
     let smp = sample(a)?;
     let m = &smp.m;
@@ -28,7 +28,7 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<()> {
     let mut ops_total = 0u64;
     // Chip rate: one core's simulated rate times the cores (4 threads in the paper).
     let mray = |cycles: u64, rays: u64| {
-        rays as f64 / (cycles.max(1) as f64 / (m.clock_ghz * 1e9)) / 1e6 * f64::from(m.cores)
+        sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).mray_per_s_chip
     };
     for (scene_name, paper, paper_trav, paper_share) in PAPER_TABLE1 {
         let acc = measure(a, &smp, scene_name, &kernels, &mut ops_total)?;
@@ -50,7 +50,7 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<()> {
             r.paper = Some(paper[ki].0);
             r.ci95 = ci;
             rows.push(r);
-            let mut r = row("bytes_per_ray", ac.dram as f64 / ac.rays.max(1) as f64).unit("B/ray");
+            let mut r = row("bytes_per_ray", ac.per_ray(m).bytes_per_ray).unit("B/ray");
             r.paper = Some(paper[ki].1);
             rows.push(r);
             rows.push(row("hit_mismatches", ac.bad as f64));

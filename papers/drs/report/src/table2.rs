@@ -5,10 +5,10 @@ use crate::measure::*;
 use crate::paper::*;
 use drs_kernels::methods::Kernel;
 use repro::sampling::ratio_ci;
-use repro::{AppResult, ReproduceArgs, Row};
+use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
-pub fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
+pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
     let smp = sample(a)?;
     let m = &smp.m;
@@ -21,7 +21,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
         // s/Gray for the whole chip: per-core seconds per ray over the cores
         // (the paper measured 4 threads on 4 cores).
         let sgray = |cycles: u64, rays: u64| {
-            cycles as f64 / (m.clock_ghz * 1e9) / rays.max(1) as f64 * 1e9 / f64::from(m.cores)
+            sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).s_per_gray_chip
         };
         for (ki, &k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
@@ -49,7 +49,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<()> {
             r.paper = Some(ps);
             r.ci95 = ci;
             rows.push(r);
-            rows.push(row("bytes_per_ray", ac.dram as f64 / ac.rays.max(1) as f64).unit("B/ray"));
+            rows.push(row("bytes_per_ray", ac.per_ray(m).bytes_per_ray).unit("B/ray"));
             rows.push(row("rays", ac.rays as f64));
             rows.push(row("hit_mismatches", ac.bad as f64));
             if k == Kernel::Drs {

@@ -49,6 +49,7 @@ pub mod shade;
 use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shift};
 use rt::layout::{SceneBufs2, BLOCK, BLOCK_BYTES};
 use scene::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
+use scene::{Hit, HitPolicy};
 
 /// Frusta traced together (the SIMD width of the kernel).
 pub const FRUSTA: usize = 16;
@@ -159,39 +160,60 @@ const fn at_row(r: usize) -> usize {
 pub mod site {
     use isa::Site;
     /// Stack empty?
-    pub const STACK: Site = Site(80);
+    pub const STACK: Site = isa::sites::MFT.at(0);
     /// Leaf?
-    pub const LEAF: Site = Site(81);
+    pub const LEAF: Site = isa::sites::MFT.at(1);
     /// Which children are hit (both / one / none)?
-    pub const CHILDREN: Site = Site(82);
+    pub const CHILDREN: Site = isa::sites::MFT.at(2);
     /// Left first?
-    pub const ORDER: Site = Site(83);
+    pub const ORDER: Site = isa::sites::MFT.at(3);
     /// Empty triangle slot?
-    pub const SLOT: Site = Site(84);
+    pub const SLOT: Site = isa::sites::MFT.at(4);
     /// Any frustum front-facing?
-    pub const FRONT: Site = Site(85);
+    pub const FRONT: Site = isa::sites::MFT.at(5);
     /// Any frustum left after corner culling?
-    pub const CORNER: Site = Site(86);
+    pub const CORNER: Site = isa::sites::MFT.at(6);
     /// Next active frustum?
-    pub const FRUSTUM: Site = Site(87);
+    pub const FRUSTUM: Site = isa::sites::MFT.at(7);
     /// Any ray hits?
-    pub const RAY_HIT: Site = Site(88);
+    pub const RAY_HIT: Site = isa::sites::MFT.at(8);
     /// Any frustum whose direction interval holds zero?
-    pub const ZERO: Site = Site(89);
+    pub const ZERO: Site = isa::sites::MFT.at(9);
     /// Next updated frustum?
-    pub const UPDATE: Site = Site(90);
+    pub const UPDATE: Site = isa::sites::MFT.at(10);
     /// Shadow frustum fully occluded?
-    pub const DONE: Site = Site(91);
+    pub const DONE: Site = isa::sites::MFT.at(11);
     /// Next active packet (256-ray packets)?
-    pub const PACKET: Site = Site(92);
+    pub const PACKET: Site = isa::sites::MFT.at(12);
     /// Another triangle block in this leaf?
-    pub const BLOCK: Site = Site(93);
+    pub const BLOCK: Site = isa::sites::MFT.at(13);
     /// Any frustum's rays reach the leaf's box (Ray-AABB)?
-    pub const LEAF_BOX: Site = Site(94);
+    pub const LEAF_BOX: Site = isa::sites::MFT.at(14);
     /// Next frustum to test against the leaf box (Ray-AABB)?
-    pub const BOX_FRUSTUM: Site = Site(95);
+    pub const BOX_FRUSTUM: Site = isa::sites::MFT.at(15);
     /// Next frustum to shrink (CR, FS)?
-    pub const SHRINK: Site = Site(96);
+    pub const SHRINK: Site = isa::sites::MFT.at(16);
+
+    /// Every site of the module (checked for duplicates by the layout test).
+    pub const ALL: [Site; 17] = [
+        STACK,
+        LEAF,
+        CHILDREN,
+        ORDER,
+        SLOT,
+        FRONT,
+        CORNER,
+        FRUSTUM,
+        RAY_HIT,
+        ZERO,
+        UPDATE,
+        DONE,
+        PACKET,
+        BLOCK,
+        LEAF_BOX,
+        BOX_FRUSTUM,
+        SHRINK,
+    ];
 }
 
 pub use rt::stats::MftStats;
@@ -214,8 +236,9 @@ pub struct Frusta {
     pub tmax: f32,
     /// Frusta with rays (bit n); a shadow frustum needs a primary hit.
     pub active: u16,
-    /// Shadow frusta (any hit, occlusion bits) rather than primary.
-    pub shadow: bool,
+    /// `Any`: shadow frusta (per-frustum origins, occlusion bits, a frustum
+    /// stops once all its rays are occluded); `Closest`: primary frusta.
+    pub policy: HitPolicy,
     /// Top-left pixel (of the block or the group).
     pub pixel: (u32, u32),
     /// Shadow frusta: each ray's sample (u, v) on the light.
@@ -248,7 +271,7 @@ impl Frusta {
             corners: [[[0.0; 3]; 4]; FRUSTA],
             tmax: f32::INFINITY,
             active: 0xFFFF,
-            shadow: false,
+            policy: HitPolicy::Closest,
             pixel: (x0, y0),
             uv: Vec::new(),
             light: [[0.0; 3]; 3],
@@ -278,7 +301,7 @@ impl Frusta {
             corners: [[[1.0; 3]; 4]; FRUSTA],
             tmax: 1.0 - 1e-4,
             active: 0,
-            shadow: true,
+            policy: HitPolicy::Any,
             pixel: input.pixel,
             uv: vec![[[0.0; 2]; FRUSTA]; FRUSTA],
             light,
@@ -336,7 +359,7 @@ impl Frusta {
     /// The frusta record (see the module table).
     #[must_use]
     pub fn record(&self) -> Vec<f32> {
-        let rows = if self.shadow {
+        let rows = if self.policy.is_any() {
             row::ROWS_SHADOW
         } else {
             row::ROWS
@@ -374,13 +397,13 @@ impl Frusta {
                 for c in 0..4 {
                     set(row::CORNER + 3 * c + a, n, self.corners[n][c][a]);
                 }
-                if self.shadow {
+                if self.policy.is_any() {
                     for k in 0..FRUSTA {
                         set(row::DELTA_SETS + 3 * n + a, k, self.delta[n][k][a]);
                     }
                 }
             }
-            if self.shadow {
+            if self.policy.is_any() {
                 for k in 0..FRUSTA {
                     set(row::UV + 2 * n, k, self.uv[n][k][0]);
                     set(row::UV + 2 * n + 1, k, self.uv[n][k][1]);
@@ -394,7 +417,7 @@ impl Frusta {
             }
         }
         set(row::ACTIVE, 0, f32::from_bits(u32::from(self.active)));
-        if self.shadow {
+        if self.policy.is_any() {
             for (i, c) in self.light.iter().flatten().enumerate() {
                 set(row::LIGHT, i, *c);
             }
@@ -415,8 +438,8 @@ pub struct MftBufs {
     pub scratch: Buf,
     /// Shadow frusta: occlusion bits of each frustum's rays (u32 each).
     pub occl: Buf,
-    /// Shadow frusta (any hit) rather than primary.
-    pub shadow: bool,
+    /// The frusta's hit policy (`Any`: shadow frusta).
+    pub policy: HitPolicy,
     /// 256-ray packets (the paper's section 5.2): MFT's frustum traversal
     /// replaced by per-ray box tests of the 16 packets; leaves unchanged.
     pub packets256: bool,
@@ -449,7 +472,7 @@ impl MftBufs {
             stack: sp.alloc(MemKind::Stack, "frusta-stack", 8 * 256, 64),
             scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 11, 64),
             occl: sp.alloc(MemKind::Hits, "frusta-occlusion", 64, 64),
-            shadow: f.shadow,
+            policy: f.policy,
             packets256: false,
             shrink: Shrink::None,
             rcp: sp.alloc(MemKind::Rays, "packet-rcp", 64 * 48, 64),
@@ -470,14 +493,14 @@ impl MftBufs {
         }
         self.hits.write(0, &hits);
         self.occl.write(0, &[0u8; 64]);
-        self.shadow = f.shadow;
+        self.policy = f.policy;
     }
 
-    /// (t, prim) of ray `k` of frustum `n`.
+    /// The hit of ray `k` of frustum `n`.
     #[must_use]
-    pub fn hit(&self, n: usize, k: usize) -> (f32, i32) {
+    pub fn hit(&self, n: usize, k: usize) -> Hit {
         let base = 128 * n + 4 * k;
-        (self.hits.f32_at(base), self.hits.u32_at(base + 64) as i32)
+        Hit::from_record(self.hits.f32_at(base), self.hits.u32_at(base + 64))
     }
 }
 
@@ -488,7 +511,7 @@ impl MftBufs {
 /// # Panics
 /// On machines without 16 lanes.
 pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: bool) {
-    let shadow = b.shadow;
+    let shadow = b.policy.is_any();
     assert_eq!(M::LANES, FRUSTA, "MFT runs 16 frusta on 16 lanes");
     m.region(Region::Setup);
     let fr = &b.frusta;
@@ -881,7 +904,7 @@ fn leaf<M: Machine>(
     (dist, alive): (&mut M::F, &mut M::K),
     cull_back: bool,
 ) {
-    let shadow = b.shadow;
+    let shadow = b.policy.is_any();
     m.region(Region::Leaf);
     let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
     let lane_bits = m.consts_i(&lane_bits);
@@ -1306,7 +1329,7 @@ pub struct FrustaRun<'a> {
 }
 
 impl Program for FrustaRun<'_> {
-    type Out = (Vec<(f32, i32)>, MftStats);
+    type Out = (Vec<Hit>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let s = rt::layout::lay_out2_multi(m, &self.scene.mesh, self.bvh);
         let mut out = Vec::with_capacity(self.sets.len() * 256);
@@ -1361,7 +1384,7 @@ pub fn rays_of(sets: &[Frusta]) -> (scene::workload::RayStream, Vec<bool>) {
             }
         }
     }
-    let kind = if sets.first().is_some_and(|f| f.shadow) {
+    let kind = if sets.first().is_some_and(|f| f.policy.is_any()) {
         scene::workload::StreamKind::Shadow(0)
     } else {
         scene::workload::StreamKind::Primary
@@ -1380,7 +1403,7 @@ pub fn mismatches_of(
     label: &str,
     refi: &scene::reference::Reference,
     sets: &[Frusta],
-    out: &[(f32, i32)],
+    out: &[Hit],
 ) -> usize {
     let (st, act) = rays_of(sets);
     let keep: Vec<usize> = (0..st.len()).filter(|&i| act[i]).collect();
@@ -1391,7 +1414,7 @@ pub fn mismatches_of(
         pick(&st.dir),
         keep.iter().map(|&i| st.tmax[i]).collect(),
     );
-    let o: Vec<(f32, i32)> = keep.iter().map(|&i| out[i]).collect();
+    let o: Vec<Hit> = keep.iter().map(|&i| out[i]).collect();
     if sub.is_shadow() {
         scene::agreement::shadow_mismatches_for(test, label, refi, &sub, &o)
     } else {
@@ -1414,7 +1437,7 @@ pub struct PacketPrimaryRun<'a> {
 }
 
 impl Program for PacketPrimaryRun<'_> {
-    type Out = (Vec<(f32, i32)>, MftStats);
+    type Out = (Vec<Hit>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         assert_eq!(M::LANES, FRUSTA, "16-ray packets on 16 lanes");
         let s = rt::layout::lay_out2(m, &self.scene.mesh, self.bvh);
@@ -1428,7 +1451,7 @@ impl Program for PacketPrimaryRun<'_> {
                 .iter()
                 .flat_map(|&n| (0..FRUSTA).map(move |k| f.ray(n, k)))
                 .unzip();
-            let mut hits = vec![(f32::INFINITY, -1); FRUSTA * FRUSTA];
+            let mut hits = vec![Hit::miss(f32::INFINITY); FRUSTA * FRUSTA];
             if !org.is_empty() {
                 let tfar = vec![f.tmax; org.len()];
                 let pb = match &mut bufs {
@@ -1446,7 +1469,7 @@ impl Program for PacketPrimaryRun<'_> {
                         bufs.insert(pb)
                     }
                 };
-                rt::packet::trace2(m, &s, pb, f.shadow);
+                rt::packet::trace2(m, &s, pb, f.policy);
                 for (j, &n) in live.iter().enumerate() {
                     for k in 0..FRUSTA {
                         hits[n * FRUSTA + k] = pb.hit(FRUSTA, j * FRUSTA + k);

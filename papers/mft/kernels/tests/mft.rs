@@ -14,7 +14,7 @@ use scene::workload::soft_shadow_group;
 
 /// Rays of active frusta whose answer differs from the reference's (the
 /// MFT kernel's tolerance is its Pluecker test's, the packets' Moller-Trumbore's).
-fn bad(label: &str, refi: &Reference, sets: &[Frusta], out: &[(f32, i32)]) -> usize {
+fn bad(label: &str, refi: &Reference, sets: &[Frusta], out: &[scene::Hit]) -> usize {
     let test = if label.starts_with("mft") {
         F32Test::Pluecker
     } else {
@@ -54,7 +54,7 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
         );
         let n = bad(&format!("mft {label}"), &refi, sets, &traced);
         assert_eq!(n, 0, "mft {label}: {n} rays differ");
-        let hits = traced.iter().filter(|h| h.1 >= 0).count();
+        let hits = traced.iter().filter(|h| h.is_hit()).count();
         assert!(hits > traced.len() / 16, "{label}: some hits ({hits})");
         assert!(stats.aabb_tests > 0 && stats.isec_tests > 0, "{stats:?}");
         assert!(stats.tris_after_culling <= stats.tris_accessed);

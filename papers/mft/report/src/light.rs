@@ -7,12 +7,13 @@
 use crate::frame::{lrb_machine, sampled_cycles, Frame, Prepared};
 use crate::shading::{pixel_hits, shadow_sets};
 use mft_kernels::{mismatches_of, Frusta, Shrink};
-use repro::io::{emit, png_path};
 use repro::AppResult;
+use repro::Produced;
 use repro::ReproduceArgs;
 use repro::Row;
 use scene::agreement::F32Test;
 use scene::scene::Light;
+use scene::Hit;
 use std::time::Instant;
 
 /// Light sizes, as multiples of each scene's own light's edges.
@@ -24,7 +25,7 @@ const SCENES: [&str; 4] = ["trex", "fern", "saloon", "fairy"];
 
 /// `rtsim reproduce mft-fig6`.
 #[allow(clippy::too_many_lines)]
-pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
+pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let name = "mft-fig6";
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
@@ -61,7 +62,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
             {
                 let refi = pr.reference();
                 let idx: Vec<usize> = (0..sets.len()).step_by(check_every).collect();
-                let pick = |v: &[(f32, i32)]| -> Vec<(f32, i32)> {
+                let pick = |v: &[Hit]| -> Vec<Hit> {
                     idx.iter()
                         .flat_map(|&i| v[256 * i..256 * i + 256].iter().copied())
                         .collect()
@@ -133,7 +134,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
             points: ratio,
         });
     }
-    let png = png_path(a, name)?;
+    let png = a.png_path(name)?;
     repro::plot::write(
         &png,
         &[
@@ -173,7 +174,10 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<()> {
         rows,
         notes,
     );
-    emit(a, name, &rep, bad_total as f64)
+    Ok(Produced {
+        report: rep,
+        mismatches: bad_total as f64,
+    })
 }
 
 /// R^2 of the least-squares line through `pts`.

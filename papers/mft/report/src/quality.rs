@@ -9,8 +9,7 @@ use crate::frame::*;
 use crate::shading::*;
 use mft_kernels::shade::ShadeRun;
 use mft_kernels::{mismatches_of, Frusta, Shrink};
-use repro::io::emit;
-use repro::{AppError, AppResult, ReproduceArgs, Row};
+use repro::{AppError, AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::F32Test;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -44,7 +43,7 @@ fn psnr(rmse: f64) -> f64 {
 
 /// `rtsim reproduce mft-quality`.
 #[allow(clippy::too_many_lines)]
-pub fn mft_quality(a: &ReproduceArgs) -> AppResult<()> {
+pub fn mft_quality(a: &ReproduceArgs) -> AppResult<Produced> {
     let name = "mft-quality";
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
@@ -118,7 +117,7 @@ pub fn mft_quality(a: &ReproduceArgs) -> AppResult<()> {
             disagree = out
                 .iter()
                 .zip(&sout)
-                .filter(|(p, f)| (p.1 >= 0) != (f.1 >= 0))
+                .filter(|(p, f)| p.is_hit() != f.is_hit())
                 .count();
         }
         if rot == 0 || rot == 5 {
@@ -273,5 +272,8 @@ pub fn mft_quality(a: &ReproduceArgs) -> AppResult<()> {
         rows,
         notes,
     );
-    emit(a, name, &rep, bad_total as f64)
+    Ok(Produced {
+        report: rep,
+        mismatches: bad_total as f64,
+    })
 }

@@ -6,6 +6,7 @@ use mft_kernels::shade::{ShadeRun, ShadeSetup};
 use mft_kernels::Frusta;
 use repro::{AppError, AppResult};
 use scene::workload::shadow_group_with;
+use scene::Hit;
 
 /// Per-pixel primary hits: (t, prim) row-major, prim -1 for none.
 pub(crate) struct Hits {
@@ -14,7 +15,7 @@ pub(crate) struct Hits {
 }
 
 /// The per-pixel hits of primary frusta sets' output.
-pub(crate) fn pixel_hits(sets: &[Frusta], out: &[(f32, i32)], w: usize) -> Hits {
+pub(crate) fn pixel_hits(sets: &[Frusta], out: &[Hit], w: usize) -> Hits {
     let mut h = Hits {
         t: vec![0.0; w * w],
         prim: vec![-1; w * w],
@@ -23,11 +24,11 @@ pub(crate) fn pixel_hits(sets: &[Frusta], out: &[(f32, i32)], w: usize) -> Hits 
         for n in 0..16 {
             for k in 0..16 {
                 let (x, y) = f.ray_pixel(n, k);
-                let (t, p) = out[si * 256 + n * 16 + k];
+                let hit = out[si * 256 + n * 16 + k];
                 let i = y as usize * w + x as usize;
-                if p >= 0 {
-                    h.t[i] = t;
-                    h.prim[i] = p;
+                if let Some(p) = hit.prim {
+                    h.t[i] = hit.t;
+                    h.prim[i] = p as i32;
                 }
             }
         }
@@ -55,12 +56,12 @@ pub(crate) fn shadow_sets(pr: &Prepared, hits: &Hits, w: u32, rot: u32) -> Vec<F
 }
 
 /// Add each ray's "reaches the light" (prim < 0) to its pixel's count.
-pub(crate) fn count_visible(sets: &[Frusta], out: &[(f32, i32)], w: u32, vis: &mut [u32]) {
+pub(crate) fn count_visible(sets: &[Frusta], out: &[Hit], w: u32, vis: &mut [u32]) {
     for (si, f) in sets.iter().enumerate() {
         for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
             let (x, y) = (f.pixel.0 + n as u32 % 4, f.pixel.1 + n as u32 / 4);
             let free = (0..16)
-                .filter(|&k| out[si * 256 + n * 16 + k].1 < 0)
+                .filter(|&k| !out[si * 256 + n * 16 + k].is_hit())
                 .count();
             vis[(y * w + x) as usize] += free as u32;
         }

@@ -10,25 +10,25 @@
 use crate::frame::*;
 use crate::paper::*;
 use mft_kernels::{mismatches_of, Frusta, MftStats, Shrink};
-use repro::io::emit;
-use repro::{AppResult, ReproduceArgs, Row};
+use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::F32Test;
+use scene::Hit;
 use std::time::Instant;
 
 /// `rtsim reproduce mft-table1`.
-pub fn mft_table1(a: &ReproduceArgs) -> AppResult<()> {
+pub fn mft_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     report(a, false)
 }
 
 /// `rtsim reproduce mft-packet256`: MFT against 256-ray packets (the
 /// paper's section 5.2: MFT's traversal replaced by per-ray box tests of the
 /// 16 packets, shallow BVH, culling and intersection kept).
-pub fn mft_packet256(a: &ReproduceArgs) -> AppResult<()> {
+pub fn mft_packet256(a: &ReproduceArgs) -> AppResult<Produced> {
     report(a, true)
 }
 
 #[allow(clippy::too_many_lines)]
-fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
+fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let name = if p256 { "mft-packet256" } else { "mft-table1" };
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
@@ -52,7 +52,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
         // Exact counts and the hit check over the whole image.
         let mut stats = [MftStats::default(); 4];
         let mut cycles = [(0.0, None); 4];
-        let mut frusta_out: [Vec<(f32, i32)>; 2] = [Vec::new(), Vec::new()];
+        let mut frusta_out: [Vec<Hit>; 2] = [Vec::new(), Vec::new()];
         for (mi, sets) in [(0usize, primary), (1, primary), (2, shadow), (3, shadow)] {
             let baseline = mi % 2 == 0;
             let (out, st) = match (baseline, p256) {
@@ -265,7 +265,10 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<()> {
         rows,
         notes,
     );
-    emit(a, name, &rep, bad_total as f64)
+    Ok(Produced {
+        report: rep,
+        mismatches: bad_total as f64,
+    })
 }
 
 /// A row's scene and method keys (the baseline rows of the 256-ray report

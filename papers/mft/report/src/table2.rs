@@ -4,15 +4,14 @@
 use crate::frame::*;
 use crate::paper::*;
 use mft_kernels::{mismatches_of, MftStats};
-use repro::io::emit;
-use repro::{AppResult, ReproduceArgs, Row};
+use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::F32Test;
 use std::time::Instant;
 
 /// `rtsim reproduce mft-table2`: frustum shrinking on the T-Rex stand-in's
 /// soft-shadow frusta (the paper's section 5.3).
 #[allow(clippy::too_many_lines)]
-pub fn mft_table2(a: &ReproduceArgs) -> AppResult<()> {
+pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let name = "mft-table2";
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
@@ -152,5 +151,8 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<()> {
         rows,
         notes,
     );
-    emit(a, name, &rep, bad_total as f64)
+    Ok(Produced {
+        report: rep,
+        mismatches: bad_total as f64,
+    })
 }

@@ -1,0 +1,92 @@
+//! The plan of branch-site numbers: one block per kernel module, so that no
+//! two branches of different kernels share a predictor entry by accident. A
+//! module takes its sites with [`SiteBlock::at`] (checked at compile time to
+//! stay inside its block) and lists them in an `ALL` array, which the
+//! workspace's layout test checks for duplicates. A new kernel module adds
+//! its block here, after the last.
+
+use crate::types::Site;
+
+/// A block of consecutive branch-site numbers owned by one module.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SiteBlock {
+    /// The owning module (`crate::module`).
+    pub owner: &'static str,
+    /// First site number.
+    pub first: u32,
+    /// Number of sites.
+    pub len: u32,
+}
+
+impl SiteBlock {
+    /// Site `i` of the block (a compile-time error in a `const` beyond it).
+    #[must_use]
+    pub const fn at(&self, i: u32) -> Site {
+        assert!(i < self.len, "branch site beyond its module's block");
+        Site(self.first + i)
+    }
+    /// Whether `s` is in the block.
+    #[must_use]
+    pub const fn contains(&self, s: Site) -> bool {
+        s.0 >= self.first && s.0 < self.first + self.len
+    }
+}
+
+/// Calibration microkernels.
+pub const MICRO: SiteBlock = SiteBlock {
+    owner: "micro",
+    first: 1,
+    len: 9,
+};
+/// The ray-vs-4-boxes stream (`rt::boxtest`).
+pub const BOXTEST: SiteBlock = SiteBlock {
+    owner: "rt::boxtest",
+    first: 10,
+    len: 10,
+};
+/// Single-ray traversal (`rt::single`).
+pub const SINGLE: SiteBlock = SiteBlock {
+    owner: "rt::single",
+    first: 20,
+    len: 20,
+};
+/// DRS over a BVH4 (`drs_kernels::bvh4`).
+pub const DRS_BVH4: SiteBlock = SiteBlock {
+    owner: "drs_kernels::bvh4",
+    first: 40,
+    len: 10,
+};
+/// DRS over a BVH2 (`drs_kernels::bvh2`).
+pub const DRS_BVH2: SiteBlock = SiteBlock {
+    owner: "drs_kernels::bvh2",
+    first: 50,
+    len: 10,
+};
+/// Packet and hybrid traversal (`rt::packet`).
+pub const PACKET: SiteBlock = SiteBlock {
+    owner: "rt::packet",
+    first: 60,
+    len: 20,
+};
+/// Multi-frusta traversal (`mft_kernels`).
+pub const MFT: SiteBlock = SiteBlock {
+    owner: "mft_kernels",
+    first: 80,
+    len: 40,
+};
+
+/// Every block, in order.
+pub const PLAN: [SiteBlock; 7] = [MICRO, BOXTEST, SINGLE, DRS_BVH4, DRS_BVH2, PACKET, MFT];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn blocks_are_disjoint_and_in_order() {
+        for w in PLAN.windows(2) {
+            assert!(w[0].first + w[0].len <= w[1].first, "{w:?}");
+        }
+        assert!(PLAN.iter().all(|b| b.len > 0 && b.first > 0));
+    }
+}

@@ -117,7 +117,7 @@ impl MachineCli {
 /// The kernels `rtsim run` accepts.
 pub fn kernel_names() -> Vec<&'static str> {
     let mut v = vec!["boxtest"];
-    v.extend(drs_kernels::methods::Kernel::ALL.map(|k| k.name()));
+    v.extend(drs_report::run::kernel_names());
     v
 }
 

@@ -22,14 +22,7 @@ fn reports() -> Vec<&'static ReportDef> {
 
 fn list(what: ListWhat, format: Format) -> AppResult<()> {
     let rows: Vec<Row> = match what {
-        ListWhat::Micro => micro::list()
-            .into_iter()
-            .map(|m| {
-                Row::new("available", 1.0)
-                    .key("name", &m.name)
-                    .key("what", &m.what)
-            })
-            .collect(),
+        ListWhat::Micro => repro::machine::micro_rows(),
         ListWhat::Isa => FlavourId::ALL
             .iter()
             .map(|f| Row::new("lanes", f.lanes() as f64).key("name", f.name()))
@@ -74,9 +67,8 @@ fn run(a: cli::RunCli) -> AppResult<()> {
     if args.kernel == "boxtest" {
         return repro::boxrun::run_boxtest(&args);
     }
-    let kernels = drs_kernels::methods::Kernel::ALL;
-    match kernels.iter().find(|k| k.name() == args.kernel) {
-        Some(&k) => drs_report::run::run_traversal(&args, k),
+    match drs_report::run::kernel(&args.kernel) {
+        Some(k) => drs_report::run::run_traversal(&args, k),
         None => Err(AppError(format!(
             "--kernel: unknown kernel '{}' ({})",
             args.kernel,

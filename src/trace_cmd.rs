@@ -4,7 +4,7 @@ use crate::cli::TraceCmd;
 use isa::{trace_file, trace_text};
 use repro::io::write_atomic;
 use repro::report::Row;
-use repro::traces::{base_report, boxstream, info_rows, load_trace, save_trace};
+use repro::traces::{base_report, info_rows, load_trace, record, save_trace};
 use repro::{AppError, AppResult};
 use std::time::Instant;
 
@@ -30,35 +30,7 @@ pub fn trace(cmd: TraceCmd) -> AppResult<()> {
             out,
         } => {
             let params = split_params(&params)?;
-            let (t, source) = if let Some(name) = micro {
-                let k = micro::build(&name, &params)?;
-                let src = format!("micro:{name}");
-                (isa::record(&k, fl, &src).0, src)
-            } else {
-                let name = kernel.expect("clap requires one");
-                if name != "boxtest" {
-                    return Err(AppError(format!(
-                        "unknown kernel '{name}' (built in: boxtest)"
-                    )));
-                }
-                let (mut rays, mut seed) = (4096usize, 7u64);
-                for (k, v) in &params {
-                    let bad = || AppError(format!("--param {k}={v}: not a whole number"));
-                    match k.as_str() {
-                        "rays" => rays = v.parse().map_err(|_| bad())?,
-                        "seed" => seed = v.parse().map_err(|_| bad())?,
-                        _ => {
-                            return Err(AppError(format!(
-                                "unknown boxtest parameter '{k}' (rays, seed)"
-                            )))
-                        }
-                    }
-                }
-                let w = boxstream(rays, seed)?;
-                let mut t = isa::record(&w, fl, "kernel:boxtest").0;
-                t.params.push(("seed".into(), seed.to_string()));
-                (t, "kernel:boxtest".to_string())
-            };
+            let (t, source) = record(micro.as_deref(), kernel.as_deref(), fl, &params)?;
             let n = save_trace(&t, &out)?;
             println!(
                 "wrote {}: {source} on {fl}, {} ops, {n} bytes ({:.2} bytes/op)",

@@ -293,3 +293,111 @@ fn golden_op_streams() {
         );
     }
 }
+
+/// Every report of the papers' registries.
+const REPORTS: [&str; 9] = [
+    "drs-table1",
+    "drs-table2",
+    "drs-fig5",
+    "drs-fig6",
+    "mft-table1",
+    "mft-table2",
+    "mft-packet256",
+    "mft-quality",
+    "mft-fig6",
+];
+
+#[test]
+fn every_report_is_listed_and_reached_through_the_cli_with_its_options_checked() {
+    let help = ok(&rtsim(&["reproduce", "--help"]));
+    for name in REPORTS {
+        assert!(help.contains(&format!("{name}: ")), "{name} in --help");
+        // The report is dispatched and checks its options before computing.
+        let e = err(&rtsim(&["reproduce", name, "--quick", "--tiles", "0"]));
+        assert!(e.contains("--tiles: 0"), "{name}: {e}");
+        let e = err(&rtsim(&["reproduce", name, "--spp", "0"]));
+        assert!(e.contains("--spp"), "{name}: {e}");
+    }
+    for name in REPORTS.iter().filter(|n| n.starts_with("mft")) {
+        let e = err(&rtsim(&["reproduce", name, "--spp", "4"]));
+        assert!(e.contains("--spp: ") && e.contains("does not use"), "{e}");
+        let e = err(&rtsim(&[
+            "reproduce",
+            name,
+            "--machine",
+            "haswell-i7-4750hq",
+        ]));
+        assert!(e.contains("16 lanes"), "{name}: {e}");
+    }
+    let e = err(&rtsim(&["reproduce", "drs-table9"]));
+    assert!(e.contains("unknown report 'drs-table9'"), "{e}");
+}
+
+#[test]
+fn a_report_prints_and_writes_the_same_json_with_overrides_on_its_own_machine() {
+    let dir = tmp("report-out");
+    let d = dir.to_str().unwrap();
+    let o = rtsim(&[
+        "reproduce",
+        "mft-table2",
+        "--quick",
+        "--tiles",
+        "1",
+        "--set",
+        "core.ports=2",
+        "--format",
+        "json",
+        "--out",
+        d,
+    ]);
+    let printed = json(&o);
+    assert_eq!(printed["machine"], "larrabee");
+    let written: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("mft-table2.json")).unwrap()).unwrap();
+    assert_eq!(printed, written);
+}
+
+#[test]
+fn run_lists_every_kernel_and_out_writes_the_trace_of_each() {
+    let help = ok(&rtsim(&["run", "--help"]));
+    let kernels = [
+        "boxtest",
+        "drs-bvh2",
+        "drs-bvh4",
+        "single-bvh2",
+        "single-bvh4",
+        "packet-bvh2",
+        "packet-bvh4",
+        "hybrid-bvh4",
+    ];
+    for k in kernels {
+        assert!(help.contains(k), "{k} in run --help");
+    }
+    for k in ["single-bvh4", "drs-bvh2"] {
+        let f = tmp(&format!("{k}.txt"));
+        let j = json(&rtsim(&[
+            "run",
+            "--kernel",
+            k,
+            "--tile",
+            "4",
+            "--spp",
+            "1",
+            "--out",
+            p(&f),
+            "--format",
+            "json",
+        ]));
+        let rows = j["rows"].as_array().unwrap();
+        let bytes = rows.iter().find(|r| r["metric"] == "trace_bytes").unwrap();
+        assert_eq!(bytes["value"], std::fs::metadata(&f).unwrap().len() as f64);
+        let info = json(&rtsim(&["trace", "info", p(&f), "--format", "json"]));
+        assert_eq!(info["ops_simulated"], j["ops_simulated"], "{k}");
+    }
+}
+
+#[test]
+fn a_zero_latency_override_is_an_error_naming_the_field() {
+    let e = err(&rtsim(&["calibrate", "--set", "classes.vfma.lat=0"]));
+    assert!(e.contains("classes.vfma.lat"), "{e}");
+}

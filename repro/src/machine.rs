@@ -516,6 +516,19 @@ pub fn fidelity_report(m: &MachineConfig, trace: Option<&Path>, rays: usize) -> 
     Ok(rep)
 }
 
+/// `rtsim list micro` rows.
+#[must_use]
+pub fn micro_rows() -> Vec<Row> {
+    micro::list()
+        .into_iter()
+        .map(|m| {
+            Row::new("available", 1.0)
+                .key("name", &m.name)
+                .key("what", &m.what)
+        })
+        .collect()
+}
+
 /// `rtsim list machines` rows.
 #[must_use]
 pub fn machine_rows() -> Vec<Row> {

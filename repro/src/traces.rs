@@ -4,7 +4,7 @@
 use crate::io::write_atomic;
 use crate::report::{Report, Row};
 use crate::{AppError, AppResult};
-use isa::{info, trace_file, trace_text, Trace};
+use isa::{info, trace_file, trace_text, FlavourId, Trace};
 use rt::boxtest::BoxStream;
 use std::path::Path;
 
@@ -112,4 +112,43 @@ pub fn boxstream(rays: usize, seed: u64) -> AppResult<BoxStream> {
         )));
     }
     Ok(BoxStream::generate(rays, seed))
+}
+
+/// Record microkernel `micro` or built-in kernel `kernel` (`boxtest`) on
+/// flavour `fl` with `key=value` parameters; the trace and its source name.
+pub fn record(
+    micro: Option<&str>,
+    kernel: Option<&str>,
+    fl: FlavourId,
+    params: &[(String, String)],
+) -> AppResult<(Trace, String)> {
+    Ok(if let Some(name) = micro {
+        let k = micro::build(name, params)?;
+        let src = format!("micro:{name}");
+        (isa::record(&k, fl, &src).0, src)
+    } else {
+        let name = kernel.unwrap_or("boxtest");
+        if name != "boxtest" {
+            return Err(AppError(format!(
+                "unknown kernel '{name}' (built in: boxtest)"
+            )));
+        }
+        let (mut rays, mut seed) = (4096usize, 7u64);
+        for (k, v) in params {
+            let bad = || AppError(format!("--param {k}={v}: not a whole number"));
+            match k.as_str() {
+                "rays" => rays = v.parse().map_err(|_| bad())?,
+                "seed" => seed = v.parse().map_err(|_| bad())?,
+                _ => {
+                    return Err(AppError(format!(
+                        "unknown boxtest parameter '{k}' (rays, seed)"
+                    )))
+                }
+            }
+        }
+        let w = boxstream(rays, seed)?;
+        let mut t = isa::record(&w, fl, "kernel:boxtest").0;
+        t.params.push(("seed".into(), seed.to_string()));
+        (t, "kernel:boxtest".to_string())
+    })
 }

@@ -2,8 +2,8 @@
 //! 4096-ray stream (the DRS paper's stream size), and the traced backend's
 //! recording speed on the same work.
 //!
-//! Run: `cargo bench -p kernels --bench boxtest`. Results, with the machine
-//! they ran on, are recorded in `kernels/benches/RESULTS.md`.
+//! Run: `cargo bench -p rt --bench boxtest`. Results, with the machine
+//! they ran on, are recorded in `rt/benches/RESULTS.md`.
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use isa::{Avx2, Machine, Native, Traced};

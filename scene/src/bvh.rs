@@ -123,15 +123,14 @@ impl Default for BuildConfig {
 }
 
 impl BuildConfig {
-    /// A shallow BVH with large leaves, as MFT traverses (frusta cull inside leaves).
-    #[must_use]
-    pub fn shallow() -> BuildConfig {
-        BuildConfig {
-            bins: 16,
-            max_leaf: 64,
-            c_trav: 8.0,
-        }
-    }
+    /// Leaves of up to 64 triangles at traversal cost 8: a tree with large
+    /// leaves, for tests of leaf handling. (The papers' own presets live with
+    /// their kernels: `drs_kernels::BVH`, `mft_kernels::SHALLOW_BVH`.)
+    pub const LARGE_LEAVES: BuildConfig = BuildConfig {
+        bins: 16,
+        max_leaf: 64,
+        c_trav: 8.0,
+    };
 }
 
 /// Deepest tree the traversal stacks allow.
@@ -707,7 +706,7 @@ mod tests {
             (1, BuildConfig::default()),
             (2, BuildConfig::default()),
             (1000, BuildConfig::default()),
-            (1000, BuildConfig::shallow()),
+            (1000, BuildConfig::LARGE_LEAVES),
         ] {
             let m = soup(n, 3);
             let b = Bvh2::build(&m, &cfg).unwrap();
@@ -720,7 +719,7 @@ mod tests {
         }
         let m = soup(1000, 3);
         let deep = Bvh2::build(&m, &BuildConfig::default()).unwrap();
-        let shallow = Bvh2::build(&m, &BuildConfig::shallow()).unwrap();
+        let shallow = Bvh2::build(&m, &BuildConfig::LARGE_LEAVES).unwrap();
         assert!(
             shallow.depth() < deep.depth(),
             "shallow {} < deep {}",

@@ -12,6 +12,7 @@
 pub mod agreement;
 pub mod bvh;
 pub mod hit;
+pub mod loaded;
 pub mod mesh;
 pub mod reference;
 pub mod scene;

@@ -254,7 +254,7 @@ fn empty_scene_single_triangle_and_bad_rays() {
 #[test]
 fn bvh_and_brute_force_agree_closest_and_all() {
     let m = icosphere(2);
-    let b = Bvh2::build(&m, &BuildConfig::shallow()).unwrap();
+    let b = Bvh2::build(&m, &BuildConfig::LARGE_LEAVES).unwrap();
     let (fast, slow) = (Reference::with_bvh(&m, &b), Reference::brute(&m));
     let mut r = Rng::new(9);
     for _ in 0..2000 {

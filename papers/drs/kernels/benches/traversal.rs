@@ -12,21 +12,14 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use drs_kernels::methods::{Kernel, Run};
 use isa::{Avx2, Machine, Native};
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
+use scene::bvh::{Bvh2, Bvh4};
 use scene::scene::Scene;
 use scene::workload::{path_trace_tile, StreamKind, Tile};
 
 fn traversal(c: &mut Criterion) {
     let name = std::env::var("RTSIM_BENCH_SCENE").unwrap_or_else(|_| "crown".into());
     let scene = Scene::load(&name).expect("the scene (is ../shared/data there?)");
-    let b2 = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            ..BuildConfig::default()
-        },
-    )
-    .expect("a BVH");
+    let b2 = Bvh2::build(&scene.mesh, &drs_kernels::BVH).expect("a BVH");
     let b4 = Bvh4::collapse(&b2);
     let cam = &scene.config.camera;
     let tile = Tile {

@@ -12,3 +12,12 @@
 pub mod bvh2;
 pub mod bvh4;
 pub mod methods;
+
+/// The BVH the DRS kernels traverse: binned SAH with leaves of up to 8
+/// triangles (one 8-wide triangle block per leaf), traversal cost 1; the
+/// BVH4 is collapsed from it. Every method of Table 1 uses the same trees.
+pub const BVH: scene::bvh::BuildConfig = scene::bvh::BuildConfig {
+    bins: 16,
+    max_leaf: 8,
+    c_trav: 1.0,
+};

@@ -4,28 +4,19 @@
 
 mod common;
 
-use common::{mismatches, Kernel, Run};
+use common::{fixture, mismatches, Kernel, Run};
 use isa::FlavourId;
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
-use scene::reference::Reference;
+use scene::bvh::{BuildConfig, Bvh2};
 use scene::scene::Scene;
 use scene::workload::{path_trace_tile, primary_tile, RayStream, StreamKind, Tile};
 
 fn check(scene_name: &str, streams: &[RayStream], flavours: &[FlavourId]) {
-    let scene = Scene::load(scene_name).unwrap();
-    let b2 = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            ..BuildConfig::default()
-        },
-    )
-    .unwrap();
-    let b4 = Bvh4::collapse(&b2);
-    let refi = Reference::with_bvh(&scene.mesh, &b2);
+    let fx = fixture(scene_name);
+    let (scene, b2, b4) = (&fx.scene, &fx.b2, &fx.b4);
+    let refi = fx.reference();
     for st in streams {
         for kernel in [Kernel::Drs, Kernel::Drs2] {
-            let run = Run::new(kernel, &scene, &b2, &b4, st.clone());
+            let run = Run::new(kernel, scene, b2, b4, st.clone());
             for &fl in flavours {
                 let (traced, tests) = isa::record(&run, fl, kernel.name()).1;
                 assert_eq!(

@@ -2,29 +2,21 @@
 //! reference does (`Run::mismatches` -> `shadow_mismatches`), traced and
 //! native, on the shadow streams of the path-tracing loop.
 
+mod common;
+
+use common::fixture;
 use drs_kernels::methods::{Kernel, Run};
 use isa::FlavourId;
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
-use scene::reference::Reference;
-use scene::scene::Scene;
 use scene::workload::{path_trace_tile, StreamKind, Tile};
 
 #[test]
 fn every_kernel_answers_shadow_rays_as_the_reference() {
-    let scene = Scene::load("sanmiguel").unwrap();
-    let b2 = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            ..BuildConfig::default()
-        },
-    )
-    .unwrap();
-    let b4 = Bvh4::collapse(&b2);
-    let refi = Reference::with_bvh(&scene.mesh, &b2);
+    let fx = fixture("sanmiguel");
+    let (scene, b2, b4) = (&fx.scene, &fx.b2, &fx.b4);
+    let refi = fx.reference();
     let (size, spp) = (16, 4);
     let tile = Tile { x: 20, y: 24, size };
-    let shadows: Vec<_> = path_trace_tile(&scene, &b2, tile, spp, 1, 9)
+    let shadows: Vec<_> = path_trace_tile(scene, b2, tile, spp, 1, 9)
         .into_iter()
         .filter(|s| matches!(s.kind, StreamKind::Shadow(_)))
         .collect();
@@ -42,7 +34,7 @@ fn every_kernel_answers_shadow_rays_as_the_reference() {
             st.len()
         );
         for kernel in Kernel::ALL {
-            let mut run = Run::new(kernel, &scene, &b2, &b4, st.clone());
+            let mut run = Run::new(kernel, scene, b2, b4, st.clone());
             run.packet_tile = Some((size, spp));
             for fl in [FlavourId::Avx2, FlavourId::Sse4, FlavourId::Lrb16] {
                 if !kernel.supports(fl.lanes()) {

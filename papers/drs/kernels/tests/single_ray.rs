@@ -3,25 +3,15 @@
 
 mod common;
 
-use common::{mismatches, Kernel, Run};
+use common::{fixture, mismatches, Kernel, Run};
 use isa::FlavourId;
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
-use scene::reference::{Ray, Reference};
-use scene::scene::Scene;
+use scene::reference::Ray;
 use scene::workload::{primary_tile, RayStream};
 
 fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
-    let scene = Scene::load(scene_name).unwrap();
-    let b2 = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            ..BuildConfig::default()
-        },
-    )
-    .unwrap();
-    let b4 = Bvh4::collapse(&b2);
-    b4.validate(&b2, &scene.mesh).unwrap();
+    let fx = fixture(scene_name);
+    let (scene, b2, b4) = (&fx.scene, &fx.b2, &fx.b4);
+    b4.validate(b2, &scene.mesh).unwrap();
     let cam = &scene.config.camera;
     let (mut org, mut dir) = (Vec::new(), Vec::new());
     for (fx, fy) in [(0.5, 0.5), (0.4, 0.6), (0.6, 0.75), (0.5, 0.9)] {
@@ -33,7 +23,7 @@ fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
         org.extend(s.org);
         dir.extend(s.dir);
     }
-    let refi = Reference::with_bvh(&scene.mesh, &b2);
+    let refi = fx.reference();
     let hits = org
         .iter()
         .zip(&dir)
@@ -49,9 +39,9 @@ fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
     );
     let run = Run::new(
         kernel,
-        &scene,
-        &b2,
-        &b4,
+        scene,
+        b2,
+        b4,
         RayStream::closest(org.clone(), dir.clone()),
     );
     for &fl in flavours {

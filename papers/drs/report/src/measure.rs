@@ -6,9 +6,8 @@ use drs_kernels::methods::{Kernel, Run};
 use isa::Region;
 use repro::sampling::mix;
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
+use scene::loaded::Loaded;
 use scene::reference::Reference;
-use scene::scene::Scene;
 use scene::workload::{path_trace_tile, StreamKind, Tile};
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -94,25 +93,9 @@ pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
     })
 }
 
-/// A scene stand-in and its BVHs.
-pub(crate) struct Loaded {
-    pub(crate) scene: Scene,
-    pub(crate) b2: Bvh2,
-    pub(crate) b4: Bvh4,
-}
-
+/// A scene stand-in and the DRS kernels' BVHs ([`drs_kernels::BVH`]).
 pub(crate) fn load(scene_name: &str) -> AppResult<Loaded> {
-    let scene = Scene::load(scene_name).map_err(|e| AppError(e.0))?;
-    let b2 = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            ..BuildConfig::default()
-        },
-    )
-    .map_err(AppError)?;
-    let b4 = Bvh4::collapse(&b2);
-    Ok(Loaded { scene, b2, b4 })
+    Loaded::load(scene_name, &drs_kernels::BVH).map_err(AppError)
 }
 
 /// Every kernel over the same sampled streams of one scene.

@@ -5,9 +5,21 @@
 use drs_kernels::methods::{Kernel, Run};
 use repro::boxrun::{finish, Recorded, RunArgs};
 use repro::{AppError, AppResult, Row};
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
+use scene::loaded::Loaded;
 use scene::workload::{path_trace_tile, primary_tile, StreamKind, Tile};
 use std::time::Instant;
+
+/// The methods `rtsim run --kernel` accepts, by name.
+#[must_use]
+pub fn kernel_names() -> [&'static str; 7] {
+    Kernel::ALL.map(Kernel::name)
+}
+
+/// The method called `name`.
+#[must_use]
+pub fn kernel(name: &str) -> Option<Kernel> {
+    Kernel::ALL.into_iter().find(|k| k.name() == name)
+}
 
 /// `rtsim run --kernel METHOD`: a traversal method over one tile's ray stream of a scene.
 pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
@@ -24,16 +36,8 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
     if a.tile == 0 || a.tile > 256 || a.spp == 0 || a.spp > 256 {
         return Err(AppError("--tile and --spp: must be 1 to 256".into()));
     }
-    let scene = scene::scene::Scene::load(&a.scene).map_err(|e| AppError(e.0))?;
-    let b2 = Bvh2::build(
-        &scene.mesh,
-        &BuildConfig {
-            max_leaf: 8,
-            ..BuildConfig::default()
-        },
-    )
-    .map_err(AppError)?;
-    let b4 = Bvh4::collapse(&b2);
+    let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
+    let (scene, b2, b4) = (&ld.scene, &ld.b2, &ld.b4);
     let cam = &scene.config.camera;
     let tile = Tile {
         x: cam.width / 2 / a.tile,
@@ -42,13 +46,13 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
     };
     let stream = match a.stream.as_str() {
         "primary" => primary_tile(cam, tile.x, tile.y, tile.size, a.spp, a.seed),
-        "bounce" => path_trace_tile(&scene, &b2, tile, a.spp, 1, a.seed)
+        "bounce" => path_trace_tile(scene, b2, tile, a.spp, 1, a.seed)
             .into_iter()
             .find(|s| s.kind == StreamKind::Bounce(1))
             .ok_or_else(|| {
                 AppError("--stream bounce: no path survives the first hit in this tile".into())
             })?,
-        "shadow" => path_trace_tile(&scene, &b2, tile, a.spp, 0, a.seed)
+        "shadow" => path_trace_tile(scene, b2, tile, a.spp, 0, a.seed)
             .into_iter()
             .find(|s| s.kind == StreamKind::Shadow(0))
             .ok_or_else(|| AppError("--stream shadow: no primary ray hits in this tile".into()))?,
@@ -64,7 +68,7 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
             stream.len()
         )));
     }
-    let mut run = Run::new(kernel, &scene, &b2, &b4, stream.clone());
+    let mut run = Run::new(kernel, scene, b2, b4, stream.clone());
     run.packet_tile = Some((tile.size, a.spp));
     let (t, (traced, tests)) = isa::record(&run, fl, kernel.name());
     let (native, native_tests) = isa::run_native(&run, fl);
@@ -74,7 +78,7 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
             kernel.name()
         )));
     }
-    let refi = scene::reference::Reference::with_bvh(&scene.mesh, &b2);
+    let refi = ld.reference();
     let bad = run.mismatches(kernel.name(), &refi, &traced);
     let native_bad = traced.iter().zip(&native).filter(|(x, y)| x != y).count();
     let rays = stream.len() as u64;

@@ -1,0 +1,197 @@
+//! The DRS paper's reports computed through the library on small samples:
+//! every cell computed, hits checked, the paper's figures beside ours.
+//! (`tests/cli.rs` at the workspace root reaches each report through the CLI.)
+
+use repro::Given;
+
+/// Report `name` computed with options `g`, as the JSON `--format json` prints.
+fn report(name: &str, g: Given) -> serde_json::Value {
+    let def = drs_report::REPORTS
+        .iter()
+        .find(|d| d.name == name)
+        .expect("registered");
+    let args = def.resolve(g).expect("valid options");
+    let p = (def.run)(&args).expect("computed");
+    assert_eq!(p.mismatches, 0.0, "{name}: rays differ from the reference");
+    serde_json::to_value(&p.report).unwrap()
+}
+
+#[test]
+fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
+    let j = report(
+        "drs-table2",
+        Given {
+            quick: true,
+            tiles: Some(1),
+            spp: Some(2),
+            ..Given::default()
+        },
+    );
+    assert_eq!(j["machine"], "haswell-i7-4750hq");
+    assert_eq!(j["sample"]["tiles_per_scene"], 1);
+    let rows = j["rows"].as_array().unwrap();
+    let get = |scene: &str, method: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| {
+                r["scene"] == scene
+                    && r["method"] == method
+                    && r["metric"] == metric
+                    && r.get("region").is_none()
+            })
+            .collect();
+        assert_eq!(r.len(), 1, "{scene} {method} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+        for method in ["single-bvh4", "drs-bvh4"] {
+            assert_eq!(
+                get(scene, method, "hit_mismatches"),
+                0.0,
+                "{scene} {method}"
+            );
+            assert!(get(scene, method, "s_per_gray") > 0.0);
+            assert!(
+                get(scene, method, "cpi") > 0.25,
+                "{scene} {method}: CPI >= 1/width"
+            );
+        }
+        let share = get(scene, "drs-bvh4", "core_loop_share");
+        assert!(share > 0.0 && share <= 1.0, "{scene}: {share}");
+        assert!(
+            get(scene, "drs-bvh4", "core_loop_cpi") < get(scene, "drs-bvh4", "cpi"),
+            "{scene}: the core loop has the lowest CPI"
+        );
+    }
+    assert!(
+        rows.iter().filter(|r| r.get("paper").is_some()).count() >= 4 * 7,
+        "the paper's figures beside ours"
+    );
+    let notes = j["notes"].as_array().unwrap();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.as_str().unwrap().starts_with("dragon: Our BVH4")),
+        "each scene's comparison with the paper is spelled out: {notes:?}"
+    );
+}
+
+#[test]
+fn reproduce_drs_table1_computes_all_seven_rows() {
+    let j = report(
+        "drs-table1",
+        Given {
+            tiles: Some(1),
+            spp: Some(1),
+            ..Given::default()
+        },
+    );
+    let rows = j["rows"].as_array().unwrap();
+    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+        for method in [
+            "drs-bvh2",
+            "drs-bvh4",
+            "single-bvh2",
+            "single-bvh4",
+            "packet-bvh2",
+            "packet-bvh4",
+            "hybrid-bvh4",
+        ] {
+            let of = |metric: &str| -> Vec<&serde_json::Value> {
+                rows.iter()
+                    .filter(|r| {
+                        r["scene"] == scene
+                            && r["method"] == method
+                            && r["metric"] == metric
+                            && r.get("stream").is_none()
+                    })
+                    .collect()
+            };
+            assert_eq!(of("hit_mismatches")[0]["value"], 0.0, "{scene} {method}");
+            let m = of("mray_per_s");
+            assert!(m[0]["value"].as_f64().unwrap() > 0.0, "{scene} {method}");
+            assert!(
+                m[0]["paper"].as_f64().is_some(),
+                "{scene} {method}: paper beside"
+            );
+            assert!(of("bytes_per_ray")[0]["value"].as_f64().unwrap() > 0.0);
+        }
+        assert!(
+            rows.iter()
+                .any(|r| r["scene"] == scene && r["metric"] == "traversal_improvement"),
+            "{scene}"
+        );
+    }
+    // Shadow rays are traced by every kernel wherever the sampled tile has hits.
+    for method in ["drs-bvh4", "single-bvh4", "packet-bvh4", "hybrid-bvh4"] {
+        assert!(
+            rows.iter()
+                .any(|r| r["method"] == method && r["stream"] == "shadow"),
+            "{method}: shadow rays traced"
+        );
+    }
+    let notes = j["notes"].as_array().unwrap();
+    assert!(
+        notes
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("packets are formed")),
+        "how packets are formed is said: {notes:?}"
+    );
+}
+
+#[test]
+fn reproduce_drs_figures_write_their_table_and_plot() {
+    let dir = std::env::temp_dir().join(format!("rtsim-figs-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let j = report(
+        "drs-fig6",
+        Given {
+            quick: true,
+            tiles: Some(1),
+            spp: Some(1),
+            out: Some(dir.clone()),
+            ..Given::default()
+        },
+    );
+    let rows = j["rows"].as_array().unwrap();
+    for method in ["drs-bvh4", "single-bvh4", "hybrid-bvh4"] {
+        let n = rows
+            .iter()
+            .filter(|r| r["method"] == method && r["metric"] == "mray_per_s")
+            .filter(|r| r["value"].as_f64().unwrap() > 0.0)
+            .count();
+        assert_eq!(n, 8, "{method}: one rate per FOV");
+    }
+    let png = std::fs::read(dir.join("drs-fig6.png")).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+    let j = report(
+        "drs-fig5",
+        Given {
+            quick: true,
+            tiles: Some(1),
+            spp: Some(1),
+            out: Some(dir.clone()),
+            ..Given::default()
+        },
+    );
+    let rows = j["rows"].as_array().unwrap();
+    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+        let tiles: Vec<&str> = rows
+            .iter()
+            .filter(|r| r["scene"] == scene && r["metric"] == "bytes_per_ray")
+            .map(|r| r["tile"].as_str().unwrap())
+            .collect();
+        assert_eq!(
+            tiles,
+            ["4x4", "8x8", "12x12", "16x16", "20x20", "24x24", "28x28"]
+        );
+    }
+    assert!(rows
+        .iter()
+        .filter(|r| r["metric"] == "hit_mismatches")
+        .all(|r| r["value"] == 0.0));
+    assert!(std::fs::read(dir.join("drs-fig5.png"))
+        .unwrap()
+        .starts_with(b"\x89PNG"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

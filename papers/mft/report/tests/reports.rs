@@ -1,0 +1,196 @@
+//! The MFT paper's reports computed through the library on small samples:
+//! every cell computed, hits checked, the paper's figures beside ours.
+//! (`tests/cli.rs` at the workspace root reaches each report through the CLI.)
+
+use repro::Given;
+
+/// Report `name` computed with options `g`, as the JSON `--format json` prints.
+fn report(name: &str, g: Given) -> serde_json::Value {
+    let def = mft_report::REPORTS
+        .iter()
+        .find(|d| d.name == name)
+        .expect("registered");
+    let args = def.resolve(g).expect("valid options");
+    let p = (def.run)(&args).expect("computed");
+    assert_eq!(p.mismatches, 0.0, "{name}: rays differ from the reference");
+    serde_json::to_value(&p.report).unwrap()
+}
+
+/// Report `name` at `--quick --tiles 1`, figures in `out`.
+fn quick_report(name: &str, out: Option<std::path::PathBuf>) -> serde_json::Value {
+    report(
+        name,
+        Given {
+            quick: true,
+            tiles: Some(1),
+            out,
+            ..Given::default()
+        },
+    )
+}
+
+#[test]
+fn set_overrides_apply_to_the_reports_own_machine() {
+    let def = mft_report::REPORTS
+        .iter()
+        .find(|d| d.name == "mft-table2")
+        .unwrap();
+    let a = def
+        .resolve(Given {
+            sets: vec!["core.ports=2".into()],
+            ..Given::default()
+        })
+        .unwrap();
+    let m = a.machine.load().unwrap();
+    assert_eq!((m.name.as_str(), m.core.ports), ("larrabee", 2));
+    let e = def
+        .resolve(Given {
+            spp: Some(4),
+            ..Given::default()
+        })
+        .unwrap_err();
+    assert!(e.0.starts_with("--spp: mft-table2 does not use"), "{}", e.0);
+}
+
+#[test]
+fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
+    let j = quick_report("mft-table1", None);
+    assert_eq!(j["machine"], "larrabee", "defaults to the 16-lane machine");
+    let rows = j["rows"].as_array().unwrap();
+    let get = |scene: &str, method: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["scene"] == scene && r["method"] == method && r["metric"] == metric)
+            .collect();
+        assert_eq!(r.len(), 1, "{scene} {method} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for scene in ["trex", "fern", "saloon", "fairy"] {
+        for method in ["p-packet", "p-frusta", "s-packet", "s-frusta"] {
+            assert_eq!(
+                get(scene, method, "hit_mismatches"),
+                0.0,
+                "{scene} {method}"
+            );
+            for metric in ["tris_accessed", "aabb_tests", "isec_tests", "cycles"] {
+                assert!(
+                    get(scene, method, metric) > 0.0,
+                    "{scene} {method} {metric}"
+                );
+            }
+        }
+        assert!(
+            get(scene, "p-packet", "aabb_tests") > 4.0 * get(scene, "p-frusta", "aabb_tests"),
+            "{scene}: frusta cut box tests"
+        );
+    }
+}
+
+#[test]
+fn reproduce_mft_packet256_checks_hits_and_counts_both_methods() {
+    let j = quick_report("mft-packet256", None);
+    let rows = j["rows"].as_array().unwrap();
+    for method in ["packet256", "p-frusta", "s-frusta"] {
+        let n = rows
+            .iter()
+            .filter(|r| r["method"] == method && r["metric"] == "cycles")
+            .filter(|r| r["value"].as_f64().unwrap() > 0.0)
+            .count();
+        assert!(n >= 4, "{method}: cycles on every scene ({n})");
+    }
+    assert!(rows
+        .iter()
+        .filter(|r| r["metric"] == "hit_mismatches")
+        .all(|r| r["value"] == 0.0));
+}
+
+#[test]
+fn reproduce_mft_table2_shrinking_keeps_hits_and_cr_keeps_traversal() {
+    let j = quick_report("mft-table2", None);
+    assert_eq!(j["machine"], "larrabee");
+    let rows = j["rows"].as_array().unwrap();
+    let get = |shrink: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["shrink"] == shrink && r["metric"] == metric)
+            .collect();
+        assert_eq!(r.len(), 1, "{shrink} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for s in ["no-shrink", "ray-aabb", "cr", "fs"] {
+        assert_eq!(get(s, "hit_mismatches"), 0.0, "{s}");
+        assert!(get(s, "cycles") > 0.0, "{s}");
+    }
+    // CR recomputes corners only: traversal and fetches unchanged, fewer
+    // triangles survive culling; Ray-AABB adds box tests.
+    assert_eq!(get("cr", "aabb_tests"), get("no-shrink", "aabb_tests"));
+    assert_eq!(
+        get("cr", "tris_accessed"),
+        get("no-shrink", "tris_accessed")
+    );
+    assert!(get("cr", "tris_after_culling") < get("no-shrink", "tris_after_culling"));
+    assert!(get("cr", "addl_tests") > 0.0);
+    assert!(get("ray-aabb", "aabb_tests") > get("no-shrink", "aabb_tests"));
+    assert!(get("fs", "tris_accessed") <= get("no-shrink", "tris_accessed"));
+}
+
+#[test]
+fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
+    let dir = std::env::temp_dir().join(format!("rtsim-mftq-{}", std::process::id()));
+    let j = quick_report("mft-quality", Some(dir.clone()));
+    let rows = j["rows"].as_array().unwrap();
+    let get = |method: &str, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["method"] == method && r["metric"] == metric)
+            .collect();
+        assert_eq!(r.len(), 1, "{method} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    assert_eq!(get("mft", "hit_mismatches"), 0.0);
+    assert_eq!(get("reference", "hit_mismatches"), 0.0);
+    // 16 interleaved samples need the 4 x 4 filter to approach 256 samples.
+    let (f, raw) = (get("mft", "psnr"), get("mft-unfiltered", "psnr"));
+    assert!(
+        f > raw + 3.0 && f > 30.0,
+        "filtered {f} dB, unfiltered {raw} dB"
+    );
+    assert!(get("mft", "cycles") < get("reference", "cycles"));
+    for name in ["mft", "mft-unfiltered", "reference", "diff4x"] {
+        let p = dir.join(format!("mft-quality-{name}.png"));
+        assert!(std::fs::read(&p).unwrap().starts_with(b"\x89PNG"), "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn reproduce_mft_fig6_counts_grow_with_the_light() {
+    let dir = std::env::temp_dir().join(format!("rtsim-fig6-{}", std::process::id()));
+    let j = quick_report("mft-fig6", Some(dir.clone()));
+    let rows = j["rows"].as_array().unwrap();
+    for scene in ["trex", "fern", "saloon"] {
+        let tris: Vec<f64> = rows
+            .iter()
+            .filter(|r| {
+                r["scene"] == scene && r["method"] == "s-frusta" && r["metric"] == "tris_accessed"
+            })
+            .map(|r| r["value"].as_f64().unwrap())
+            .collect();
+        assert_eq!(tris.len(), 5, "{scene}");
+        assert!(tris.windows(2).all(|w| w[1] > w[0]), "{scene}: {tris:?}");
+        // The paper's Figure 6: linear in the light's size.
+        for metric in ["tris_accessed_linear_r2", "isec_tests_linear_r2"] {
+            let r2 = rows
+                .iter()
+                .find(|r| r["scene"] == scene && r["metric"] == metric)
+                .unwrap()["value"]
+                .as_f64()
+                .unwrap();
+            assert!(r2 > 0.9, "{scene} {metric} {r2}");
+        }
+    }
+    assert!(std::fs::read(dir.join("mft-fig6.png"))
+        .unwrap()
+        .starts_with(b"\x89PNG"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

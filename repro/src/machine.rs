@@ -231,8 +231,9 @@ fn class_of(m: &MachineConfig, op: ChainOp) -> AppResult<Option<OpClass>> {
     })
 }
 
-/// Calibration rows: every microkernel through the model next to what the config implies.
-fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
+/// The core's issue facts the expectations depend on: threads that share
+/// it (in order) and the least gap between dependent issues.
+fn issue_facts(m: &MachineConfig) -> (bool, usize, f64) {
     let inorder = m.core.kind == CoreKind::InOrder;
     let threads = if inorder { m.core.threads as usize } else { 1 };
     let issue_gap = if inorder && m.core.no_back_to_back {
@@ -240,7 +241,23 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
     } else {
         1.0
     };
+    (inorder, threads, issue_gap)
+}
+
+/// Calibration rows: every microkernel through the model next to what the config implies.
+fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
     let mut out = Vec::new();
+    op_class_rows(m, &mut out)?;
+    cache_latency_rows(m, &mut out)?;
+    out.push(dram_stream_row(m)?);
+    out.push(mispredict_row(m)?);
+    Ok(out)
+}
+
+/// Latency (dependent chains) and reciprocal throughput (16 independent
+/// streams) of every op class a chain microkernel exercises alone.
+fn op_class_rows(m: &MachineConfig, out: &mut Vec<Cal>) -> AppResult<()> {
+    let (_, threads, issue_gap) = issue_facts(m);
     // Differences of two runs cancel start-up and warm-up: (n2 - n1) iterations.
     let (n1, n2) = (20usize, 60usize);
     for &(op, name) in CHAIN_OPS {
@@ -287,6 +304,11 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
             unit: "cycles",
         });
     }
+    Ok(())
+}
+
+/// Load-to-use latency of each cache level and of DRAM.
+fn cache_latency_rows(m: &MachineConfig, out: &mut Vec<Cal>) -> AppResult<()> {
     // Load-to-use latency of each level: a warm chase sized to miss the level
     // above and fit this one; DRAM: a cold chase.
     let chase = |ws: usize, iters: usize| {
@@ -336,6 +358,11 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
         expected: f64::from(m.dram.latency),
         unit: "cycles",
     });
+    Ok(())
+}
+
+/// DRAM bandwidth of a streaming load without the prefetcher.
+fn dram_stream_row(m: &MachineConfig) -> AppResult<Cal> {
     // Streaming from DRAM without the prefetcher: limited by bandwidth or by
     // the miss slots (mshrs lines in flight per DRAM latency).
     let np = m
@@ -355,7 +382,7 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
     let (a, _) = run_micro(&np, &stream(8192), 1)?;
     let (b, _) = run_micro(&np, &stream(24576), 1)?;
     let line = f64::from(m.caches[0].line);
-    out.push(Cal {
+    Ok(Cal {
         name: "stream-load-dram".into(),
         metric: "dram_bandwidth",
         class: None,
@@ -363,7 +390,12 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
         expected: (m.dram.bandwidth_gbs / m.clock_ghz)
             .min(f64::from(m.mshrs) * line / f64::from(m.dram.latency)),
         unit: "B/cycle",
-    });
+    })
+}
+
+/// Cycles per extra mispredict: random branches against predictable ones.
+fn mispredict_row(m: &MachineConfig) -> AppResult<Cal> {
+    let (inorder, _, issue_gap) = issue_facts(m);
     // Mispredict cost: random minus predictable, per extra mispredict. A
     // mispredicted iteration takes resolution + penalty instead of the
     // predictable iteration's own time, so that time is subtracted.
@@ -392,15 +424,14 @@ fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
     } else {
         penalty + blat + 1.0
     };
-    out.push(Cal {
+    Ok(Cal {
         name: "branch-random".into(),
         metric: "mispredict_cost",
         class: None,
         value: (r.cycles - p.cycles) as f64 / extra,
         expected,
         unit: "cycles",
-    });
-    Ok(out)
+    })
 }
 
 /// Calibration report of one machine; also used by tests.

@@ -5,8 +5,8 @@
 //! measured rather than assumed.
 
 use crate::frame::{lrb_machine, sampled_cycles, Frame, Prepared};
-use crate::shading::{pixel_hits, shadow_sets};
-use mft_kernels::{mismatches_of, Frusta, Shrink};
+use crate::shading::{pixel_hits, shadow_sets, Hits};
+use mft_kernels::{mismatches_of, Frusta, MftStats, Shrink};
 use repro::AppResult;
 use repro::Produced;
 use repro::ReproduceArgs;
@@ -24,7 +24,6 @@ const SCALES: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
 const SCENES: [&str; 4] = ["trex", "fern", "saloon", "fairy"];
 
 /// `rtsim reproduce mft-fig6`.
-#[allow(clippy::too_many_lines)]
 pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let name = "mft-fig6";
     let start = Instant::now();
@@ -49,35 +48,16 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         let centre = [0, 1, 2].map(|i| f64::from(c[i]) + 0.5 * f64::from(e1[i] + e2[i]));
         let (mut tris, mut isec, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
         for s in SCALES {
-            let e1s = e1.map(|x| (f64::from(x) * s) as f32);
-            let e2s = e2.map(|x| (f64::from(x) * s) as f32);
-            let cs = [0, 1, 2].map(|i| (centre[i] - 0.5 * f64::from(e1s[i] + e2s[i])) as f32);
-            pr.light = [cs, e1s, e2s];
-            if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
-                (*lc, *l1, *l2) = (cs, e1s, e2s);
-            }
-            let sets = shadow_sets(&pr, &hits, res, 0);
-            let (fout, fst) = isa::run_native(&pr.frusta(sets.clone(), false, Shrink::None), fl);
-            let (pkout, pst) = isa::run_native(&pr.packets(sets.clone()), fl);
-            {
-                let refi = pr.reference();
-                let idx: Vec<usize> = (0..sets.len()).step_by(check_every).collect();
-                let pick = |v: &[Hit]| -> Vec<Hit> {
-                    idx.iter()
-                        .flat_map(|&i| v[256 * i..256 * i + 256].iter().copied())
-                        .collect()
-                };
-                let sub: Vec<Frusta> = idx.iter().map(|&i| sets[i].clone()).collect();
-                let label = format!("{scene_name} light x{s}");
-                bad_total += mismatches_of(F32Test::Pluecker, &label, &refi, &sub, &pick(&fout));
-                bad_total +=
-                    mismatches_of(F32Test::MollerTrumbore, &label, &refi, &sub, &pick(&pkout));
-            }
-            let fr = |v: Vec<Frusta>| pr.frusta(v, false, Shrink::None);
-            let pk = |v: Vec<Frusta>| pr.packets(v);
-            let (cf, _, o1) = sampled_cycles(&m, &sets, batches, per, a.seed, fr)?;
-            let (cp, _, o2) = sampled_cycles(&m, &sets, batches, per, a.seed, pk)?;
-            ops_total += o1 + o2;
+            let p = light_point(
+                &m,
+                (&mut pr, scene_name, res),
+                &hits,
+                (centre, e1, e2, s),
+                (batches, check_every, a.seed),
+            )?;
+            let (fst, pst, cf, cp) = (p.frusta, p.packets, p.frusta_cycles, p.packet_cycles);
+            bad_total += p.bad;
+            ops_total += p.ops;
             let row = |method: &str, metric: &str, v: f64| {
                 Row::new(metric, v)
                     .key("scene", scene_name)
@@ -135,29 +115,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         });
     }
     let png = a.png_path(name)?;
-    repro::plot::write(
-        &png,
-        &[
-            repro::plot::Panel {
-                title: "MFT soft shadows: triangles accessed",
-                x: "light size (x the scene's light)",
-                y: "triangles accessed (x at the scene's light)",
-                series: s_tris,
-            },
-            repro::plot::Panel {
-                title: "MFT soft shadows: 16-wide intersection tests",
-                x: "light size (x the scene's light)",
-                y: "intersection tests (x at the scene's light)",
-                series: s_isec,
-            },
-            repro::plot::Panel {
-                title: "16-ray packets over MFT: simulated cycles",
-                x: "light size (x the scene's light)",
-                y: "cycle reduction (packets / frusta)",
-                series: s_ratio,
-            },
-        ],
-    )?;
+    write_plot(&png, s_tris, s_isec, s_ratio)?;
     notes.push(format!("plot: {}", png.display()));
     notes.push(format!(
         "shadow rays only, {res}x{res}, 16 samples per pixel, each scene's quad light scaled about its centre; counts exact (hits checked against the f64 reference on {}), cycles from {batches} seeded systematic batches of {per} sets per point; the paper's Figure 6 gives curves, not numbers: both counts grow linearly with the light's size (the r2 rows measure how linearly here)",
@@ -194,4 +152,96 @@ fn r2(pts: &[(f64, f64)]) -> f64 {
         return 1.0;
     }
     sxy * sxy / (sxx * syy)
+}
+
+/// One light size's measurements on one scene.
+struct Point {
+    frusta: MftStats,
+    packets: MftStats,
+    frusta_cycles: f64,
+    packet_cycles: f64,
+    bad: usize,
+    ops: u64,
+}
+
+/// Scale the scene's quad light by `s` about its centre, trace the shadow
+/// sets with frusta and packets (exact counts, hits checked on every
+/// `check_every`-th set), and sample both methods' cycles.
+fn light_point(
+    m: &sim::MachineConfig,
+    (pr, scene_name, res): (&mut Prepared, &str, u32),
+    hits: &Hits,
+    (centre, e1, e2, s): ([f64; 3], [f32; 3], [f32; 3], f64),
+    (batches, check_every, seed): (usize, usize, u64),
+) -> AppResult<Point> {
+    let (fl, per) = (m.flavour(), 16);
+    let e1s = e1.map(|x| (f64::from(x) * s) as f32);
+    let e2s = e2.map(|x| (f64::from(x) * s) as f32);
+    let cs = [0, 1, 2].map(|i| (centre[i] - 0.5 * f64::from(e1s[i] + e2s[i])) as f32);
+    pr.light = [cs, e1s, e2s];
+    if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
+        (*lc, *l1, *l2) = (cs, e1s, e2s);
+    }
+    let sets = shadow_sets(pr, hits, res, 0);
+    let (fout, fst) = isa::run_native(&pr.frusta(sets.clone(), false, Shrink::None), fl);
+    let (pkout, pst) = isa::run_native(&pr.packets(sets.clone()), fl);
+    let mut bad = 0;
+    {
+        let refi = pr.reference();
+        let idx: Vec<usize> = (0..sets.len()).step_by(check_every).collect();
+        let pick = |v: &[Hit]| -> Vec<Hit> {
+            idx.iter()
+                .flat_map(|&i| v[256 * i..256 * i + 256].iter().copied())
+                .collect()
+        };
+        let sub: Vec<Frusta> = idx.iter().map(|&i| sets[i].clone()).collect();
+        let label = format!("{scene_name} light x{s}");
+        bad += mismatches_of(F32Test::Pluecker, &label, &refi, &sub, &pick(&fout));
+        bad += mismatches_of(F32Test::MollerTrumbore, &label, &refi, &sub, &pick(&pkout));
+    }
+    let fr = |v: Vec<Frusta>| pr.frusta(v, false, Shrink::None);
+    let pk = |v: Vec<Frusta>| pr.packets(v);
+    let (cf, _, o1) = sampled_cycles(m, &sets, batches, per, seed, fr)?;
+    let (cp, _, o2) = sampled_cycles(m, &sets, batches, per, seed, pk)?;
+    Ok(Point {
+        frusta: fst,
+        packets: pst,
+        frusta_cycles: cf,
+        packet_cycles: cp,
+        bad,
+        ops: o1 + o2,
+    })
+}
+
+/// The three panels of Figure 6 (counts relative to the scene's light, and
+/// packets over frusta) as one PNG.
+fn write_plot(
+    png: &std::path::Path,
+    s_tris: Vec<repro::plot::Series>,
+    s_isec: Vec<repro::plot::Series>,
+    s_ratio: Vec<repro::plot::Series>,
+) -> AppResult<()> {
+    repro::plot::write(
+        png,
+        &[
+            repro::plot::Panel {
+                title: "MFT soft shadows: triangles accessed",
+                x: "light size (x the scene's light)",
+                y: "triangles accessed (x at the scene's light)",
+                series: s_tris,
+            },
+            repro::plot::Panel {
+                title: "MFT soft shadows: 16-wide intersection tests",
+                x: "light size (x the scene's light)",
+                y: "intersection tests (x at the scene's light)",
+                series: s_isec,
+            },
+            repro::plot::Panel {
+                title: "16-ray packets over MFT: simulated cycles",
+                x: "light size (x the scene's light)",
+                y: "cycle reduction (packets / frusta)",
+                series: s_ratio,
+            },
+        ],
+    )
 }

@@ -27,199 +27,89 @@ pub fn mft_packet256(a: &ReproduceArgs) -> AppResult<Produced> {
     report(a, true)
 }
 
-#[allow(clippy::too_many_lines)]
+/// What one report run measures with: the machine, the method set (MFT
+/// against 16-ray or 256-ray packets) and the sample.
+struct Setup {
+    m: sim::MachineConfig,
+    p256: bool,
+    res: u32,
+    batches: usize,
+    per_p: usize,
+    per_s: usize,
+    bands: u32,
+    seed: u64,
+}
+
+/// One scene's four methods: exact counts, sampled cycles (95% CI), the
+/// frusta's hits (primary, shadow) for shading, rows, mismatches, ops.
+struct Measured {
+    stats: [MftStats; 4],
+    cycles: [(f64, Option<f64>); 4],
+    frusta_out: [Vec<Hit>; 2],
+    rows: Vec<Row>,
+    bad: usize,
+    ops: u64,
+}
+
 fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let name = if p256 { "mft-packet256" } else { "mft-table1" };
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
-    let mut notes = Vec::new();
-    let fl = m.flavour();
-    let res: u32 = if a.quick { 256 } else { 1024 };
     let (batches, per_p, per_s) = if a.quick { (2, 4, 16) } else { (4, 32, 32) };
-    let batches = a.tiles.map_or(batches, |t| t as usize);
-    let mut rows = Vec::new();
-    let mut ops_total = 0u64;
-    let mut bad_total = 0usize;
+    let su = Setup {
+        m,
+        p256,
+        res: if a.quick { 256 } else { 1024 },
+        batches: a.tiles.map_or(batches, |t| t as usize),
+        per_p,
+        per_s,
+        bands: if a.quick { 2 } else { 4 },
+        seed: a.seed,
+    };
+    let (mut rows, mut notes) = (Vec::new(), Vec::new());
+    let (mut ops_total, mut bad_total) = (0u64, 0usize);
     // Per scene: our primary cycles over the paper's, frusta and packets.
     let mut vs_paper: Vec<(f64, f64)> = Vec::new();
     for (scene_name, label, paper) in PAPER {
-        let pr = Prepared::new(scene_name, res, name, true)?;
-        let refi = pr.reference();
-        let (scene, primary, shadow) = (&pr.scene, &pr.primary, &pr.shadow);
-        let frusta = |sets: Vec<Frusta>| pr.frusta(sets, false, Shrink::None);
-        let big = |sets: Vec<Frusta>| pr.frusta(sets, true, Shrink::None);
-        let packets = |sets: Vec<Frusta>| pr.packets(sets);
-        // Exact counts and the hit check over the whole image.
-        let mut stats = [MftStats::default(); 4];
-        let mut cycles = [(0.0, None); 4];
-        let mut frusta_out: [Vec<Hit>; 2] = [Vec::new(), Vec::new()];
-        for (mi, sets) in [(0usize, primary), (1, primary), (2, shadow), (3, shadow)] {
-            let baseline = mi % 2 == 0;
-            let (out, st) = match (baseline, p256) {
-                (false, _) => isa::run_native(&frusta(sets.clone()), fl),
-                (true, false) => isa::run_native(&packets(sets.clone()), fl),
-                (true, true) => isa::run_native(&big(sets.clone()), fl),
-            };
-            let test = if baseline && !p256 {
-                F32Test::MollerTrumbore
-            } else {
-                F32Test::Pluecker
-            };
-            let method = method_name(mi, p256);
-            let bad = mismatches_of(test, &format!("{scene_name} {method}"), &refi, sets, &out);
-            bad_total += bad;
-            rows.push(keyed(
-                Row::new("hit_mismatches", bad as f64),
-                scene_name,
-                mi,
-                p256,
-            ));
-            stats[mi] = st;
-            let per = if mi < 2 { per_p } else { per_s };
-            let (cyc, ci, ops) = match (baseline, p256) {
-                (false, _) => sampled_cycles(&m, sets, batches, per, a.seed, frusta)?,
-                (true, false) => sampled_cycles(&m, sets, batches, per, a.seed, packets)?,
-                (true, true) => sampled_cycles(&m, sets, batches, per, a.seed, big)?,
-            };
-            ops_total += ops;
-            cycles[mi] = (cyc, ci);
-            if !baseline {
-                frusta_out[mi / 2] = out;
-            }
-        }
-        // Shading (primary rows: from the light's centre, no shadows) and
-        // shading plus the 4 x 4 filter (soft-shadow rows), simulated on the
-        // same core over bands of the image; the same hits for both methods.
-        let hits = crate::shading::pixel_hits(primary, &frusta_out[0], res as usize);
-        let su = crate::shading::shade_setup(&pr, res);
-        let lit = vec![1.0f32; (res * res) as usize];
-        let mut free = vec![0u32; (res * res) as usize];
-        crate::shading::count_visible(shadow, &frusta_out[1], res, &mut free);
-        let vis: Vec<f32> = free.iter().map(|&c| c as f32 / 16.0).collect();
-        let bands = if a.quick { 2 } else { 4 };
-        let (shade_p, o1, _) =
-            crate::shading::shade_cycles(&m, &pr, &su, &hits, &lit, false, bands)?;
-        let (shade_s, o2, _) =
-            crate::shading::shade_cycles(&m, &pr, &su, &hits, &vis, true, bands)?;
-        ops_total += o1 + o2;
+        let pr = Prepared::new(scene_name, su.res, name, true)?;
+        let mut ms = measure_methods(&su, &pr, scene_name)?;
+        let (shade_p, shade_s, o) = shading(&su, &pr, &ms.frusta_out)?;
+        ops_total += ms.ops + o;
+        bad_total += ms.bad;
+        rows.append(&mut ms.rows);
         // The paper's soft-shadow rows include the primary rays.
-        let (p0, p1) = (stats[0], stats[1]);
-        stats[2].add(p0);
-        stats[3].add(p1);
-        cycles[2].0 += cycles[0].0;
-        cycles[3].0 += cycles[1].0;
-        for mi in 0..4 {
-            let st = stats[mi];
-            let pp = paper[mi];
-            let row = |metric: &str, v: f64, paper: Option<f64>| {
-                let mut r = keyed(Row::new(metric, v), scene_name, mi, p256);
-                // The paper gives no per-cell figures for 256-ray packets.
-                r.paper = paper.filter(|_| !(p256 && mi % 2 == 0));
-                r
-            };
-            rows.push(row(
-                "tris_accessed",
-                st.tris_accessed as f64,
-                Some(pp.0 * 1e3),
-            ));
-            rows.push(row(
-                "tris_after_culling",
-                st.tris_after_culling as f64,
-                pp.1.map(|x| x * 1e3),
-            ));
-            rows.push(row("aabb_tests", st.aabb_tests as f64, Some(pp.2 * 1e3)));
-            rows.push(row("isec_tests", st.isec_tests as f64, Some(pp.3 * 1e3)));
-            // The paper's soft-shadow cycles include shading and filtering.
-            let unshaded_paper = (mi < 2).then_some(pp.4 * 1e6);
-            let mut r = row("cycles", cycles[mi].0, unshaded_paper).unit("cycles");
-            r.ci95 = cycles[mi].1;
-            rows.push(r);
-            let (shade, paper_shaded) = if mi < 2 {
-                (shade_p, pp.5.map(|x| x * 1e6))
-            } else {
-                (shade_s, Some(pp.4 * 1e6))
-            };
-            let mut r = row("cycles_shaded", cycles[mi].0 + shade, paper_shaded).unit("cycles");
-            r.ci95 = cycles[mi].1;
-            rows.push(r);
-        }
-        for (rays, (pk, fr)) in [("primary", (0, 1)), ("shadow", (2, 3))] {
-            let ratio = |x: u64, y: u64| x as f64 / (y.max(1)) as f64;
-            let mut r = Row::new(
-                "aabb_reduction",
-                ratio(stats[pk].aabb_tests, stats[fr].aabb_tests),
-            )
-            .key("scene", scene_name)
-            .key("rays", rays);
-            r.paper = Some(paper[pk].2 / paper[fr].2).filter(|_| !p256);
-            rows.push(r);
-            let shade = if rays == "primary" { shade_p } else { shade_s };
-            let mut r = Row::new("cycle_reduction", cycles[pk].0 / cycles[fr].0.max(1.0))
-                .key("scene", scene_name)
-                .key("rays", rays);
-            // The paper's shadow figure includes shading and filtering.
-            r.paper = Some(paper[pk].4 / paper[fr].4).filter(|_| !p256 && rays == "primary");
-            rows.push(r);
-            let mut r = Row::new(
-                "cycle_reduction_shaded",
-                (cycles[pk].0 + shade) / (cycles[fr].0 + shade).max(1.0),
-            )
-            .key("scene", scene_name)
-            .key("rays", rays);
-            let paper_shaded = if rays == "primary" {
-                paper[pk].5.zip(paper[fr].5).map(|(x, y)| x / y)
-            } else {
-                Some(paper[pk].4 / paper[fr].4)
-            };
-            r.paper = paper_shaded.filter(|_| !p256);
-            rows.push(r);
-        }
+        let (p0, p1) = (ms.stats[0], ms.stats[1]);
+        ms.stats[2].add(p0);
+        ms.stats[3].add(p1);
+        ms.cycles[2].0 += ms.cycles[0].0;
+        ms.cycles[3].0 += ms.cycles[1].0;
+        let (stats, cycles) = (ms.stats, ms.cycles);
+        count_rows(
+            &mut rows,
+            p256,
+            scene_name,
+            &paper,
+            &stats,
+            &cycles,
+            (shade_p, shade_s),
+        );
+        reduction_rows(
+            &mut rows,
+            p256,
+            scene_name,
+            &paper,
+            &stats,
+            &cycles,
+            (shade_p, shade_s),
+        );
         if !p256 {
-            // Where the cycles go against the paper: triangles and tests of
-            // frusta relative to packets, and cycles per triangle accessed.
-            let q = |x: u64, y: u64| x as f64 / y.max(1) as f64;
-            let (sp, sf) = (stats[2], stats[3]);
-            let vs = |mi: usize| {
-                let (st, pp) = (stats[mi], paper[mi]);
-                format!(
-                    "tris {:.2}x, AABB {:.2}x, isec {:.2}x, cycles {:.2}x",
-                    st.tris_accessed as f64 / (pp.0 * 1e3),
-                    st.aabb_tests as f64 / (pp.2 * 1e3),
-                    st.isec_tests as f64 / (pp.3 * 1e3),
-                    cycles[mi].0 / (pp.4 * 1e6)
-                )
-            };
             vs_paper.push((
                 cycles[1].0 / (paper[1].4 * 1e6),
                 cycles[0].0 / (paper[0].4 * 1e6),
             ));
-            notes.push(format!(
-                "{scene_name}: soft-shadow frusta access {:.2}x the triangles packets do and make {:.2}x their intersection tests (the paper: {:.2}x, {:.2}x); against the paper's counts, p-frusta: {}; p-packet: {}; shadow cycle reduction with shading {:.2} (the paper {:.2})",
-                q(sf.tris_accessed, sp.tris_accessed),
-                q(sf.isec_tests, sp.isec_tests),
-                paper[3].0 / paper[2].0,
-                paper[3].3 / paper[2].3,
-                vs(1),
-                vs(0),
-                (cycles[2].0 + shade_s) / (cycles[3].0 + shade_s).max(1.0),
-                paper[2].4 / paper[3].4
-            ));
+            notes.push(against_paper(scene_name, &paper, &stats, &cycles, shade_s));
         }
-        // Shadow frusta whose direction interval holds zero on some axis: they
-        // lose that axis's slab culling and rely on the zero-interval fix.
-        let (mut lanes, mut zero) = (0u64, 0u64);
-        for f in shadow {
-            let rec = f.record();
-            for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
-                lanes += 1;
-                let holds = (0..3).any(|a| {
-                    rec[(mft_kernels::row::DIR_LO + a) * 16 + n] <= 0.0
-                        && rec[(mft_kernels::row::DIR_HI + a) * 16 + n] >= 0.0
-                });
-                zero += u64::from(holds);
-            }
-        }
-        let share = zero as f64 / lanes.max(1) as f64;
+        let share = zero_interval_share(&pr.shadow);
         rows.push(
             Row::new("zero_interval_share", share)
                 .key("scene", scene_name)
@@ -227,12 +117,13 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         );
         notes.push(format!(
             "{scene_name} ({label} stand-in, {} triangles): {} primary frusta sets, {} soft-shadow sets with a hit; {:.0}% of its shadow frusta have a direction interval holding zero (the paper: < 4% for primary rays), where slab culling falls back on the zero-interval fix",
-            scene.mesh.len(),
-            primary.len(),
-            shadow.len(),
+            pr.scene.mesh.len(),
+            pr.primary.len(),
+            pr.shadow.len(),
             100.0 * share
         ));
     }
+    let (m, res, batches) = (&su.m, su.res, su.batches);
     if !p256 {
         let span = |f: fn(&(f64, f64)) -> f64| {
             let v: Vec<f64> = vs_paper.iter().map(f).collect();
@@ -247,7 +138,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     if p256 {
         notes.push("the paper (section 5.2): 256-ray packets need 3-4% fewer AABB tests than MFT on average but reach at most 50% of its speed; here the baseline rows are 256-ray packets (method packet256, key rays) on the same shallow BVH with MFT's leaves, and the reductions are packet256 over frusta; an AABB test here is one 16-wide test of one packet against one child box, so packets count up to 16 tests where MFT counts one (the paper's 3-4% comparison must count differently; it does not say how)".into());
     }
-    let rep = Frame::new(name, &m, res, a.seed, start).report(
+    let rep = Frame::new(name, m, res, a.seed, start).report(
         &[
             ("counts", "exact over the image".into()),
             (
@@ -269,6 +160,221 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         report: rep,
         mismatches: bad_total as f64,
     })
+}
+
+/// Every method on one scene: exact counts over the image (native backend),
+/// the hit check, and cycles simulated on the sampled batches.
+fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Measured> {
+    let (m, p256, fl) = (&su.m, su.p256, su.m.flavour());
+    let (batches, per_p, per_s) = (su.batches, su.per_p, su.per_s);
+    let refi = pr.reference();
+    let (primary, shadow) = (&pr.primary, &pr.shadow);
+    let frusta = |sets: Vec<Frusta>| pr.frusta(sets, false, Shrink::None);
+    let big = |sets: Vec<Frusta>| pr.frusta(sets, true, Shrink::None);
+    let packets = |sets: Vec<Frusta>| pr.packets(sets);
+    let mut ms = Measured {
+        stats: [MftStats::default(); 4],
+        cycles: [(0.0, None); 4],
+        frusta_out: [Vec::new(), Vec::new()],
+        rows: Vec::new(),
+        bad: 0,
+        ops: 0,
+    };
+    for (mi, sets) in [(0usize, primary), (1, primary), (2, shadow), (3, shadow)] {
+        let baseline = mi % 2 == 0;
+        let (out, st) = match (baseline, p256) {
+            (false, _) => isa::run_native(&frusta(sets.clone()), fl),
+            (true, false) => isa::run_native(&packets(sets.clone()), fl),
+            (true, true) => isa::run_native(&big(sets.clone()), fl),
+        };
+        let test = if baseline && !p256 {
+            F32Test::MollerTrumbore
+        } else {
+            F32Test::Pluecker
+        };
+        let method = method_name(mi, p256);
+        let bad = mismatches_of(test, &format!("{scene_name} {method}"), &refi, sets, &out);
+        ms.bad += bad;
+        ms.rows.push(keyed(
+            Row::new("hit_mismatches", bad as f64),
+            scene_name,
+            mi,
+            p256,
+        ));
+        ms.stats[mi] = st;
+        let per = if mi < 2 { per_p } else { per_s };
+        let (cyc, ci, ops) = match (baseline, p256) {
+            (false, _) => sampled_cycles(m, sets, batches, per, su.seed, frusta)?,
+            (true, false) => sampled_cycles(m, sets, batches, per, su.seed, packets)?,
+            (true, true) => sampled_cycles(m, sets, batches, per, su.seed, big)?,
+        };
+        ms.ops += ops;
+        ms.cycles[mi] = (cyc, ci);
+        if !baseline {
+            ms.frusta_out[mi / 2] = out;
+        }
+    }
+    Ok(ms)
+}
+
+/// Shading (primary rows: from the light's centre, no shadows) and shading
+/// plus the 4 x 4 filter (soft-shadow rows), simulated on the same core over
+/// bands of the image; the same hits for both methods: (primary cycles,
+/// soft-shadow cycles, ops simulated).
+fn shading(su: &Setup, pr: &Prepared, frusta_out: &[Vec<Hit>; 2]) -> AppResult<(f64, f64, u64)> {
+    let (m, res, bands) = (&su.m, su.res, su.bands);
+    let hits = crate::shading::pixel_hits(&pr.primary, &frusta_out[0], res as usize);
+    let su_ = crate::shading::shade_setup(pr, res);
+    let lit = vec![1.0f32; (res * res) as usize];
+    let mut free = vec![0u32; (res * res) as usize];
+    crate::shading::count_visible(&pr.shadow, &frusta_out[1], res, &mut free);
+    let vis: Vec<f32> = free.iter().map(|&c| c as f32 / 16.0).collect();
+    let (shade_p, o1, _) = crate::shading::shade_cycles(m, pr, &su_, &hits, &lit, false, bands)?;
+    let (shade_s, o2, _) = crate::shading::shade_cycles(m, pr, &su_, &hits, &vis, true, bands)?;
+    Ok((shade_p, shade_s, o1 + o2))
+}
+
+/// Per method: the counts, cycles and cycles with shading, the paper's beside.
+fn count_rows(
+    rows: &mut Vec<Row>,
+    p256: bool,
+    scene_name: &str,
+    paper: &[PaperRow; 4],
+    stats: &[MftStats; 4],
+    cycles: &[(f64, Option<f64>); 4],
+    (shade_p, shade_s): (f64, f64),
+) {
+    for mi in 0..4 {
+        let st = stats[mi];
+        let pp = paper[mi];
+        let row = |metric: &str, v: f64, paper: Option<f64>| {
+            let mut r = keyed(Row::new(metric, v), scene_name, mi, p256);
+            // The paper gives no per-cell figures for 256-ray packets.
+            r.paper = paper.filter(|_| !(p256 && mi % 2 == 0));
+            r
+        };
+        rows.push(row(
+            "tris_accessed",
+            st.tris_accessed as f64,
+            Some(pp.0 * 1e3),
+        ));
+        rows.push(row(
+            "tris_after_culling",
+            st.tris_after_culling as f64,
+            pp.1.map(|x| x * 1e3),
+        ));
+        rows.push(row("aabb_tests", st.aabb_tests as f64, Some(pp.2 * 1e3)));
+        rows.push(row("isec_tests", st.isec_tests as f64, Some(pp.3 * 1e3)));
+        // The paper's soft-shadow cycles include shading and filtering.
+        let unshaded_paper = (mi < 2).then_some(pp.4 * 1e6);
+        let mut r = row("cycles", cycles[mi].0, unshaded_paper).unit("cycles");
+        r.ci95 = cycles[mi].1;
+        rows.push(r);
+        let (shade, paper_shaded) = if mi < 2 {
+            (shade_p, pp.5.map(|x| x * 1e6))
+        } else {
+            (shade_s, Some(pp.4 * 1e6))
+        };
+        let mut r = row("cycles_shaded", cycles[mi].0 + shade, paper_shaded).unit("cycles");
+        r.ci95 = cycles[mi].1;
+        rows.push(r);
+    }
+}
+
+/// Frusta against packets: AABB test and cycle reductions, primary and shadow.
+fn reduction_rows(
+    rows: &mut Vec<Row>,
+    p256: bool,
+    scene_name: &str,
+    paper: &[PaperRow; 4],
+    stats: &[MftStats; 4],
+    cycles: &[(f64, Option<f64>); 4],
+    (shade_p, shade_s): (f64, f64),
+) {
+    for (rays, (pk, fr)) in [("primary", (0, 1)), ("shadow", (2, 3))] {
+        let ratio = |x: u64, y: u64| x as f64 / (y.max(1)) as f64;
+        let mut r = Row::new(
+            "aabb_reduction",
+            ratio(stats[pk].aabb_tests, stats[fr].aabb_tests),
+        )
+        .key("scene", scene_name)
+        .key("rays", rays);
+        r.paper = Some(paper[pk].2 / paper[fr].2).filter(|_| !p256);
+        rows.push(r);
+        let shade = if rays == "primary" { shade_p } else { shade_s };
+        let mut r = Row::new("cycle_reduction", cycles[pk].0 / cycles[fr].0.max(1.0))
+            .key("scene", scene_name)
+            .key("rays", rays);
+        // The paper's shadow figure includes shading and filtering.
+        r.paper = Some(paper[pk].4 / paper[fr].4).filter(|_| !p256 && rays == "primary");
+        rows.push(r);
+        let mut r = Row::new(
+            "cycle_reduction_shaded",
+            (cycles[pk].0 + shade) / (cycles[fr].0 + shade).max(1.0),
+        )
+        .key("scene", scene_name)
+        .key("rays", rays);
+        let paper_shaded = if rays == "primary" {
+            paper[pk].5.zip(paper[fr].5).map(|(x, y)| x / y)
+        } else {
+            Some(paper[pk].4 / paper[fr].4)
+        };
+        r.paper = paper_shaded.filter(|_| !p256);
+        rows.push(r);
+    }
+}
+
+/// Where the cycles go against the paper: triangles and tests of frusta
+/// relative to packets, and our counts and cycles over the paper's.
+fn against_paper(
+    scene_name: &str,
+    paper: &[PaperRow; 4],
+    stats: &[MftStats; 4],
+    cycles: &[(f64, Option<f64>); 4],
+    shade_s: f64,
+) -> String {
+    let q = |x: u64, y: u64| x as f64 / y.max(1) as f64;
+    let (sp, sf) = (stats[2], stats[3]);
+    let vs = |mi: usize| {
+        let (st, pp) = (stats[mi], paper[mi]);
+        format!(
+            "tris {:.2}x, AABB {:.2}x, isec {:.2}x, cycles {:.2}x",
+            st.tris_accessed as f64 / (pp.0 * 1e3),
+            st.aabb_tests as f64 / (pp.2 * 1e3),
+            st.isec_tests as f64 / (pp.3 * 1e3),
+            cycles[mi].0 / (pp.4 * 1e6)
+        )
+    };
+    format!(
+        "{scene_name}: soft-shadow frusta access {:.2}x the triangles packets do and make {:.2}x their intersection tests (the paper: {:.2}x, {:.2}x); against the paper's counts, p-frusta: {}; p-packet: {}; shadow cycle reduction with shading {:.2} (the paper {:.2})",
+        q(sf.tris_accessed, sp.tris_accessed),
+        q(sf.isec_tests, sp.isec_tests),
+        paper[3].0 / paper[2].0,
+        paper[3].3 / paper[2].3,
+        vs(1),
+        vs(0),
+        (cycles[2].0 + shade_s) / (cycles[3].0 + shade_s).max(1.0),
+        paper[2].4 / paper[3].4
+    )
+}
+
+/// Share of active shadow frusta whose direction interval holds zero on
+/// some axis: they lose that axis's slab culling and rely on the
+/// zero-interval fix.
+fn zero_interval_share(shadow: &[Frusta]) -> f64 {
+    let (mut lanes, mut zero) = (0u64, 0u64);
+    for f in shadow {
+        let rec = f.record();
+        for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
+            lanes += 1;
+            let holds = (0..3).any(|a| {
+                rec[(mft_kernels::row::DIR_LO + a) * 16 + n] <= 0.0
+                    && rec[(mft_kernels::row::DIR_HI + a) * 16 + n] >= 0.0
+            });
+            zero += u64::from(holds);
+        }
+    }
+    zero as f64 / lanes.max(1) as f64
 }
 
 /// A row's scene and method keys (the baseline rows of the 256-ray report

@@ -8,9 +8,11 @@ use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::F32Test;
 use std::time::Instant;
 
+/// The scene of the paper's Table 2 (our T-Rex stand-in).
+const SCENE: &str = "trex";
+
 /// `rtsim reproduce mft-table2`: frustum shrinking on the T-Rex stand-in's
 /// soft-shadow frusta (the paper's section 5.3).
-#[allow(clippy::too_many_lines)]
 pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let name = "mft-table2";
     let start = Instant::now();
@@ -19,7 +21,7 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let res: u32 = if a.quick { 256 } else { 1024 };
     let (batches, per) = if a.quick { (2, 16) } else { (4, 32) };
     let batches = a.tiles.map_or(batches, |t| t as usize);
-    let scene_name = "trex";
+    let scene_name = SCENE;
     let pr = Prepared::new(scene_name, res, name, true)?;
     let refi = pr.reference();
     let mut rows = Vec::new();
@@ -42,76 +44,16 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             pr.frusta(sets, false, shrink)
         })?;
         ops_total += ops;
-        let row = |metric: &str, v: f64, paper: Option<f64>| {
-            let mut r = Row::new(metric, v)
-                .key("scene", scene_name)
-                .key("method", "s-frusta")
-                .key("shrink", label);
-            r.paper = paper;
-            r
-        };
+        let row = |metric: &str, v: f64, paper: Option<f64>| variant_row(label, metric, v, paper);
         rows.push(row("hit_mismatches", bad as f64, None));
-        rows.push(row(
-            "tris_accessed",
-            st.tris_accessed as f64,
-            Some(paper[0] * 1e3),
-        ));
-        rows.push(row(
-            "tris_after_culling",
-            st.tris_after_culling as f64,
-            Some(paper[1] * 1e3),
-        ));
-        rows.push(row(
-            "aabb_tests",
-            st.aabb_tests as f64,
-            Some(paper[2] * 1e3),
-        ));
-        rows.push(row(
-            "isec_tests",
-            st.isec_tests as f64,
-            Some(paper[3] * 1e3),
-        ));
-        rows.push(row(
-            "addl_tests",
-            (st.shrinks + st.leaf_box_tests) as f64,
-            paper_addl.map(|x| x * 1e3),
-        ));
+        rows.extend(count_rows(label, &st, paper, paper_addl));
         let mut r = row("cycles", cyc, None).unit("cycles");
         r.ci95 = ci;
         rows.push(r);
         all.push((st, cyc));
         match base {
             None => base = Some((st, cyc)),
-            Some((b, bc)) => {
-                let pct = |x: u64, y: u64| 100.0 * (x as f64 / y.max(1) as f64 - 1.0);
-                let p0 = PAPER_TABLE2[0].1;
-                let ppct = |x: f64, y: f64| 100.0 * (x / y - 1.0);
-                for (metric, v, pv) in [
-                    (
-                        "tris_accessed_change",
-                        pct(st.tris_accessed, b.tris_accessed),
-                        ppct(paper[0], p0[0]),
-                    ),
-                    (
-                        "tris_after_culling_change",
-                        pct(st.tris_after_culling, b.tris_after_culling),
-                        ppct(paper[1], p0[1]),
-                    ),
-                    (
-                        "aabb_tests_change",
-                        pct(st.aabb_tests, b.aabb_tests),
-                        ppct(paper[2], p0[2]),
-                    ),
-                    (
-                        "isec_tests_change",
-                        pct(st.isec_tests, b.isec_tests),
-                        ppct(paper[3], p0[3]),
-                    ),
-                ] {
-                    rows.push(row(metric, v, Some(pv)).unit("%"));
-                }
-                rows.push(row("cycles_change", 100.0 * (cyc / bc.max(1.0) - 1.0), None).unit("%"));
-            }
+            Some((b, bc)) => rows.extend(change_rows(label, (&st, cyc), (&b, bc), paper)),
         }
     }
     notes.push(format!(
@@ -119,19 +61,7 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
         pr.scene.mesh.len(),
         pr.shadow.len()
     ));
-    if let [(none, c0), (ray, c1), (_, c2), (fs, c3)] = all[..] {
-        let pct = |x: f64, y: f64| 100.0 * (x / y.max(1.0) - 1.0);
-        notes.push(format!(
-            "cycles against no-shrink: ray-aabb {:+.1}%, cr {:+.1}%, fs {:+.1}% (the paper: cr at most 10% faster, ray-aabb and fs slower); ray-aabb drops {:.0}% of the triangle fetches here against the paper's 14.8%, fs {:.0}% against 7.7%: no-shrink makes {:.1} 16-wide ray-triangle tests per frusta set here against the paper's {:.1} (5402K over 65536 sets), so our frusta are wide against the triangles they pass (light size against triangle size, see mft-table1) and per-ray or shrunk bounds have more to cull",
-            pct(c1, c0),
-            pct(c2, c0),
-            pct(c3, c0),
-            -pct(ray.tris_accessed as f64, none.tris_accessed as f64),
-            -pct(fs.tris_accessed as f64, none.tris_accessed as f64),
-            none.isec_tests as f64 / pr.shadow.len().max(1) as f64,
-            5_402_000.0 / 65_536.0
-        ));
-    }
+    notes.extend(cycles_note(&all, pr.shadow.len()));
     notes.push("ray-aabb: each non-terminated frustum's live rays against the leaf's box before the leaf's triangles (per-ray reciprocals computed there), counted in aabb_tests and addl_tests; cr: corner rays recomputed through the live samples' 2D bounds on the light after a leaf in which rays of the frustum became occluded (addl_tests = recomputations); fs: cr plus the direction interval and reciprocals shrunk to the live rays. The paper does not give cycles per variant, only that cr paid off (at most 10% faster) and ray-aabb and fs did not".into());
     let rep = Frame::new(name, &m, res, a.seed, start).report(
         &[
@@ -155,4 +85,99 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
         report: rep,
         mismatches: bad_total as f64,
     })
+}
+
+/// A row of variant `label` (shrink mode) with the paper's figure.
+fn variant_row(label: &str, metric: &str, v: f64, paper: Option<f64>) -> Row {
+    let mut r = Row::new(metric, v)
+        .key("scene", SCENE)
+        .key("method", "s-frusta")
+        .key("shrink", label);
+    r.paper = paper;
+    r
+}
+
+/// The counts of one variant beside the paper's (in thousands there).
+fn count_rows(label: &str, st: &MftStats, paper: [f64; 4], paper_addl: Option<f64>) -> Vec<Row> {
+    let row = |metric: &str, v: f64, paper: Option<f64>| variant_row(label, metric, v, paper);
+    vec![
+        row(
+            "tris_accessed",
+            st.tris_accessed as f64,
+            Some(paper[0] * 1e3),
+        ),
+        row(
+            "tris_after_culling",
+            st.tris_after_culling as f64,
+            Some(paper[1] * 1e3),
+        ),
+        row("aabb_tests", st.aabb_tests as f64, Some(paper[2] * 1e3)),
+        row("isec_tests", st.isec_tests as f64, Some(paper[3] * 1e3)),
+        row(
+            "addl_tests",
+            (st.shrinks + st.leaf_box_tests) as f64,
+            paper_addl.map(|x| x * 1e3),
+        ),
+    ]
+}
+
+/// A variant's counts and cycles against no shrinking, in percent, the
+/// paper's changes beside.
+fn change_rows(
+    label: &str,
+    (st, cyc): (&MftStats, f64),
+    (b, bc): (&MftStats, f64),
+    paper: [f64; 4],
+) -> Vec<Row> {
+    let row = |metric: &str, v: f64, paper: Option<f64>| variant_row(label, metric, v, paper);
+    let mut out = Vec::new();
+    let pct = |x: u64, y: u64| 100.0 * (x as f64 / y.max(1) as f64 - 1.0);
+    let p0 = PAPER_TABLE2[0].1;
+    let ppct = |x: f64, y: f64| 100.0 * (x / y - 1.0);
+    for (metric, v, pv) in [
+        (
+            "tris_accessed_change",
+            pct(st.tris_accessed, b.tris_accessed),
+            ppct(paper[0], p0[0]),
+        ),
+        (
+            "tris_after_culling_change",
+            pct(st.tris_after_culling, b.tris_after_culling),
+            ppct(paper[1], p0[1]),
+        ),
+        (
+            "aabb_tests_change",
+            pct(st.aabb_tests, b.aabb_tests),
+            ppct(paper[2], p0[2]),
+        ),
+        (
+            "isec_tests_change",
+            pct(st.isec_tests, b.isec_tests),
+            ppct(paper[3], p0[3]),
+        ),
+    ] {
+        out.push(row(metric, v, Some(pv)).unit("%"));
+    }
+    out.push(row("cycles_change", 100.0 * (cyc / bc.max(1.0) - 1.0), None).unit("%"));
+    out
+}
+
+/// The variants' cycles against no shrinking, and why they differ from the
+/// paper's (triangle fetches dropped, tests per set).
+fn cycles_note(all: &[(MftStats, f64)], sets: usize) -> Option<String> {
+    if let [(none, c0), (ray, c1), (_, c2), (fs, c3)] = all[..] {
+        let pct = |x: f64, y: f64| 100.0 * (x / y.max(1.0) - 1.0);
+        Some(format!(
+            "cycles against no-shrink: ray-aabb {:+.1}%, cr {:+.1}%, fs {:+.1}% (the paper: cr at most 10% faster, ray-aabb and fs slower); ray-aabb drops {:.0}% of the triangle fetches here against the paper's 14.8%, fs {:.0}% against 7.7%: no-shrink makes {:.1} 16-wide ray-triangle tests per frusta set here against the paper's {:.1} (5402K over 65536 sets), so our frusta are wide against the triangles they pass (light size against triangle size, see mft-table1) and per-ray or shrunk bounds have more to cull",
+            pct(c1, c0),
+            pct(c2, c0),
+            pct(c3, c0),
+            -pct(ray.tris_accessed as f64, none.tris_accessed as f64),
+            -pct(fs.tris_accessed as f64, none.tris_accessed as f64),
+            none.isec_tests as f64 / sets.max(1) as f64,
+            5_402_000.0 / 65_536.0
+        ))
+    } else {
+        None
+    }
 }

@@ -285,7 +285,6 @@ fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool, p
     }
 }
 
-#[allow(clippy::too_many_lines)]
 fn trace_packet<M: Machine>(
     m: &mut M,
     tree: Tree,
@@ -295,21 +294,7 @@ fn trace_packet<M: Machine>(
     policy: HitPolicy,
 ) {
     let w = M::LANES;
-    let ld = |m: &mut M, rays: &Buf, r: usize| m.load(rays, At::idx(base, 1, row(w, r)));
-    let org = [0, 1, 2].map(|a| ld(m, &pb.rays, row::ORG + a));
-    let dir = [0, 1, 2].map(|a| ld(m, &pb.rays, row::DIR + a));
-    let idir = [0, 1, 2].map(|a| ld(m, &pb.rays, row::IDIR + a));
-    let oid = [0, 1, 2].map(|a| m.mul(org[a], idir[a]));
-    let tnear = ld(m, &pb.rays, row::TNEAR);
-    let tfar = ld(m, &pb.rays, row::TFAR);
-    let mut pk = Packet::<M> {
-        org,
-        dir,
-        idir,
-        oid,
-        tnear,
-        tfar,
-    };
+    let mut pk = load_packet(m, &pb.rays, base);
     let inf = m.splat(f32::INFINITY);
     // Stack: the sentinel, then the root with the rays' t_near.
     let sentinel = m.int(i64::from(EMPTY_SLOT));
@@ -323,7 +308,6 @@ fn trace_packet<M: Machine>(
     m.s_store(sn, At::off(4), 4, root);
     m.store(snear, At::off(4 * w), pk.tnear);
     let mut sp = m.int(2);
-    let tests = &mut pb.tests;
     let (mut aabb, mut tri_tests) = (0u64, 0u64);
     let one_sided = pb.one_sided;
     let leaf_flag = m.int(i64::from(LEAF));
@@ -331,8 +315,8 @@ fn trace_packet<M: Machine>(
         m.region(Region::Traversal);
         sp = m.s_addi(sp, -1);
         let near_off = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
-        let mut cur = m.s_load(sn, At::idx(sp, 4, 0), 4, false);
-        let mut cur_d = m.load(snear, At::idx(near_off, 1, 0));
+        let mut cur = m.s_load(&pb.stack_node, At::idx(sp, 4, 0), 4, false);
+        let mut cur_d = m.load(&pb.stack_near, At::idx(near_off, 1, 0));
         let done = m.s_cmp(Cmp::Eq, cur, sentinel);
         if m.branch(site::DONE, done) {
             break;
@@ -340,7 +324,7 @@ fn trace_packet<M: Machine>(
         let active = m.cmp(Cmp::Lt, cur_d, pk.tfar);
         let any = m.any(active);
         if !m.branch(site::CULL, any) {
-            tests.culled += 1;
+            pb.tests.culled += 1;
             continue;
         }
         if hybrid {
@@ -351,102 +335,28 @@ fn trace_packet<M: Machine>(
                 let Tree::Bvh4(s) = tree else {
                     unreachable!("hybrid traversal is BVH4 only")
                 };
-                let mut bits = bits;
-                loop {
-                    let lane = m.s_tzcnt(bits);
-                    let k = lane.get() as usize;
-                    let mut st = RayState::load_packet(m, &pb.rays, base, k);
-                    walk4(m, s, &mut st, &mut pb.single_stack, cur, tests, policy);
-                    m.region(Region::SingleRay);
-                    st.write_packet(m, &mut pb.rays);
-                    let lm1 = m.s_addi(bits, -1);
-                    bits = m.s_and(bits, lm1);
-                    let zero = m.int(0);
-                    if !m.branch_if(site::SWITCH_RAY, Cmp::Ne, bits, zero) {
-                        break;
-                    }
-                }
+                single_rays(m, s, pb, (base, bits, cur), policy);
                 m.region(Region::Traversal);
                 pk.tfar = m.load(&pb.rays, At::idx(base, 1, row(w, row::TFAR)));
                 continue;
             }
         }
-        // Down traversal: test the node's children, keep the one any ray
-        // reaches first as the next node, push the others.
-        loop {
-            let lf = m.s_and(cur, leaf_flag);
-            if m.branch(site::LEAF, lf) {
-                break;
-            }
-            let valid_node = m.cmp(Cmp::Gt, pk.tfar, cur_d);
-            tests.other += u64::from(m.bits(valid_node).count_ones());
-            let node = cur;
-            // Pop the next node now; a hit child may take its place.
-            sp = m.s_addi(sp, -1);
-            let near_off = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
-            cur = m.s_load(sn, At::idx(sp, 4, 0), 4, false);
-            cur_d = m.load(snear, At::idx(near_off, 1, 0));
-            let children: &[usize] = match tree {
-                Tree::Bvh4(_) => &[0, 1, 2, 3],
-                Tree::Bvh2(_) => &[0, 1],
-            };
-            for &i in children {
-                let (child, lnear, lhit) = match tree {
-                    Tree::Bvh4(s) => {
-                        let nb = m.s_shift(Shift::Shl, node, NODE_BYTES.trailing_zeros());
-                        let child = m.s_load(&s.nodes, At::idx(nb, 1, 96 + 4 * i), 4, false);
-                        let empty = m.s_cmp(Cmp::Eq, child, sentinel);
-                        if m.branch(site::EMPTY, empty) {
-                            break;
-                        }
-                        // Rows min_x max_x min_y max_y min_z max_z, child i at 4i.
-                        let plane = |m: &mut M, r: usize| {
-                            m.load_bcast(&s.nodes, At::idx(nb, 1, 16 * r + 4 * i))
-                        };
-                        let (lnear, lhit) = box_test(m, &pk, plane);
-                        (child, lnear, lhit)
-                    }
-                    Tree::Bvh2(s) => {
-                        let nb = m.s_shift(Shift::Shl, node, 6);
-                        let child = m.s_load(&s.nodes, At::idx(nb, 1, 48 + 4 * i), 4, false);
-                        // Per axis [min_l, min_r, max_l, max_r]: min at 4i, max at 8 + 4i.
-                        let plane = |m: &mut M, r: usize| {
-                            let off = 16 * (r / 2) + 8 * (r % 2) + 4 * i;
-                            m.load_bcast(&s.nodes, At::idx(nb, 1, off))
-                        };
-                        let (lnear, lhit) = box_test(m, &pk, plane);
-                        (child, lnear, lhit)
-                    }
-                };
-                aabb += 1;
-                let any = m.any(lhit);
-                if !m.branch(site::HIT, any) {
-                    continue;
-                }
-                let child_d = m.select(lhit, lnear, inf);
-                let closer = m.cmp(Cmp::Lt, child_d, cur_d);
-                let anyc = m.any(closer);
-                let (push, push_d) = if m.branch(site::CLOSER, anyc) {
-                    let old = (cur, cur_d);
-                    cur = child;
-                    cur_d = child_d;
-                    old
-                } else {
-                    (child, child_d)
-                };
-                let near_off = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
-                m.s_store(sn, At::idx(sp, 4, 0), 4, push);
-                m.store(snear, At::idx(near_off, 1, 0), push_d);
-                sp = m.s_addi(sp, 1);
-            }
-        }
+        down(
+            m,
+            tree,
+            &pk,
+            (&mut pb.stack_node, &mut pb.stack_near),
+            (&mut pb.tests, &mut aabb),
+            (&mut cur, &mut cur_d, &mut sp),
+            (sentinel, leaf_flag, inf),
+        );
         let done = m.s_cmp(Cmp::Eq, cur, sentinel);
         if m.branch(site::DONE, done) {
             break;
         }
         // Leaf: every ray still in front of its hit against each triangle.
         let valid_leaf = m.cmp(Cmp::Gt, pk.tfar, cur_d);
-        tests.leaf += u64::from(m.bits(valid_leaf).count_ones());
+        pb.tests.leaf += u64::from(m.bits(valid_leaf).count_ones());
         let blocks = match tree {
             Tree::Bvh4(s) => &s.tris,
             Tree::Bvh2(s) => &s.tris,
@@ -476,6 +386,135 @@ fn trace_packet<M: Machine>(
     pb.frusta_stats.tris_accessed += tri_tests;
     pb.frusta_stats.tris_after_culling += tri_tests;
     pb.frusta_stats.isec_tests += tri_tests;
+}
+
+/// The packet of rays at byte `base` of the records, with `org * idir`.
+fn load_packet<M: Machine>(m: &mut M, rays: &Buf, base: M::S) -> Packet<M> {
+    let w = M::LANES;
+    let ld = |m: &mut M, rays: &Buf, r: usize| m.load(rays, At::idx(base, 1, row(w, r)));
+    let org = [0, 1, 2].map(|a| ld(m, rays, row::ORG + a));
+    let dir = [0, 1, 2].map(|a| ld(m, rays, row::DIR + a));
+    let idir = [0, 1, 2].map(|a| ld(m, rays, row::IDIR + a));
+    let oid = [0, 1, 2].map(|a| m.mul(org[a], idir[a]));
+    let tnear = ld(m, rays, row::TNEAR);
+    let tfar = ld(m, rays, row::TFAR);
+    Packet::<M> {
+        org,
+        dir,
+        idir,
+        oid,
+        tnear,
+        tfar,
+    }
+}
+
+/// Hybrid traversal's switch: each active ray (`bits`) of the packet traced
+/// alone from node `cur` by the single-ray BVH4 kernel, its record updated.
+fn single_rays<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    pb: &mut PacketBufs,
+    (base, bits, cur): (M::S, M::S, M::S),
+    policy: HitPolicy,
+) {
+    let tests = &mut pb.tests;
+    let mut bits = bits;
+    loop {
+        let lane = m.s_tzcnt(bits);
+        let k = lane.get() as usize;
+        let mut st = RayState::load_packet(m, &pb.rays, base, k);
+        walk4(m, s, &mut st, &mut pb.single_stack, cur, tests, policy);
+        m.region(Region::SingleRay);
+        st.write_packet(m, &mut pb.rays);
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+        let zero = m.int(0);
+        if !m.branch_if(site::SWITCH_RAY, Cmp::Ne, bits, zero) {
+            break;
+        }
+    }
+}
+
+/// Down traversal: test the node's children, keep the one any ray reaches
+/// first as the next node (`cur`, `cur_d`), push the others, until a leaf
+/// or the sentinel.
+fn down<M: Machine>(
+    m: &mut M,
+    tree: Tree,
+    pk: &Packet<M>,
+    (sn, snear): (&mut Buf, &mut Buf),
+    (tests, aabb): (&mut Tests, &mut u64),
+    (cur, cur_d, sp): (&mut M::S, &mut M::F, &mut M::S),
+    (sentinel, leaf_flag, inf): (M::S, M::S, M::F),
+) {
+    let w = M::LANES;
+    loop {
+        let lf = m.s_and(*cur, leaf_flag);
+        if m.branch(site::LEAF, lf) {
+            break;
+        }
+        let valid_node = m.cmp(Cmp::Gt, pk.tfar, *cur_d);
+        tests.other += u64::from(m.bits(valid_node).count_ones());
+        let node = *cur;
+        // Pop the next node now; a hit child may take its place.
+        *sp = m.s_addi(*sp, -1);
+        let near_off = m.s_shift(Shift::Shl, *sp, (4 * w).trailing_zeros());
+        *cur = m.s_load(sn, At::idx(*sp, 4, 0), 4, false);
+        *cur_d = m.load(snear, At::idx(near_off, 1, 0));
+        let children: &[usize] = match tree {
+            Tree::Bvh4(_) => &[0, 1, 2, 3],
+            Tree::Bvh2(_) => &[0, 1],
+        };
+        for &i in children {
+            let (child, lnear, lhit) = match tree {
+                Tree::Bvh4(s) => {
+                    let nb = m.s_shift(Shift::Shl, node, NODE_BYTES.trailing_zeros());
+                    let child = m.s_load(&s.nodes, At::idx(nb, 1, 96 + 4 * i), 4, false);
+                    let empty = m.s_cmp(Cmp::Eq, child, sentinel);
+                    if m.branch(site::EMPTY, empty) {
+                        break;
+                    }
+                    // Rows min_x max_x min_y max_y min_z max_z, child i at 4i.
+                    let plane = |m: &mut M, r: usize| {
+                        m.load_bcast(&s.nodes, At::idx(nb, 1, 16 * r + 4 * i))
+                    };
+                    let (lnear, lhit) = box_test(m, pk, plane);
+                    (child, lnear, lhit)
+                }
+                Tree::Bvh2(s) => {
+                    let nb = m.s_shift(Shift::Shl, node, 6);
+                    let child = m.s_load(&s.nodes, At::idx(nb, 1, 48 + 4 * i), 4, false);
+                    // Per axis [min_l, min_r, max_l, max_r]: min at 4i, max at 8 + 4i.
+                    let plane = |m: &mut M, r: usize| {
+                        let off = 16 * (r / 2) + 8 * (r % 2) + 4 * i;
+                        m.load_bcast(&s.nodes, At::idx(nb, 1, off))
+                    };
+                    let (lnear, lhit) = box_test(m, pk, plane);
+                    (child, lnear, lhit)
+                }
+            };
+            *aabb += 1;
+            let any = m.any(lhit);
+            if !m.branch(site::HIT, any) {
+                continue;
+            }
+            let child_d = m.select(lhit, lnear, inf);
+            let closer = m.cmp(Cmp::Lt, child_d, *cur_d);
+            let anyc = m.any(closer);
+            let (push, push_d) = if m.branch(site::CLOSER, anyc) {
+                let old = (*cur, *cur_d);
+                *cur = child;
+                *cur_d = child_d;
+                old
+            } else {
+                (child, child_d)
+            };
+            let near_off = m.s_shift(Shift::Shl, *sp, (4 * w).trailing_zeros());
+            m.s_store(sn, At::idx(*sp, 4, 0), 4, push);
+            m.store(snear, At::idx(near_off, 1, 0), push_d);
+            *sp = m.s_addi(*sp, 1);
+        }
+    }
 }
 
 /// One child box against every ray of the packet: (entry distances, hit

@@ -373,23 +373,8 @@ fn core_node<M: Machine, const N: usize>(
     let r = N / 4;
     m.region(Region::Traversal);
     let base = m.s_shift(Shift::Shl, node, 7);
-    // Near and far planes per axis from the octant (constant over the item).
-    let mut near = Vec::with_capacity(3);
-    let mut far = Vec::with_capacity(3);
-    for a in 0..3 {
-        let sh = m.s_shift(Shift::Shr, oct, a as u32);
-        let one = m.int(1);
-        let neg = m.s_and(sh, one).get() as usize;
-        near.push(m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + neg)), 4));
-        far.push(m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + 1 - neg)), 4));
-    }
-    // Valid children, repeated for the r rays of an iteration (4 bits each).
-    let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
-    let mut vmask = valid;
-    for q in 1..r {
-        let sh = m.s_shift(Shift::Shl, valid, 4 * q as u32);
-        vmask = m.s_op(isa::SOp::Or, vmask, sh);
-    }
+    let (near, far) = node_planes(m, s, base, oct);
+    let vmask = valid_mask::<M, N>(m, s, base);
     // List counters into registers: each new item starts where its list ends.
     let nlists = if policy.is_any() { 4 } else { 9 };
     let starts: Vec<M::S> = (0..nlists)
@@ -397,7 +382,6 @@ fn core_node<M: Machine, const N: usize>(
         .collect();
     let mut cnt = starts.clone();
     let sp4 = &Pat::<N>::SPLAT;
-    let (swp, swg) = (&Pat::<N>::SWAP_PAIRS, &Pat::<N>::SWAP_GROUPS);
     m.region(Region::CoreLoop);
     let mut j = m.int(0);
     loop {
@@ -427,41 +411,101 @@ fn core_node<M: Machine, const N: usize>(
             }
             continue;
         }
-        let nsel = m.select(hit, tn, inf);
-        let sw = m.permute(nsel, swp);
-        let lt = m.cmp(Cmp::Lt, nsel, sw);
-        let abits = m.movemask(lt);
-        let pm = m.min(nsel, sw);
-        let gs = m.permute(pm, swg);
-        let le = m.cmp(Cmp::Le, pm, gs);
-        let gbits = m.movemask(le);
-        // The 9 list conditions, bit-parallel for all r rays at once: ray q's
-        // condition k is bit 4q of conds[k] (other bits are don't-care).
-        let all = m.int(0xFFFF);
-        let (h0, h1, h2, h3) = (hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3));
-        let (a0, a2, g0) = (abits, shr(m, abits, 2), gbits);
-        let na0 = m.s_op(isa::SOp::Xor, a0, all);
-        let na2 = m.s_op(isa::SOp::Xor, a2, all);
-        let ng0 = m.s_op(isa::SOp::Xor, g0, all);
-        let hg = m.s_and(h0, g0);
-        let hng = m.s_and(h0, ng0);
-        let conds = [
-            m.s_and(hg, a0),
-            m.s_and(h1, g0),
-            m.s_and(hg, na0),
-            m.s_and(h2, a2),
-            h3,
-            m.s_and(h2, na2),
-            m.s_and(hng, a0),
-            m.s_and(h1, ng0),
-            m.s_and(hng, na0),
-        ];
+        let conds = closest_conds::<M, N>(m, (hit, tn, hbits), inf);
         append(m, st, &idx, &conds, &mut cnt, site::PAD);
         j = m.s_addi(j, r as i64);
         if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
             break;
         }
     }
+    push_items(m, s, st, sp, (base, oct, r), (&starts, &cnt), policy);
+}
+
+/// Near and far planes per axis from the octant (constant over the item),
+/// each repeated for the rays of an iteration.
+fn node_planes<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    base: M::S,
+    oct: M::S,
+) -> (Vec<M::F>, Vec<M::F>) {
+    let mut near = Vec::with_capacity(3);
+    let mut far = Vec::with_capacity(3);
+    for a in 0..3 {
+        let sh = m.s_shift(Shift::Shr, oct, a as u32);
+        let one = m.int(1);
+        let neg = m.s_and(sh, one).get() as usize;
+        near.push(m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + neg)), 4));
+        far.push(m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + 1 - neg)), 4));
+    }
+    (near, far)
+}
+
+/// The node's valid children, repeated for the LANES/4 rays of an
+/// iteration (4 bits each).
+fn valid_mask<M: Machine, const N: usize>(m: &mut M, s: &SceneBufs, base: M::S) -> M::S {
+    let r = N / 4;
+    let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
+    let mut vmask = valid;
+    for q in 1..r {
+        let sh = m.s_shift(Shift::Shl, valid, 4 * q as u32);
+        vmask = m.s_op(isa::SOp::Or, vmask, sh);
+    }
+    vmask
+}
+
+/// The 9 list conditions of closest-hit rays from the hit mask, the entry
+/// distances and the hit bits: the c0-c1-c0-c2-c3-c2-c0-c1-c0 order of
+/// each ray's hit children, bit-parallel for all rays of the iteration.
+fn closest_conds<M: Machine, const N: usize>(
+    m: &mut M,
+    (hit, tn, hbits): (M::K, M::F, M::S),
+    inf: M::F,
+) -> [M::S; 9] {
+    let (swp, swg) = (&Pat::<N>::SWAP_PAIRS, &Pat::<N>::SWAP_GROUPS);
+    let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+    let nsel = m.select(hit, tn, inf);
+    let sw = m.permute(nsel, swp);
+    let lt = m.cmp(Cmp::Lt, nsel, sw);
+    let abits = m.movemask(lt);
+    let pm = m.min(nsel, sw);
+    let gs = m.permute(pm, swg);
+    let le = m.cmp(Cmp::Le, pm, gs);
+    let gbits = m.movemask(le);
+    // The 9 list conditions, bit-parallel for all r rays at once: ray q's
+    // condition k is bit 4q of conds[k] (other bits are don't-care).
+    let all = m.int(0xFFFF);
+    let (h0, h1, h2, h3) = (hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3));
+    let (a0, a2, g0) = (abits, shr(m, abits, 2), gbits);
+    let na0 = m.s_op(isa::SOp::Xor, a0, all);
+    let na2 = m.s_op(isa::SOp::Xor, a2, all);
+    let ng0 = m.s_op(isa::SOp::Xor, g0, all);
+    let hg = m.s_and(h0, g0);
+    let hng = m.s_and(h0, ng0);
+    [
+        m.s_and(hg, a0),
+        m.s_and(h1, g0),
+        m.s_and(hg, na0),
+        m.s_and(h2, a2),
+        h3,
+        m.s_and(h2, na2),
+        m.s_and(hng, a0),
+        m.s_and(h1, ng0),
+        m.s_and(hng, na0),
+    ]
+}
+
+/// The node's new items, pushed so that the first is popped first
+/// (closest hit: item 0; any hit: the largest).
+fn push_items<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs,
+    st: &mut StreamBufs,
+    sp: &mut M::S,
+    (base, oct, r): (M::S, M::S, usize),
+    (starts, cnt): (&[M::S], &[M::S]),
+    policy: HitPolicy,
+) {
     m.region(Region::Traversal);
     if policy.is_any() {
         // List k holds child k's rays; the largest item is popped first.

@@ -543,6 +543,16 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
     let zero_i = m.splat_i(0);
     let (ninf, pinf) = (m.splat(f32::NEG_INFINITY), m.splat(f32::INFINITY));
     let fmax = m.splat(f32::MAX);
+    let c = Consts {
+        lane_bits,
+        zero_i,
+        zero_v,
+        ninf,
+        pinf,
+        fmax,
+        org,
+        org_node,
+    };
     // Stack: the root with every active frustum.
     let root = m.int(i64::from(s.root));
     let all = m.s_load(fr, At::off(at_row(row::ACTIVE)), 4, false);
@@ -552,20 +562,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
     let mut sp = m.int(1);
     let p256 = b.packets256;
     if p256 {
-        // 256-ray packets need every ray's reciprocal direction in memory.
-        for n in 0..FRUSTA {
-            for a in 0..3 {
-                let st = m.load_bcast(fr, At::off(at_row(row::START + a) + 4 * n));
-                let dl = if shadow {
-                    m.load(fr, At::off(at_row(row::DELTA_SETS + 3 * n + a)))
-                } else {
-                    delta[a]
-                };
-                let d = m.add(st, dl);
-                let r = m.rcp(d);
-                m.store(&mut b.rcp, At::off(64 * (3 * n + a)), r);
-            }
-        }
+        store_ray_rcp(m, b, &delta);
     }
     let zero = m.int(0);
     let leaf_flag = m.int(i64::from(LEAF));
@@ -590,170 +587,11 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             }
             b.stats.aabb_tests += 2;
             let nb = m.s_shift(Shift::Shl, node, 6);
-            // Primary: both children's boxes minus the common origin with one
-            // load and one sub, planes swizzled out; shadow: each plane
-            // broadcast and minus each frustum's origin.
-            let rel = if shadow {
-                None
+            let next = if p256 {
+                packets256_node(m, s, b, (nb, mask), &c, &mut sp)
             } else {
-                let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
-                Some(m.sub(boxes, org_node))
+                frusta_node(m, s, b, (nb, mask), (&c, &fr_regs, dist), &mut sp)
             };
-            let nodes = &s.nodes;
-            let plane = |m: &mut M, a: usize, max: bool, child: usize| {
-                let lane = 4 * a + 2 * usize::from(max) + child;
-                match rel {
-                    Some(rel) => m.permute(rel, &[lane as u8; FRUSTA]),
-                    None => {
-                        let p = m.load_bcast(nodes, At::idx(nb, 1, 4 * lane));
-                        m.sub(p, org[a])
-                    }
-                }
-            };
-            let test = |m: &mut M, child: usize| {
-                let mut near = zero_v;
-                let mut far = dist;
-                let mut parts = Vec::with_capacity(3);
-                for a in 0..3 {
-                    let lo = plane(m, a, false, child);
-                    let hi = plane(m, a, true, child);
-                    // Entry plane and exit plane by the direction's sign.
-                    let r = &fr_regs;
-                    let en = m.select(r.neg[a], hi, lo);
-                    let ex = m.select(r.neg[a], lo, hi);
-                    let n0 = m.mul(en, r.rlo[a]);
-                    let n1 = m.mul(en, r.rhi[a]);
-                    let x0 = m.mul(ex, r.rlo[a]);
-                    let x1 = m.mul(ex, r.rhi[a]);
-                    let mut na = m.min(n0, n1);
-                    let mut xa = m.max(x0, x1);
-                    // A direction interval holding zero culls nothing on its axis.
-                    na = m.select(r.zero_axis[a], ninf, na);
-                    xa = m.select(r.zero_axis[a], pinf, xa);
-                    near = m.max(near, na);
-                    far = m.min(far, xa);
-                    parts.push((lo, hi));
-                }
-                let mut hit = m.cmp(Cmp::Le, near, far);
-                hit = m.kand(hit, mask);
-                (near, far, hit, parts)
-            };
-            if p256 {
-                // Each active 16-ray packet against both children, ray by ray.
-                b.stats.aabb_tests -= 2;
-                let zero = m.int(0);
-                let (mut lbits, mut rbits) = (m.int(0), m.int(0));
-                let mut bits = m.movemask(mask);
-                while m.branch_if(site::PACKET, Cmp::Ne, bits, zero) {
-                    let lane = m.s_tzcnt(bits);
-                    let n = lane.get() as usize;
-                    b.stats.aabb_tests += 2;
-                    let rc = [0, 1, 2].map(|a| m.load(&b.rcp, At::off(64 * (3 * n + a))));
-                    let frb = &b.frusta;
-                    let on =
-                        [0, 1, 2].map(|a| m.load_bcast(frb, At::off(at_row(row::ORG + a) + 4 * n)));
-                    // Each ray's far limit: its hit so far (primary), the
-                    // light sample (shadow).
-                    let far_n = if shadow {
-                        m.load_bcast(frb, At::off(at_row(row::DIST) + 4 * n))
-                    } else {
-                        m.load(&b.hits, At::off(128 * n))
-                    };
-                    for (child, acc) in [(0usize, &mut lbits), (1, &mut rbits)] {
-                        let mut near = zero_v;
-                        let mut far = far_n;
-                        for a in 0..3 {
-                            let lo_at = 4 * (4 * a + child);
-                            let hi_at = 4 * (4 * a + 2 + child);
-                            let lo = m.load_bcast(&s.nodes, At::idx(nb, 1, lo_at));
-                            let hi = m.load_bcast(&s.nodes, At::idx(nb, 1, hi_at));
-                            let lo = m.sub(lo, on[a]);
-                            let hi = m.sub(hi, on[a]);
-                            let t0 = m.mul(lo, rc[a]);
-                            let t1 = m.mul(hi, rc[a]);
-                            let mn = m.min(t0, t1);
-                            let mx = m.max(t0, t1);
-                            near = m.max(near, mn);
-                            far = m.min(far, mx);
-                        }
-                        let hit = m.cmp(Cmp::Le, near, far);
-                        let any = m.any(hit);
-                        let bit = m.s_shift(Shift::Shl, any, n as u32);
-                        *acc = m.s_op(isa::SOp::Or, *acc, bit);
-                    }
-                    let lm1 = m.s_addi(bits, -1);
-                    bits = m.s_and(bits, lm1);
-                }
-                // The packets' masks back into mask registers.
-                let to_mask = |m: &mut M, buf: &mut Buf, v: M::S| {
-                    m.s_store(buf, At::off(64 * 10), 4, v);
-                    bits_mask(m, buf, At::off(64 * 10), lane_bits, zero_i)
-                };
-                let hl = to_mask(m, &mut b.scratch, lbits);
-                let hr = to_mask(m, &mut b.scratch, rbits);
-                let (l, r, which) = children(m, &s.nodes, nb, lbits, rbits);
-                // Both: left first (no per-frustum entry distances here).
-                let next = descend(
-                    m,
-                    &mut b.stack,
-                    &mut sp,
-                    which,
-                    (l, hl, lbits),
-                    (r, hr, rbits),
-                    |_| true,
-                );
-                let Some((n, k)) = next else {
-                    missed = true;
-                    break;
-                };
-                (node, mask) = (n, k);
-                continue;
-            }
-            let (nl, fl_, mut hl, pl) = test(m, 0);
-            let (nr, fr_, mut hr, pr) = test(m, 1);
-            // The zero-interval fix: on an axis whose direction interval holds
-            // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
-            if m.branch(site::ZERO, fr_regs.any_zero) {
-                let r = &fr_regs;
-                for (near, far, hit, parts) in [(nl, fl_, &mut hl, &pl), (nr, fr_, &mut hr, &pr)] {
-                    let far_c = m.min(far, fmax);
-                    for a in 0..3 {
-                        let (lo, hi) = parts[a];
-                        let p0 = m.mul(near, r.dlo[a]);
-                        let p1 = m.mul(far_c, r.dlo[a]);
-                        let q0 = m.mul(near, r.dhi[a]);
-                        let q1 = m.mul(far_c, r.dhi[a]);
-                        let pmin = m.min(p0, p1);
-                        let qmax = m.max(q0, q1);
-                        let below = m.cmp(Cmp::Le, pmin, hi);
-                        let above = m.cmp(Cmp::Ge, qmax, lo);
-                        let ok = m.kand(below, above);
-                        let not_zero = m.knot(r.zero_axis[a]);
-                        let ok = m.kor(ok, not_zero);
-                        *hit = m.kand(*hit, ok);
-                    }
-                }
-            }
-            let lb = m.movemask(hl);
-            let rb = m.movemask(hr);
-            let (l, r, which) = children(m, &s.nodes, nb, lb, rb);
-            // Both: the child any frustum enters first goes first.
-            let left_first = |m: &mut M| {
-                let lt = m.cmp(Cmp::Lt, nl, nr);
-                let both = m.kand(hl, hr);
-                let lt = m.kand(lt, both);
-                let any = m.any(lt);
-                m.branch(site::ORDER, any)
-            };
-            let next = descend(
-                m,
-                &mut b.stack,
-                &mut sp,
-                which,
-                (l, hl, lb),
-                (r, hr, rb),
-                left_first,
-            );
             let Some((n, k)) = next else {
                 missed = true;
                 break;
@@ -776,6 +614,229 @@ pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: 
             cull_back,
         );
     }
+}
+
+/// Registers a frusta traversal keeps for its whole run.
+struct Consts<M: Machine> {
+    /// Lane n holds 1 << n.
+    lane_bits: M::I,
+    zero_i: M::I,
+    zero_v: M::F,
+    ninf: M::F,
+    pinf: M::F,
+    fmax: M::F,
+    /// Each frustum's origin, and the common origin laid out per node row.
+    org: [M::F; 3],
+    org_node: M::F,
+}
+
+/// 256-ray packets need every ray's reciprocal direction in memory.
+fn store_ray_rcp<M: Machine>(m: &mut M, b: &mut MftBufs, delta: &[M::F; 3]) {
+    let (shadow, fr) = (b.policy.is_any(), &b.frusta);
+    for n in 0..FRUSTA {
+        for a in 0..3 {
+            let st = m.load_bcast(fr, At::off(at_row(row::START + a) + 4 * n));
+            let dl = if shadow {
+                m.load(fr, At::off(at_row(row::DELTA_SETS + 3 * n + a)))
+            } else {
+                delta[a]
+            };
+            let d = m.add(st, dl);
+            let r = m.rcp(d);
+            m.store(&mut b.rcp, At::off(64 * (3 * n + a)), r);
+        }
+    }
+}
+
+/// One inner node for 256-ray packets (section 5.2): each active 16-ray
+/// packet against both children, ray by ray; the next node and its mask,
+/// `None` when no packet enters a child.
+fn packets256_node<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    b: &mut MftBufs,
+    (nb, mask): (M::S, M::K),
+    c: &Consts<M>,
+    sp: &mut M::S,
+) -> Option<(M::S, M::K)> {
+    let (shadow, zero_v, lane_bits, zero_i) = (b.policy.is_any(), c.zero_v, c.lane_bits, c.zero_i);
+    if !shadow {
+        // The frusta's node load for primary rays, issued before the packet
+        // path and unused by it (kept: the op stream is the measured one;
+        // 2 ops per node, left for the faithful-kernels issue).
+        let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
+        let _ = m.sub(boxes, c.org_node);
+    }
+    // Each active 16-ray packet against both children, ray by ray.
+    b.stats.aabb_tests -= 2;
+    let zero = m.int(0);
+    let (mut lbits, mut rbits) = (m.int(0), m.int(0));
+    let mut bits = m.movemask(mask);
+    while m.branch_if(site::PACKET, Cmp::Ne, bits, zero) {
+        let lane = m.s_tzcnt(bits);
+        let n = lane.get() as usize;
+        b.stats.aabb_tests += 2;
+        let rc = [0, 1, 2].map(|a| m.load(&b.rcp, At::off(64 * (3 * n + a))));
+        let frb = &b.frusta;
+        let on = [0, 1, 2].map(|a| m.load_bcast(frb, At::off(at_row(row::ORG + a) + 4 * n)));
+        // Each ray's far limit: its hit so far (primary), the
+        // light sample (shadow).
+        let far_n = if shadow {
+            m.load_bcast(frb, At::off(at_row(row::DIST) + 4 * n))
+        } else {
+            m.load(&b.hits, At::off(128 * n))
+        };
+        for (child, acc) in [(0usize, &mut lbits), (1, &mut rbits)] {
+            let mut near = zero_v;
+            let mut far = far_n;
+            for a in 0..3 {
+                let lo_at = 4 * (4 * a + child);
+                let hi_at = 4 * (4 * a + 2 + child);
+                let lo = m.load_bcast(&s.nodes, At::idx(nb, 1, lo_at));
+                let hi = m.load_bcast(&s.nodes, At::idx(nb, 1, hi_at));
+                let lo = m.sub(lo, on[a]);
+                let hi = m.sub(hi, on[a]);
+                let t0 = m.mul(lo, rc[a]);
+                let t1 = m.mul(hi, rc[a]);
+                let mn = m.min(t0, t1);
+                let mx = m.max(t0, t1);
+                near = m.max(near, mn);
+                far = m.min(far, mx);
+            }
+            let hit = m.cmp(Cmp::Le, near, far);
+            let any = m.any(hit);
+            let bit = m.s_shift(Shift::Shl, any, n as u32);
+            *acc = m.s_op(isa::SOp::Or, *acc, bit);
+        }
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+    }
+    // The packets' masks back into mask registers.
+    let to_mask = |m: &mut M, buf: &mut Buf, v: M::S| {
+        m.s_store(buf, At::off(64 * 10), 4, v);
+        bits_mask(m, buf, At::off(64 * 10), lane_bits, zero_i)
+    };
+    let hl = to_mask(m, &mut b.scratch, lbits);
+    let hr = to_mask(m, &mut b.scratch, rbits);
+    let (l, r, which) = children(m, &s.nodes, nb, lbits, rbits);
+    // Both: left first (no per-frustum entry distances here).
+
+    descend(
+        m,
+        &mut b.stack,
+        sp,
+        which,
+        (l, hl, lbits),
+        (r, hr, rbits),
+        |_| true,
+    )
+}
+
+/// One inner node for 16 frusta: interval-arithmetic slab tests of both
+/// children for every frustum, the zero-interval fix, then the descent; the
+/// next node and its mask, `None` when no frustum enters a child.
+fn frusta_node<M: Machine>(
+    m: &mut M,
+    s: &SceneBufs2,
+    b: &mut MftBufs,
+    (nb, mask): (M::S, M::K),
+    (c, fr_regs, dist): (&Consts<M>, &Regs<M>, M::F),
+    sp: &mut M::S,
+) -> Option<(M::S, M::K)> {
+    let shadow = b.policy.is_any();
+    let (zero_v, ninf, pinf, fmax, org, org_node) =
+        (c.zero_v, c.ninf, c.pinf, c.fmax, c.org, c.org_node);
+    let rel = if shadow {
+        None
+    } else {
+        let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
+        Some(m.sub(boxes, org_node))
+    };
+    let nodes = &s.nodes;
+    let plane = |m: &mut M, a: usize, max: bool, child: usize| {
+        let lane = 4 * a + 2 * usize::from(max) + child;
+        match rel {
+            Some(rel) => m.permute(rel, &[lane as u8; FRUSTA]),
+            None => {
+                let p = m.load_bcast(nodes, At::idx(nb, 1, 4 * lane));
+                m.sub(p, org[a])
+            }
+        }
+    };
+    let test = |m: &mut M, child: usize| {
+        let mut near = zero_v;
+        let mut far = dist;
+        let mut parts = Vec::with_capacity(3);
+        for a in 0..3 {
+            let lo = plane(m, a, false, child);
+            let hi = plane(m, a, true, child);
+            // Entry plane and exit plane by the direction's sign.
+            let r = &fr_regs;
+            let en = m.select(r.neg[a], hi, lo);
+            let ex = m.select(r.neg[a], lo, hi);
+            let n0 = m.mul(en, r.rlo[a]);
+            let n1 = m.mul(en, r.rhi[a]);
+            let x0 = m.mul(ex, r.rlo[a]);
+            let x1 = m.mul(ex, r.rhi[a]);
+            let mut na = m.min(n0, n1);
+            let mut xa = m.max(x0, x1);
+            // A direction interval holding zero culls nothing on its axis.
+            na = m.select(r.zero_axis[a], ninf, na);
+            xa = m.select(r.zero_axis[a], pinf, xa);
+            near = m.max(near, na);
+            far = m.min(far, xa);
+            parts.push((lo, hi));
+        }
+        let mut hit = m.cmp(Cmp::Le, near, far);
+        hit = m.kand(hit, mask);
+        (near, far, hit, parts)
+    };
+    let (nl, fl_, mut hl, pl) = test(m, 0);
+    let (nr, fr_, mut hr, pr) = test(m, 1);
+    // The zero-interval fix: on an axis whose direction interval holds
+    // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
+    if m.branch(site::ZERO, fr_regs.any_zero) {
+        let r = &fr_regs;
+        for (near, far, hit, parts) in [(nl, fl_, &mut hl, &pl), (nr, fr_, &mut hr, &pr)] {
+            let far_c = m.min(far, fmax);
+            for a in 0..3 {
+                let (lo, hi) = parts[a];
+                let p0 = m.mul(near, r.dlo[a]);
+                let p1 = m.mul(far_c, r.dlo[a]);
+                let q0 = m.mul(near, r.dhi[a]);
+                let q1 = m.mul(far_c, r.dhi[a]);
+                let pmin = m.min(p0, p1);
+                let qmax = m.max(q0, q1);
+                let below = m.cmp(Cmp::Le, pmin, hi);
+                let above = m.cmp(Cmp::Ge, qmax, lo);
+                let ok = m.kand(below, above);
+                let not_zero = m.knot(r.zero_axis[a]);
+                let ok = m.kor(ok, not_zero);
+                *hit = m.kand(*hit, ok);
+            }
+        }
+    }
+    let lb = m.movemask(hl);
+    let rb = m.movemask(hr);
+    let (l, r, which) = children(m, &s.nodes, nb, lb, rb);
+    // Both: the child any frustum enters first goes first.
+    let left_first = |m: &mut M| {
+        let lt = m.cmp(Cmp::Lt, nl, nr);
+        let both = m.kand(hl, hr);
+        let lt = m.kand(lt, both);
+        let any = m.any(lt);
+        m.branch(site::ORDER, any)
+    };
+
+    descend(
+        m,
+        &mut b.stack,
+        sp,
+        which,
+        (l, hl, lb),
+        (r, hr, rb),
+        left_first,
+    )
 }
 
 /// The frusta's bounds held in registers during a trace: reciprocal and
@@ -937,186 +998,25 @@ fn leaf<M: Machine>(
                 break 'blocks;
             }
             b.stats.tris_accessed += 1;
-            let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
-            let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
-            let prim_f = r(9);
-            // Vertices relative to each frustum's origin.
-            let a = [0, 1, 2].map(|i| m.sub(v0[i], org[i]));
-            let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
-            let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
-            let cross = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
-                let x0 = m.mul(p[2], q[1]);
-                let x = m.fmsub(p[1], q[2], x0);
-                let y0 = m.mul(p[0], q[2]);
-                let y = m.fmsub(p[2], q[0], y0);
-                let z0 = m.mul(p[1], q[0]);
-                let z = m.fmsub(p[0], q[1], z0);
-                [x, y, z]
-            };
-            let dot = |m: &mut M, p: [M::F; 3], q: [M::F; 3]| {
-                let d0 = m.mul(p[0], q[0]);
-                let d1 = m.fmadd(p[1], q[1], d0);
-                m.fmadd(p[2], q[2], d1)
-            };
-            let nrm = cross(m, e1, e2);
-            let an = dot(m, a, nrm);
-            // Orientation: front faces (origin on the normal's side) have a.n < 0.
-            let front = m.cmp(Cmp::Lt, an, zero_v);
-            let back = m.cmp(Cmp::Gt, an, zero_v);
-            let facing = if cull_back { front } else { m.kor(front, back) };
-            let mut tmask = m.kand(mask, facing);
-            if shadow {
-                tmask = m.kand(tmask, *alive);
-            }
-            let anyf = m.any(tmask);
-            if !m.branch(site::FRONT, anyf) {
+            let t3 = load_triangle(m, tris, bb, j, org, zero_v);
+            let live = if shadow { Some(*alive) } else { None };
+            let Some((tmask, edges)) =
+                cull_triangle(m, &t3, (mask, live), (corner, zero_v), cull_back)
+            else {
                 continue;
-            }
-            // Edge normals, one edge at a time; inside a front face: d . e
-            // <= 0 for all three. Corner-ray culling after each edge, with
-            // the paper's early exit: a frustum whose 4 corner rays are all
-            // outside one edge misses the triangle, and once no frustum is
-            // left the other edges are not computed.
-            let mut edges = Vec::with_capacity(3);
-            let mut culled = false;
-            for (p, q) in [(a, bv), (bv, cv), (cv, a)] {
-                let mut e = cross(m, p, q);
-                if !cull_back {
-                    // Back faces seen from the origin: flip the edge normal.
-                    let flip = m.splat(-1.0);
-                    for c in &mut e {
-                        let f = m.mul(*c, flip);
-                        *c = m.select(back, f, *c);
-                    }
-                }
-                let mut out = None;
-                for c in corner {
-                    let d = dot(m, *c, e);
-                    let o = m.cmp(Cmp::Gt, d, zero_v);
-                    out = Some(match out {
-                        None => o,
-                        Some(p) => m.kand(p, o),
-                    });
-                }
-                let keep = m.knot(out.expect("4 corners"));
-                tmask = m.kand(tmask, keep);
-                edges.push(e);
-                let anyc = m.any(tmask);
-                if !m.branch(site::CORNER, anyc) {
-                    culled = true;
-                    break;
-                }
-            }
-            if culled {
-                continue;
-            }
+            };
             b.stats.tris_after_culling += 1;
-            // Per-frustum values for the broadcasts below.
-            let mut slot = 0;
-            let mut keep = |m: &mut M, buf: &mut Buf, v: M::F| {
-                m.store(buf, At::off(64 * slot), v);
-                slot += 1;
-            };
-            for e in &edges {
-                for &c in e {
-                    keep(m, &mut b.scratch, c);
-                }
-            }
-            keep(m, &mut b.scratch, an);
-            // The noise floor of d . E in f32: about 4 ulp x |a|^2 x |d| (cross
-            // products of two long, nearly parallel vectors); kept squared as
-            // (4 eps)^2 |a|^4 for the per-ray reliability test below.
-            let a2 = dot(m, a, a);
-            let a4 = m.mul(a2, a2);
-            let k = m.splat((4.0 * f32::EPSILON) * (4.0 * f32::EPSILON));
-            let floor = m.mul(a4, k);
-            keep(m, &mut b.scratch, floor);
-            let mut bits = m.movemask(tmask);
-            b.stats.isec_tests += u64::from(bits.get().count_ones());
-            loop {
-                let lane = m.s_tzcnt(bits);
-                let n = lane.get() as usize;
-                let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
-                // Rays of frustum n: start[n] + delta (shadow: frustum n's own deltas).
-                let d = [0, 1, 2].map(|i| {
-                    let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
-                    let dl = if shadow {
-                        m.load(&b.frusta, At::off(at_row(row::DELTA_SETS + 3 * n + i)))
-                    } else {
-                        delta[i]
-                    };
-                    m.add(st, dl)
-                });
-                let mut inside = None;
-                for (i, _) in edges.iter().enumerate() {
-                    let e = [0, 1, 2].map(|c| bc(m, &b.scratch, 64 * (3 * i + c) + 4 * n));
-                    let sdot = dot(m, d, e);
-                    let ok = m.cmp(Cmp::Le, sdot, zero_v);
-                    inside = Some(match inside {
-                        None => ok,
-                        Some(p) => m.kand(p, ok),
-                    });
-                }
-                let an_n = bc(m, &b.scratch, 64 * 9 + 4 * n);
-                let dn = dot(m, d, nrm);
-                let t = m.div(an_n, dn);
-                let ht = 128 * n;
-                let pos = m.cmp(Cmp::Gt, t, zero_v);
-                let mut hit = m.kand(inside.expect("3 edges"), pos);
-                // A ray nearly in the triangle's plane: d . n (the sum of the three
-                // edge tests) below their rounding noise makes the inside test
-                // meaningless; such rays miss (robustness; not in the paper).
-                let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
-                let d2 = dot(m, d, d);
-                let noise = m.mul(fl, d2);
-                let dn2 = m.mul(dn, dn);
-                let reliable = m.cmp(Cmp::Gt, dn2, noise);
-                hit = m.kand(hit, reliable);
-                if shadow {
-                    // Rays not yet occluded, t below the limit.
-                    let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
-                    let below = m.cmp(Cmp::Lt, t, lim);
-                    let live = live_rays(m, b, n, lane_bits, zero_i);
-                    hit = m.kand(hit, below);
-                    hit = m.kand(hit, live);
-                    let any = m.any(hit);
-                    if m.branch(site::RAY_HIT, any) {
-                        m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
-                        let new = m.movemask(hit);
-                        let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
-                        let now = m.s_op(isa::SOp::Or, old, new);
-                        m.s_store(&mut b.occl, At::off(4 * n), 4, now);
-                        if matches!(b.shrink, Shrink::CornerRays | Shrink::Intervals) {
-                            let bit = m.int(1 << n);
-                            updated = m.s_op(isa::SOp::Or, updated, bit);
-                        }
-                        let full = m.int(0xFFFF);
-                        if m.branch_if(site::DONE, Cmp::Eq, now, full) {
-                            // All 16 rays occluded: the frustum is done.
-                            let gone = m.mask(!(1u32 << n) & 0xFFFF);
-                            *alive = m.kand(*alive, gone);
-                            b.terminated += 1;
-                        }
-                    }
-                } else {
-                    let tcur = m.load(&b.hits, At::off(ht));
-                    let closer = m.cmp(Cmp::Lt, t, tcur);
-                    hit = m.kand(hit, closer);
-                    let any = m.any(hit);
-                    if m.branch(site::RAY_HIT, any) {
-                        m.store_masked(hit, &mut b.hits, At::off(ht), t);
-                        m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
-                        let bit = m.int(1 << n);
-                        updated = m.s_op(isa::SOp::Or, updated, bit);
-                    }
-                }
-                let lm1 = m.s_addi(bits, -1);
-                bits = m.s_and(bits, lm1);
-                let zero = m.int(0);
-                if !m.branch_if(site::FRUSTUM, Cmp::Ne, bits, zero) {
-                    break;
-                }
-            }
+            store_per_frustum(m, b, &t3, &edges);
+            let c = (lane_bits, zero_i, zero_v);
+            intersect_rays(
+                m,
+                b,
+                &t3,
+                (tmask, edges.len()),
+                delta,
+                c,
+                (&mut updated, alive),
+            );
         }
         // Next block of the leaf, if any.
         let zero = m.int(0);
@@ -1132,7 +1032,262 @@ fn leaf<M: Machine>(
         }
         return;
     }
-    // Distance bound of each updated frustum: its farthest ray hit.
+    update_dist(m, b, updated, dist);
+}
+
+/// `p x q` per lane (fmsub form).
+fn cross3<M: Machine>(m: &mut M, p: [M::F; 3], q: [M::F; 3]) -> [M::F; 3] {
+    let x0 = m.mul(p[2], q[1]);
+    let x = m.fmsub(p[1], q[2], x0);
+    let y0 = m.mul(p[0], q[2]);
+    let y = m.fmsub(p[2], q[0], y0);
+    let z0 = m.mul(p[1], q[0]);
+    let z = m.fmsub(p[0], q[1], z0);
+    [x, y, z]
+}
+
+/// `p . q` per lane.
+fn dot3<M: Machine>(m: &mut M, p: [M::F; 3], q: [M::F; 3]) -> M::F {
+    let d0 = m.mul(p[0], q[0]);
+    let d1 = m.fmadd(p[1], q[1], d0);
+    m.fmadd(p[2], q[2], d1)
+}
+
+/// A triangle's edge normals, one per edge (x, y, z per lane).
+type Edges<M> = Vec<[<M as Machine>::F; 3]>;
+
+/// A leaf triangle as every frustum sees it: vertices relative to each
+/// frustum's origin, the normal, `a . n` (orientation and distance), the
+/// triangle id (as f32 bits) and the sign masks of `a . n`.
+struct LeafTri<M: Machine> {
+    a: [M::F; 3],
+    bv: [M::F; 3],
+    cv: [M::F; 3],
+    nrm: [M::F; 3],
+    an: M::F,
+    prim_f: M::F,
+    front: M::K,
+    back: M::K,
+}
+
+/// Triangle `j` of the block at byte `bb`, broadcast to all frusta.
+fn load_triangle<M: Machine>(
+    m: &mut M,
+    tris: &Buf,
+    bb: M::S,
+    j: usize,
+    org: &[M::F; 3],
+    zero_v: M::F,
+) -> LeafTri<M> {
+    let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
+    let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
+    let prim_f = r(9);
+    // Vertices relative to each frustum's origin.
+    let a = [0, 1, 2].map(|i| m.sub(v0[i], org[i]));
+    let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
+    let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
+    let nrm = cross3(m, e1, e2);
+    let an = dot3(m, a, nrm);
+    // Orientation: front faces (origin on the normal's side) have a.n < 0.
+    let front = m.cmp(Cmp::Lt, an, zero_v);
+    let back = m.cmp(Cmp::Gt, an, zero_v);
+    LeafTri {
+        a,
+        bv,
+        cv,
+        nrm,
+        an,
+        prim_f,
+        front,
+        back,
+    }
+}
+
+/// Back-face culling, then corner-ray culling edge by edge with the paper's
+/// early exit: a frustum whose 4 corner rays are all outside one edge misses
+/// the triangle, and once no frustum is left the other edges are not
+/// computed. The frusta left and the edge normals; `None`: none left.
+fn cull_triangle<M: Machine>(
+    m: &mut M,
+    t3: &LeafTri<M>,
+    (mask, alive): (M::K, Option<M::K>),
+    (corner, zero_v): (&[[M::F; 3]; 4], M::F),
+    cull_back: bool,
+) -> Option<(M::K, Edges<M>)> {
+    let facing = if cull_back {
+        t3.front
+    } else {
+        m.kor(t3.front, t3.back)
+    };
+    let mut tmask = m.kand(mask, facing);
+    if let Some(alive) = alive {
+        tmask = m.kand(tmask, alive);
+    }
+    let anyf = m.any(tmask);
+    if !m.branch(site::FRONT, anyf) {
+        return None;
+    }
+    // Edge normals, one edge at a time; inside a front face: d . e <= 0 for
+    // all three.
+    let mut edges = Vec::with_capacity(3);
+    let (a, bv, cv) = (t3.a, t3.bv, t3.cv);
+    for (p, q) in [(a, bv), (bv, cv), (cv, a)] {
+        let mut e = cross3(m, p, q);
+        if !cull_back {
+            // Back faces seen from the origin: flip the edge normal.
+            let flip = m.splat(-1.0);
+            for c in &mut e {
+                let f = m.mul(*c, flip);
+                *c = m.select(t3.back, f, *c);
+            }
+        }
+        let mut out = None;
+        for c in corner {
+            let d = dot3(m, *c, e);
+            let o = m.cmp(Cmp::Gt, d, zero_v);
+            out = Some(match out {
+                None => o,
+                Some(p) => m.kand(p, o),
+            });
+        }
+        let keep = m.knot(out.expect("4 corners"));
+        tmask = m.kand(tmask, keep);
+        edges.push(e);
+        let anyc = m.any(tmask);
+        if !m.branch(site::CORNER, anyc) {
+            return None;
+        }
+    }
+    Some((tmask, edges))
+}
+
+/// Per-frustum values the ray tests read back with broadcasts: the edge
+/// normals, `a . n`, and the noise floor of `d . E` in f32 (about 4 ulp x
+/// |a|^2 x |d| for cross products of two long, nearly parallel vectors),
+/// kept squared as (4 eps)^2 |a|^4.
+fn store_per_frustum<M: Machine>(m: &mut M, b: &mut MftBufs, t3: &LeafTri<M>, edges: &[[M::F; 3]]) {
+    let mut slot = 0;
+    let mut keep = |m: &mut M, buf: &mut Buf, v: M::F| {
+        m.store(buf, At::off(64 * slot), v);
+        slot += 1;
+    };
+    for e in edges {
+        for &c in e {
+            keep(m, &mut b.scratch, c);
+        }
+    }
+    keep(m, &mut b.scratch, t3.an);
+    let a2 = dot3(m, t3.a, t3.a);
+    let a4 = m.mul(a2, a2);
+    let k = m.splat((4.0 * f32::EPSILON) * (4.0 * f32::EPSILON));
+    let floor = m.mul(a4, k);
+    keep(m, &mut b.scratch, floor);
+}
+
+/// One 16-wide ray-triangle test per surviving frustum (bitscan over
+/// `tmask`), its rays generated from start + delta; closest hits recorded
+/// (primary) or occlusion bits set and finished frusta terminated (shadow).
+/// `updated` collects the frusta whose bounds must be recomputed.
+fn intersect_rays<M: Machine>(
+    m: &mut M,
+    b: &mut MftBufs,
+    t3: &LeafTri<M>,
+    (tmask, nedges): (M::K, usize),
+    delta: &[M::F; 3],
+    (lane_bits, zero_i, zero_v): (M::I, M::I, M::F),
+    (updated, alive): (&mut M::S, &mut M::K),
+) {
+    let shadow = b.policy.is_any();
+    let mut bits = m.movemask(tmask);
+    b.stats.isec_tests += u64::from(bits.get().count_ones());
+    loop {
+        let lane = m.s_tzcnt(bits);
+        let n = lane.get() as usize;
+        let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
+        // Rays of frustum n: start[n] + delta (shadow: frustum n's own deltas).
+        let d = [0, 1, 2].map(|i| {
+            let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
+            let dl = if shadow {
+                m.load(&b.frusta, At::off(at_row(row::DELTA_SETS + 3 * n + i)))
+            } else {
+                delta[i]
+            };
+            m.add(st, dl)
+        });
+        let mut inside = None;
+        for i in 0..nedges {
+            let e = [0, 1, 2].map(|c| bc(m, &b.scratch, 64 * (3 * i + c) + 4 * n));
+            let sdot = dot3(m, d, e);
+            let ok = m.cmp(Cmp::Le, sdot, zero_v);
+            inside = Some(match inside {
+                None => ok,
+                Some(p) => m.kand(p, ok),
+            });
+        }
+        let an_n = bc(m, &b.scratch, 64 * 9 + 4 * n);
+        let dn = dot3(m, d, t3.nrm);
+        let t = m.div(an_n, dn);
+        let ht = 128 * n;
+        let pos = m.cmp(Cmp::Gt, t, zero_v);
+        let mut hit = m.kand(inside.expect("3 edges"), pos);
+        // A ray nearly in the triangle's plane: d . n (the sum of the three
+        // edge tests) below their rounding noise makes the inside test
+        // meaningless; such rays miss (robustness; not in the paper).
+        let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
+        let d2 = dot3(m, d, d);
+        let noise = m.mul(fl, d2);
+        let dn2 = m.mul(dn, dn);
+        let reliable = m.cmp(Cmp::Gt, dn2, noise);
+        hit = m.kand(hit, reliable);
+        if shadow {
+            // Rays not yet occluded, t below the limit.
+            let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
+            let below = m.cmp(Cmp::Lt, t, lim);
+            let live = live_rays(m, b, n, lane_bits, zero_i);
+            hit = m.kand(hit, below);
+            hit = m.kand(hit, live);
+            let any = m.any(hit);
+            if m.branch(site::RAY_HIT, any) {
+                m.store_masked(hit, &mut b.hits, At::off(ht + 64), t3.prim_f);
+                let new = m.movemask(hit);
+                let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
+                let now = m.s_op(isa::SOp::Or, old, new);
+                m.s_store(&mut b.occl, At::off(4 * n), 4, now);
+                if matches!(b.shrink, Shrink::CornerRays | Shrink::Intervals) {
+                    let bit = m.int(1 << n);
+                    *updated = m.s_op(isa::SOp::Or, *updated, bit);
+                }
+                let full = m.int(0xFFFF);
+                if m.branch_if(site::DONE, Cmp::Eq, now, full) {
+                    // All 16 rays occluded: the frustum is done.
+                    let gone = m.mask(!(1u32 << n) & 0xFFFF);
+                    *alive = m.kand(*alive, gone);
+                    b.terminated += 1;
+                }
+            }
+        } else {
+            let tcur = m.load(&b.hits, At::off(ht));
+            let closer = m.cmp(Cmp::Lt, t, tcur);
+            hit = m.kand(hit, closer);
+            let any = m.any(hit);
+            if m.branch(site::RAY_HIT, any) {
+                m.store_masked(hit, &mut b.hits, At::off(ht), t);
+                m.store_masked(hit, &mut b.hits, At::off(ht + 64), t3.prim_f);
+                let bit = m.int(1 << n);
+                *updated = m.s_op(isa::SOp::Or, *updated, bit);
+            }
+        }
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+        let zero = m.int(0);
+        if !m.branch_if(site::FRUSTUM, Cmp::Ne, bits, zero) {
+            break;
+        }
+    }
+}
+
+/// Distance bound of each updated primary frustum: its farthest ray hit.
+fn update_dist<M: Machine>(m: &mut M, b: &MftBufs, updated: M::S, dist: &mut M::F) {
     let zero = m.int(0);
     let mut bits = updated;
     while m.branch_if(site::UPDATE, Cmp::Ne, bits, zero) {

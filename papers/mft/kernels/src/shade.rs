@@ -90,18 +90,58 @@ pub struct ShadeStats {
     pub filter_steps: u64,
 }
 
-impl Program for ShadeRun<'_> {
-    type Out = (Vec<f32>, ShadeStats);
+/// The image buffers of a shading run in simulated memory (padded rows).
+struct ShadeBufs {
+    stride: usize,
+    tris: Buf,
+    tb: Buf,
+    pb: Buf,
+    vb: Buf,
+    /// Unit normals (x, y, z), depth and direct light of shaded pixels.
+    g: Vec<Buf>,
+    zb: Buf,
+    eb: Buf,
+    cb: Buf,
+}
 
-    #[allow(clippy::too_many_lines)]
-    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        assert_eq!(M::LANES, 16, "16 pixels a step");
+impl ShadeBufs {
+    /// Byte offset of pixel (x, y).
+    fn at(&self, x: usize, y: usize) -> usize {
+        4 * ((y + PAD_Y) * self.stride + PAD_X + x)
+    }
+}
+
+/// The splatted constants of a shading run.
+struct ShadeConsts<M: Machine> {
+    lanes: M::F,
+    eye: [M::F; 3],
+    d00: [M::F; 3],
+    ddx: [M::F; 3],
+    ddy: [M::F; 3],
+    lc: [M::F; 3],
+    ln: [M::F; 3],
+    scale: M::F,
+    ambient: M::F,
+    zero: M::F,
+    one: M::F,
+    pinf: M::F,
+    none: M::I,
+}
+
+/// `a . b` per lane.
+fn dot3<M: Machine>(m: &mut M, a: [M::F; 3], b: [M::F; 3]) -> M::F {
+    let d = m.mul(a[0], b[0]);
+    let d = m.fmadd(a[1], b[1], d);
+    m.fmadd(a[2], b[2], d)
+}
+
+impl ShadeRun<'_> {
+    /// The triangles, hits and visibility laid out padded, and the work buffers.
+    fn lay_out<M: Machine>(&self, m: &mut M) -> ShadeBufs {
         let su = self.setup;
         let (w, h) = (su.width as usize, su.height as usize);
-        assert!(w.is_multiple_of(16), "width a multiple of 16");
         let stride = w + 2 * PAD_X;
         let rows_p = h + 2 * PAD_Y;
-        let at = |x: usize, y: usize| 4 * ((y + PAD_Y) * stride + PAD_X + x);
         let padded = |src: &[f32], fill: f32| {
             let mut v = vec![fill; stride * rows_p];
             for y in 0..h {
@@ -133,15 +173,29 @@ impl Program for ShadeRun<'_> {
         );
         let vb = sp.alloc_f32(MemKind::Hits, "shade-vis", &padded(self.vis, 0.0), 64);
         let n = stride * rows_p;
-        let mut g: Vec<Buf> = ["nx", "ny", "nz"]
+        let g: Vec<Buf> = ["nx", "ny", "nz"]
             .iter()
             .map(|s| sp.alloc_f32(MemKind::Other, s, &vec![0.0; n], 64))
             .collect();
-        let mut zb = sp.alloc_f32(MemKind::Other, "z", &vec![f32::INFINITY; n], 64);
-        let mut eb = sp.alloc_f32(MemKind::Other, "e", &vec![0.0; n], 64);
-        let mut cb = sp.alloc_f32(MemKind::Other, "color", &vec![0.0; n], 64);
-        let mut st = ShadeStats::default();
+        let zb = sp.alloc_f32(MemKind::Other, "z", &vec![f32::INFINITY; n], 64);
+        let eb = sp.alloc_f32(MemKind::Other, "e", &vec![0.0; n], 64);
+        let cb = sp.alloc_f32(MemKind::Other, "color", &vec![0.0; n], 64);
+        ShadeBufs {
+            stride,
+            tris,
+            tb,
+            pb,
+            vb,
+            g,
+            zb,
+            eb,
+            cb,
+        }
+    }
 
+    /// The run's constants (setup region).
+    fn consts<M: Machine>(&self, m: &mut M) -> ShadeConsts<M> {
+        let su = self.setup;
         m.region(Region::Setup);
         let lanes: Vec<f32> = (0..16).map(|i| i as f32).collect();
         let lanes = m.consts(&lanes);
@@ -158,11 +212,35 @@ impl Program for ShadeRun<'_> {
         let one = m.splat(1.0);
         let pinf = m.splat(f32::INFINITY);
         let none = m.splat_i(-1);
-        let dot = |m: &mut M, a: [M::F; 3], b: [M::F; 3]| {
-            let d = m.mul(a[0], b[0]);
-            let d = m.fmadd(a[1], b[1], d);
-            m.fmadd(a[2], b[2], d)
-        };
+        ShadeConsts {
+            lanes,
+            eye,
+            d00,
+            ddx,
+            ddy,
+            lc,
+            ln,
+            scale,
+            ambient,
+            zero,
+            one,
+            pinf,
+            none,
+        }
+    }
+}
+
+impl Program for ShadeRun<'_> {
+    type Out = (Vec<f32>, ShadeStats);
+
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        assert_eq!(M::LANES, 16, "16 pixels a step");
+        let su = self.setup;
+        let (w, h) = (su.width as usize, su.height as usize);
+        assert!(w.is_multiple_of(16), "width a multiple of 16");
+        let mut bf = self.lay_out(m);
+        let mut st = ShadeStats::default();
+        let c = self.consts(m);
 
         // Pass 1: shade the rows and the filter's neighbour rows.
         m.region(Region::Shading);
@@ -182,58 +260,7 @@ impl Program for ShadeRun<'_> {
             let yf = m.splat(y as f32);
             for x0 in (0..w).step_by(16) {
                 st.shade_steps += 1;
-                let o = At::off(at(x0, y));
-                let t = m.load(&tb, o);
-                let p = m.load(&pb, o);
-                let p = m.bits_to_i(p);
-                let hit = m.icmp(Cmp::Gt, p, none);
-                let idx = m.ishift(Shift::Shl, p, 4);
-                let v: Vec<M::F> = (0..9)
-                    .map(|c| m.gather(hit, zero, &tris, At::off(4 * c), idx, 4))
-                    .collect();
-                let e1 = [0, 1, 2].map(|a| m.sub(v[3 + a], v[a]));
-                let e2 = [0, 1, 2].map(|a| m.sub(v[6 + a], v[a]));
-                let cr = |m: &mut M, i: usize, j: usize| {
-                    let q = m.mul(e1[j], e2[i]);
-                    m.fmsub(e1[i], e2[j], q)
-                };
-                let nrm = [cr(m, 1, 2), cr(m, 2, 0), cr(m, 0, 1)];
-                // The camera ray of each lane's pixel.
-                let xf = m.splat(x0 as f32);
-                let xs = m.add(xf, lanes);
-                let d = [0, 1, 2].map(|a| {
-                    let q = m.fmadd(xs, ddx[a], d00[a]);
-                    m.fmadd(yf, ddy[a], q)
-                });
-                let pt = [0, 1, 2].map(|a| m.fmadd(t, d[a], eye[a]));
-                // Normal facing the camera, unit length.
-                let s = dot(m, nrm, d);
-                let back = m.cmp(Cmp::Gt, s, zero);
-                let nn = dot(m, nrm, nrm);
-                let inv = m.rsqrt(nn);
-                let ninv = m.neg(inv);
-                let inv = m.select(back, ninv, inv);
-                let nu = nrm.map(|c| m.mul(c, inv));
-                // Direct light from the light's centre, unshadowed.
-                let l = [0, 1, 2].map(|a| m.sub(lc[a], pt[a]));
-                let d2 = dot(m, l, l);
-                let il = m.rsqrt(d2);
-                let ndl = dot(m, nu, l);
-                let ndl = m.mul(ndl, il);
-                let ndl = m.max(ndl, zero);
-                let cl = dot(m, ln, l);
-                let cl = m.abs(cl);
-                let cl = m.mul(cl, il);
-                let e = m.mul(ndl, cl);
-                let e = m.div(e, d2);
-                let e = m.mul(e, scale);
-                let e = m.select(hit, e, zero);
-                let z = m.select(hit, t, pinf);
-                for (a, buf) in g.iter_mut().enumerate() {
-                    m.store(buf, o, nu[a]);
-                }
-                m.store(&mut zb, o, z);
-                m.store(&mut eb, o, e);
+                shade_step(m, &mut bf, &c, (x0, y, yf));
             }
         }
 
@@ -244,50 +271,131 @@ impl Program for ShadeRun<'_> {
         for y in self.rows.clone() {
             let y = y as usize;
             for x0 in (0..w).step_by(16) {
-                let o = At::off(at(x0, y));
-                let z0 = m.load(&zb, o);
-                let hit = m.cmp(Cmp::Lt, z0, pinf);
-                let vis = if self.filter {
+                if self.filter {
                     st.filter_steps += 1;
-                    let n0 = [0, 1, 2].map(|a| m.load(&g[a], o));
-                    let lim = m.mul(z0, tol);
-                    let (mut sum, mut cnt) = (zero, zero);
-                    for dy in 0..4 {
-                        for dx in 0..4 {
-                            // The 4 x 4 window: columns and rows -1 .. +2.
-                            let q = At::off(at(x0, y + dy) + 4 * dx - 4 * stride - 4);
-                            let zn = m.loadu(&zb, q);
-                            let dz = m.sub(zn, z0);
-                            let dz = m.abs(dz);
-                            let near = m.cmp(Cmp::Le, dz, lim);
-                            let nn = [0, 1, 2].map(|a| m.loadu(&g[a], q));
-                            let c = dot(m, n0, nn);
-                            let same = m.cmp(Cmp::Ge, c, ncos);
-                            let ok = m.kand(near, same);
-                            let v = m.loadu(&vb, q);
-                            sum = m.masked(isa::BinOp::Add, ok, sum, sum, v);
-                            cnt = m.masked(isa::BinOp::Add, ok, cnt, cnt, one);
-                        }
-                    }
-                    let some = m.cmp(Cmp::Gt, cnt, zero);
-                    let avg = m.div(sum, cnt);
-                    let own = m.load(&vb, o);
-                    m.select(some, avg, own)
-                } else {
-                    m.load(&vb, o)
-                };
-                let e = m.load(&eb, o);
-                let c = m.fmadd(e, vis, ambient);
-                let c = m.min(c, one);
-                let c = m.select(hit, c, zero);
-                m.store(&mut cb, o, c);
+                }
+                colour_step(m, &mut bf, &c, (tol, ncos), (x0, y), self.filter);
                 for i in 0..16 {
-                    out.push(cb.f32_at(at(x0 + i, y)));
+                    out.push(bf.cb.f32_at(bf.at(x0 + i, y)));
                 }
             }
         }
         (out, st)
     }
+}
+
+/// Pass 1 for 16 pixels: the hit triangle's unit normal facing the camera,
+/// the depth, and the unshadowed direct light from the light's centre.
+fn shade_step<M: Machine>(
+    m: &mut M,
+    bf: &mut ShadeBufs,
+    c: &ShadeConsts<M>,
+    (x0, y, yf): (usize, usize, M::F),
+) {
+    let (zero, pinf, none, lanes) = (c.zero, c.pinf, c.none, c.lanes);
+    let (eye, d00, ddx, ddy, lc, ln, scale) = (c.eye, c.d00, c.ddx, c.ddy, c.lc, c.ln, c.scale);
+    let o = At::off(bf.at(x0, y));
+    let t = m.load(&bf.tb, o);
+    let p = m.load(&bf.pb, o);
+    let p = m.bits_to_i(p);
+    let hit = m.icmp(Cmp::Gt, p, none);
+    let idx = m.ishift(Shift::Shl, p, 4);
+    let v: Vec<M::F> = (0..9)
+        .map(|k| m.gather(hit, zero, &bf.tris, At::off(4 * k), idx, 4))
+        .collect();
+    let e1 = [0, 1, 2].map(|a| m.sub(v[3 + a], v[a]));
+    let e2 = [0, 1, 2].map(|a| m.sub(v[6 + a], v[a]));
+    let cr = |m: &mut M, i: usize, j: usize| {
+        let q = m.mul(e1[j], e2[i]);
+        m.fmsub(e1[i], e2[j], q)
+    };
+    let nrm = [cr(m, 1, 2), cr(m, 2, 0), cr(m, 0, 1)];
+    // The camera ray of each lane's pixel.
+    let xf = m.splat(x0 as f32);
+    let xs = m.add(xf, lanes);
+    let d = [0, 1, 2].map(|a| {
+        let q = m.fmadd(xs, ddx[a], d00[a]);
+        m.fmadd(yf, ddy[a], q)
+    });
+    let pt = [0, 1, 2].map(|a| m.fmadd(t, d[a], eye[a]));
+    // Normal facing the camera, unit length.
+    let s = dot3(m, nrm, d);
+    let back = m.cmp(Cmp::Gt, s, zero);
+    let nn = dot3(m, nrm, nrm);
+    let inv = m.rsqrt(nn);
+    let ninv = m.neg(inv);
+    let inv = m.select(back, ninv, inv);
+    let nu = nrm.map(|c| m.mul(c, inv));
+    // Direct light from the light's centre, unshadowed.
+    let l = [0, 1, 2].map(|a| m.sub(lc[a], pt[a]));
+    let d2 = dot3(m, l, l);
+    let il = m.rsqrt(d2);
+    let ndl = dot3(m, nu, l);
+    let ndl = m.mul(ndl, il);
+    let ndl = m.max(ndl, zero);
+    let cl = dot3(m, ln, l);
+    let cl = m.abs(cl);
+    let cl = m.mul(cl, il);
+    let e = m.mul(ndl, cl);
+    let e = m.div(e, d2);
+    let e = m.mul(e, scale);
+    let e = m.select(hit, e, zero);
+    let z = m.select(hit, t, pinf);
+    for (a, buf) in bf.g.iter_mut().enumerate() {
+        m.store(buf, o, nu[a]);
+    }
+    m.store(&mut bf.zb, o, z);
+    m.store(&mut bf.eb, o, e);
+}
+
+/// Pass 2 for 16 pixels: visibility (with `filter`, averaged over the 4 x 4
+/// window's pixels of similar depth and normal) times the direct light, plus
+/// ambient, into the colour buffer.
+fn colour_step<M: Machine>(
+    m: &mut M,
+    bf: &mut ShadeBufs,
+    c: &ShadeConsts<M>,
+    (tol, ncos): (M::F, M::F),
+    (x0, y): (usize, usize),
+    filter: bool,
+) {
+    let (zero, one, pinf, ambient, stride) = (c.zero, c.one, c.pinf, c.ambient, bf.stride);
+    let o = At::off(bf.at(x0, y));
+    let z0 = m.load(&bf.zb, o);
+    let hit = m.cmp(Cmp::Lt, z0, pinf);
+    let vis = if filter {
+        let n0 = [0, 1, 2].map(|a| m.load(&bf.g[a], o));
+        let lim = m.mul(z0, tol);
+        let (mut sum, mut cnt) = (zero, zero);
+        for dy in 0..4 {
+            for dx in 0..4 {
+                // The 4 x 4 window: columns and rows -1 .. +2.
+                let q = At::off(bf.at(x0, y + dy) + 4 * dx - 4 * stride - 4);
+                let zn = m.loadu(&bf.zb, q);
+                let dz = m.sub(zn, z0);
+                let dz = m.abs(dz);
+                let near = m.cmp(Cmp::Le, dz, lim);
+                let nn = [0, 1, 2].map(|a| m.loadu(&bf.g[a], q));
+                let cs = dot3(m, n0, nn);
+                let same = m.cmp(Cmp::Ge, cs, ncos);
+                let ok = m.kand(near, same);
+                let v = m.loadu(&bf.vb, q);
+                sum = m.masked(isa::BinOp::Add, ok, sum, sum, v);
+                cnt = m.masked(isa::BinOp::Add, ok, cnt, cnt, one);
+            }
+        }
+        let some = m.cmp(Cmp::Gt, cnt, zero);
+        let avg = m.div(sum, cnt);
+        let own = m.load(&bf.vb, o);
+        m.select(some, avg, own)
+    } else {
+        m.load(&bf.vb, o)
+    };
+    let e = m.load(&bf.eb, o);
+    let col = m.fmadd(e, vis, ambient);
+    let col = m.min(col, one);
+    let col = m.select(hit, col, zero);
+    m.store(&mut bf.cb, o, col);
 }
 
 /// The scalar reference of [`ShadeRun`] over the whole image (f64): the

@@ -225,8 +225,77 @@ impl<'a> Reader<'a> {
     }
 }
 
+/// What decoding an op carries from the ops before it.
+struct OpState {
+    /// The last destination id (an implicit destination is the next).
+    last_dst: u32,
+    /// The code region in force.
+    region: Region,
+    /// The last address (addresses are deltas).
+    prev_addr: u64,
+}
+
 /// Decode a trace, checking structure, ids, regions and the checksum.
 pub fn decode(bytes: &[u8]) -> Result<Trace, FormatError> {
+    check_preamble(bytes)?;
+    let body_end = bytes.len() - 8;
+    let mut r = Reader {
+        b: &bytes[..body_end],
+        pos: 10,
+    };
+    let at = r.pos;
+    let fl = r.u8("header")?;
+    let flavour = FlavourId::from_id(fl).ok_or_else(|| FormatError {
+        offset: at,
+        msg: format!("unknown ISA flavour id {fl}"),
+    })?;
+    let source = r.str("source")?;
+    let np = r.varint("parameter count")?;
+    let mut params = Vec::new();
+    for _ in 0..np {
+        let k = r.str("parameter name")?;
+        let v = r.str("parameter value")?;
+        params.push((k, v));
+    }
+    let regions = read_regions(&mut r)?;
+    let nops = r.varint("op count")?;
+    let nlanes = r.varint("lane address count")?;
+    let remaining = body_end - r.pos;
+    let mut ops = Vec::with_capacity((nops as usize).min(remaining / 2));
+    let mut lane_addrs = Vec::with_capacity((nlanes as usize).min(remaining));
+    let mut st = OpState {
+        last_dst: 0,
+        region: Region::Other,
+        prev_addr: 0,
+    };
+    for i in 0..nops {
+        let op = read_op(
+            &mut r,
+            i,
+            &mut st,
+            (flavour, regions.len()),
+            &mut lane_addrs,
+        )?;
+        ops.push(op);
+    }
+    check_tail(bytes, &r, body_end, (nlanes, lane_addrs.len()))?;
+    let t = Trace {
+        flavour,
+        source,
+        params,
+        regions,
+        ops,
+        lane_addrs,
+    };
+    t.validate().map_err(|m| FormatError {
+        offset: 10,
+        msg: format!("inconsistent trace: {m}"),
+    })?;
+    Ok(t)
+}
+
+/// Length, magic and version.
+fn check_preamble(bytes: &[u8]) -> Result<(), FormatError> {
     if bytes.len() < MAGIC.len() + 2 + 8 {
         return Err(FormatError {
             offset: bytes.len(),
@@ -249,25 +318,11 @@ pub fn decode(bytes: &[u8]) -> Result<Trace, FormatError> {
             msg: format!("unsupported trace format version {version} (this rtsim reads {VERSION})"),
         });
     }
-    let body_end = bytes.len() - 8;
-    let mut r = Reader {
-        b: &bytes[..body_end],
-        pos: 10,
-    };
-    let at = r.pos;
-    let fl = r.u8("header")?;
-    let flavour = FlavourId::from_id(fl).ok_or_else(|| FormatError {
-        offset: at,
-        msg: format!("unknown ISA flavour id {fl}"),
-    })?;
-    let source = r.str("source")?;
-    let np = r.varint("parameter count")?;
-    let mut params = Vec::new();
-    for _ in 0..np {
-        let k = r.str("parameter name")?;
-        let v = r.str("parameter value")?;
-        params.push((k, v));
-    }
+    Ok(())
+}
+
+/// The memory regions table.
+fn read_regions(r: &mut Reader<'_>) -> Result<Vec<MemRegion>, FormatError> {
     let nr = r.varint("region count")?;
     if nr > u64::from(u16::MAX) {
         return r.err(r.pos, format!("{nr} memory regions (at most 65535)"));
@@ -291,125 +346,146 @@ pub fn decode(bytes: &[u8]) -> Result<Trace, FormatError> {
             size,
         });
     }
-    let nops = r.varint("op count")?;
-    let nlanes = r.varint("lane address count")?;
-    let remaining = body_end - r.pos;
-    let mut ops = Vec::with_capacity((nops as usize).min(remaining / 2));
-    let mut lane_addrs = Vec::with_capacity((nlanes as usize).min(remaining));
+    Ok(regions)
+}
+
+/// Op `i`: class, flags, region change, destination, sources, mask, taken
+/// flag, memory access, branch site.
+fn read_op(
+    r: &mut Reader<'_>,
+    i: u64,
+    st: &mut OpState,
+    (flavour, regions): (FlavourId, usize),
+    lane_addrs: &mut Vec<Addr>,
+) -> Result<Op, FormatError> {
     let full = LaneMask::full(flavour.lanes());
-    let mut last_dst = 0u32;
-    let mut region = Region::Other;
-    let mut prev_addr = 0u64;
-    for i in 0..nops {
-        let at = r.pos;
-        let c = r.u8("op")?;
-        let class = OpClass::from_id(c).ok_or_else(|| FormatError {
-            offset: at,
-            msg: format!("op {i}: unknown op class {c}"),
+    let at = r.pos;
+    let c = r.u8("op")?;
+    let class = OpClass::from_id(c).ok_or_else(|| FormatError {
+        offset: at,
+        msg: format!("op {i}: unknown op class {c}"),
+    })?;
+    let flags = r.u8("op flags")?;
+    let mut op = Op::new(class, st.region);
+    if flags & F_REGION != 0 {
+        let rat = r.pos;
+        let rid = r.u8("region")?;
+        st.region = Region::from_id(rid).ok_or_else(|| FormatError {
+            offset: rat,
+            msg: format!("op {i}: unknown code region {rid}"),
         })?;
-        let flags = r.u8("op flags")?;
-        let mut op = Op::new(class, region);
-        if flags & F_REGION != 0 {
-            let rat = r.pos;
-            let rid = r.u8("region")?;
-            region = Region::from_id(rid).ok_or_else(|| FormatError {
-                offset: rat,
-                msg: format!("op {i}: unknown code region {rid}"),
-            })?;
-            op.region = region;
+        op.region = st.region;
+    }
+    let implicit = st.last_dst + 1;
+    if flags & F_DST != 0 {
+        op.dst = ValId(if flags & F_DST_EXPLICIT != 0 {
+            r.u32v("destination id")?
+        } else {
+            implicit
+        });
+        if !op.dst.is_some() {
+            return r.err(at, format!("op {i}: destination id 0"));
         }
-        let implicit = last_dst + 1;
-        if flags & F_DST != 0 {
-            op.dst = ValId(if flags & F_DST_EXPLICIT != 0 {
-                r.u32v("destination id")?
-            } else {
-                implicit
-            });
-            if !op.dst.is_some() {
-                return r.err(at, format!("op {i}: destination id 0"));
-            }
-        } else if flags & F_DST_EXPLICIT != 0 {
-            return r.err(at + 1, format!("op {i}: explicit id without a destination"));
+    } else if flags & F_DST_EXPLICIT != 0 {
+        return r.err(at + 1, format!("op {i}: explicit id without a destination"));
+    }
+    let nsrc = (flags & F_NSRC) as usize;
+    if nsrc > MAX_SRCS {
+        return r.err(
+            at + 1,
+            format!("op {i}: {nsrc} sources (at most {MAX_SRCS})"),
+        );
+    }
+    let reference = if op.dst.is_some() { op.dst.0 } else { implicit };
+    for _ in 0..nsrc {
+        let sat = r.pos;
+        let d = unzigzag(r.varint("source")?);
+        let s = i64::from(reference) - d;
+        if s <= 0 || s > i64::from(u32::MAX) {
+            return r.err(sat, format!("op {i}: source id {s} out of range"));
         }
-        let nsrc = (flags & F_NSRC) as usize;
-        if nsrc > MAX_SRCS {
+        op.push_src(ValId(s as u32));
+    }
+    op.mask = if flags & F_MASK != 0 {
+        let mat = r.pos;
+        let m = r.u32v("mask")?;
+        if m & !full.0 != 0 {
             return r.err(
-                at + 1,
-                format!("op {i}: {nsrc} sources (at most {MAX_SRCS})"),
+                mat,
+                format!("op {i}: mask {m:#x} has lanes beyond {}", flavour.lanes()),
             );
         }
-        let reference = if op.dst.is_some() { op.dst.0 } else { implicit };
-        for _ in 0..nsrc {
-            let sat = r.pos;
-            let d = unzigzag(r.varint("source")?);
-            let s = i64::from(reference) - d;
-            if s <= 0 || s > i64::from(u32::MAX) {
-                return r.err(sat, format!("op {i}: source id {s} out of range"));
-            }
-            op.push_src(ValId(s as u32));
+        LaneMask(m)
+    } else {
+        default_mask(class, full)
+    };
+    if flags & F_TAKEN != 0 {
+        if class != OpClass::Branch {
+            return r.err(at + 1, format!("op {i}: taken flag on a {class}"));
         }
-        op.mask = if flags & F_MASK != 0 {
-            let mat = r.pos;
-            let m = r.u32v("mask")?;
-            if m & !full.0 != 0 {
-                return r.err(
-                    mat,
-                    format!("op {i}: mask {m:#x} has lanes beyond {}", flavour.lanes()),
-                );
-            }
-            LaneMask(m)
-        } else {
-            default_mask(class, full)
-        };
-        if flags & F_TAKEN != 0 {
-            if class != OpClass::Branch {
-                return r.err(at + 1, format!("op {i}: taken flag on a {class}"));
-            }
-            op.flags |= FLAG_TAKEN;
-        }
-        if class.is_mem() {
-            let mat = r.pos;
-            let m = r.varint("memory region")?;
-            if m >= regions.len() as u64 {
-                return r.err(mat, format!("op {i}: memory region {m} does not exist"));
-            }
-            op.mem = MemId(m as u16);
-            op.bytes = r.u32v("access size")?;
-            if class.is_per_lane_mem() {
-                op.aux = lane_addrs.len() as u32;
-                for _ in 0..op.mask.count() {
-                    let d = unzigzag(r.varint("lane address")?);
-                    prev_addr = (prev_addr as i64).wrapping_add(d) as u64;
-                    lane_addrs.push(Addr(prev_addr));
-                }
-                op.addr = lane_addrs.get(op.aux as usize).copied().unwrap_or(Addr(0));
-            } else {
-                let d = unzigzag(r.varint("address")?);
-                prev_addr = (prev_addr as i64).wrapping_add(d) as u64;
-                op.addr = Addr(prev_addr);
-            }
-        }
-        if class == OpClass::Branch {
-            op.aux = r.u32v("branch site")?;
-        }
-        if op.dst.is_some() {
-            last_dst = op.dst.0;
-        }
-        ops.push(op);
+        op.flags |= FLAG_TAKEN;
     }
+    if class.is_mem() {
+        read_mem(r, &mut op, i, regions, (lane_addrs, &mut st.prev_addr))?;
+    }
+    if class == OpClass::Branch {
+        op.aux = r.u32v("branch site")?;
+    }
+    if op.dst.is_some() {
+        st.last_dst = op.dst.0;
+    }
+    Ok(op)
+}
+
+/// A memory op's region, size and address (per lane for gathers and
+/// scatters), addresses as deltas from the previous one.
+fn read_mem(
+    r: &mut Reader<'_>,
+    op: &mut Op,
+    i: u64,
+    regions: usize,
+    (lane_addrs, prev_addr): (&mut Vec<Addr>, &mut u64),
+) -> Result<(), FormatError> {
+    let mat = r.pos;
+    let m = r.varint("memory region")?;
+    if m >= regions as u64 {
+        return r.err(mat, format!("op {i}: memory region {m} does not exist"));
+    }
+    op.mem = MemId(m as u16);
+    op.bytes = r.u32v("access size")?;
+    if op.class.is_per_lane_mem() {
+        op.aux = lane_addrs.len() as u32;
+        for _ in 0..op.mask.count() {
+            let d = unzigzag(r.varint("lane address")?);
+            *prev_addr = (*prev_addr as i64).wrapping_add(d) as u64;
+            lane_addrs.push(Addr(*prev_addr));
+        }
+        op.addr = lane_addrs.get(op.aux as usize).copied().unwrap_or(Addr(0));
+    } else {
+        let d = unzigzag(r.varint("address")?);
+        *prev_addr = (*prev_addr as i64).wrapping_add(d) as u64;
+        op.addr = Addr(*prev_addr);
+    }
+    Ok(())
+}
+
+/// Nothing after the last op, the lane address count, the checksum.
+fn check_tail(
+    bytes: &[u8],
+    r: &Reader<'_>,
+    body_end: usize,
+    (nlanes, got): (u64, usize),
+) -> Result<(), FormatError> {
     if r.pos != body_end {
         return r.err(
             r.pos,
             format!("{} unexpected bytes after the last op", body_end - r.pos),
         );
     }
-    if lane_addrs.len() as u64 != nlanes {
+    if got as u64 != nlanes {
         return r.err(
             body_end,
-            format!(
-                "header says {nlanes} lane addresses, ops hold {}",
-                lane_addrs.len()
-            ),
+            format!("header says {nlanes} lane addresses, ops hold {got}"),
         );
     }
     let stored = u64::from_le_bytes(bytes[body_end..].try_into().expect("8 bytes"));
@@ -422,19 +498,7 @@ pub fn decode(bytes: &[u8]) -> Result<Trace, FormatError> {
             ),
         });
     }
-    let t = Trace {
-        flavour,
-        source,
-        params,
-        regions,
-        ops,
-        lane_addrs,
-    };
-    t.validate().map_err(|m| FormatError {
-        offset: 10,
-        msg: format!("inconsistent trace: {m}"),
-    })?;
-    Ok(t)
+    Ok(())
 }
 
 #[cfg(test)]

@@ -142,14 +142,26 @@ fn parse_u64(s: &str) -> Option<u64> {
     }
 }
 
+/// What a text trace's directives have set so far.
+struct TextState {
+    have_isa: bool,
+    have_version: bool,
+    /// The code region of the ops that follow.
+    region: Region,
+    /// All lanes of the flavour.
+    full: LaneMask,
+}
+
 /// Parse a text trace. Structure is checked here; call [`Trace::validate`]
 /// for dependency order.
 pub fn parse(text: &str) -> Result<Trace, TextError> {
     let mut t = Trace::new(FlavourId::Avx2, "");
-    let mut have_isa = false;
-    let mut have_version = false;
-    let mut region = Region::Other;
-    let mut full = LaneMask::full(t.flavour.lanes());
+    let mut st = TextState {
+        have_isa: false,
+        have_version: false,
+        region: Region::Other,
+        full: LaneMask::full(t.flavour.lanes()),
+    };
     for (ln, raw) in text.lines().enumerate() {
         let line_no = ln + 1;
         let err = |msg: String| TextError { line: line_no, msg };
@@ -159,161 +171,16 @@ pub fn parse(text: &str) -> Result<Trace, TextError> {
         }
         if let Some(d) = line.strip_prefix('.') {
             let (key, rest) = d.split_once(char::is_whitespace).unwrap_or((d, ""));
-            let rest = rest.trim();
-            match key {
-                "trace" => {
-                    if rest != "1" {
-                        return Err(err(format!(
-                            "unsupported text trace version '{rest}' (this rtsim reads 1)"
-                        )));
-                    }
-                    have_version = true;
-                }
-                "isa" => {
-                    if !t.ops.is_empty() {
-                        return Err(err(".isa after the first op".into()));
-                    }
-                    t.flavour = FlavourId::from_name(rest).ok_or_else(|| {
-                        err(format!(
-                            "unknown ISA flavour '{rest}' (lrb16, avx512, avx2, sse4)"
-                        ))
-                    })?;
-                    full = LaneMask::full(t.flavour.lanes());
-                    have_isa = true;
-                }
-                "source" => t.source = rest.to_string(),
-                "param" => {
-                    let (k, v) = rest
-                        .split_once('=')
-                        .ok_or_else(|| err(format!("parameter '{rest}' is not key=value")))?;
-                    t.params.push((k.trim().to_string(), v.trim().to_string()));
-                }
-                "mem" => {
-                    let f: Vec<&str> = rest.split_whitespace().collect();
-                    if f.len() != 5 {
-                        return Err(err("expected '.mem ID KIND NAME BASE SIZE'".into()));
-                    }
-                    let id = f[0]
-                        .parse::<u16>()
-                        .map_err(|_| err(format!("bad region id '{}'", f[0])))?;
-                    if id as usize != t.regions.len() {
-                        return Err(err(format!(
-                            "region ids must count up from 0: expected {}, found {id}",
-                            t.regions.len()
-                        )));
-                    }
-                    let kind = MemKind::from_name(f[1])
-                        .ok_or_else(|| err(format!("unknown memory kind '{}'", f[1])))?;
-                    let base = parse_u64(f[3])
-                        .ok_or_else(|| err(format!("bad base address '{}'", f[3])))?;
-                    let size =
-                        parse_u64(f[4]).ok_or_else(|| err(format!("bad size '{}'", f[4])))?;
-                    t.regions.push(MemRegion {
-                        id: MemId(id),
-                        kind,
-                        name: f[2].to_string(),
-                        base: Addr(base),
-                        size,
-                    });
-                }
-                "code" => {
-                    region = Region::from_name(rest)
-                        .ok_or_else(|| err(format!("unknown code region '{rest}'")))?;
-                }
-                _ => return Err(err(format!("unknown directive '.{key}'"))),
-            }
+            directive(&mut t, &mut st, key, rest.trim()).map_err(err)?;
             continue;
         }
-        if !have_isa {
+        if !st.have_isa {
             return Err(err("an op before '.isa'".into()));
         }
-        let mut toks = line.split_whitespace().peekable();
-        let mut op;
-        let first = toks.next().expect("non-empty line");
-        let class_tok = if let Some(d) = first.strip_prefix('%') {
-            let id: u32 = d
-                .parse()
-                .ok()
-                .filter(|&v| v > 0)
-                .ok_or_else(|| err(format!("bad value id '{first}' (ids are %1, %2, ...)")))?;
-            if toks.next() != Some("=") {
-                return Err(err(format!("expected '=' after {first}")));
-            }
-            let c = toks.next().ok_or_else(|| err("missing op class".into()))?;
-            op = Op::new(class_of(c).map_err(&err)?, region);
-            op.dst = ValId(id);
-            c
-        } else {
-            op = Op::new(class_of(first).map_err(&err)?, region);
-            first
-        };
-        op.mask = default_mask(op.class, full);
-        let mut has_mem = false;
-        let mut has_site = false;
-        for tok in toks {
-            if let Some(d) = tok.strip_prefix('%') {
-                let id: u32 = d
-                    .parse()
-                    .ok()
-                    .filter(|&v| v > 0)
-                    .ok_or_else(|| err(format!("bad source '{tok}'")))?;
-                if op.nsrc as usize == crate::trace::MAX_SRCS {
-                    return Err(err(format!("more than {} sources", crate::trace::MAX_SRCS)));
-                }
-                op.push_src(ValId(id));
-            } else if let Some(m) = tok.strip_prefix('@') {
-                if !op.class.is_mem() {
-                    return Err(err(format!("'{class_tok}' does not access memory")));
-                }
-                parse_mem(&mut t, &mut op, m).map_err(&err)?;
-                has_mem = true;
-            } else if let Some(v) = tok.strip_prefix("mask=") {
-                let m = parse_u64(v).ok_or_else(|| err(format!("bad mask '{v}'")))?;
-                if m & !u64::from(full.0) != 0 {
-                    return Err(err(format!(
-                        "mask {m:#x} has lanes beyond {}",
-                        t.flavour.lanes()
-                    )));
-                }
-                op.mask = LaneMask(m as u32);
-            } else if let Some(v) = tok.strip_prefix("site=") {
-                if op.class != OpClass::Branch {
-                    return Err(err("site= on an op that is not a branch".into()));
-                }
-                op.aux = v
-                    .parse()
-                    .map_err(|_| err(format!("bad branch site '{v}'")))?;
-                has_site = true;
-            } else if tok == "taken" || tok == "not-taken" {
-                if op.class != OpClass::Branch {
-                    return Err(err(format!("'{tok}' on an op that is not a branch")));
-                }
-                if tok == "taken" {
-                    op.flags |= FLAG_TAKEN;
-                }
-            } else {
-                return Err(err(format!("unexpected '{tok}'")));
-            }
-        }
-        if op.class.is_mem() && !has_mem {
-            return Err(err(format!(
-                "'{class_tok}' needs a memory operand @REGION+OFFSET:BYTES"
-            )));
-        }
-        if op.class == OpClass::Branch && !has_site {
-            return Err(err("branch needs site=N".into()));
-        }
-        if op.class.is_per_lane_mem() {
-            let n = t.lane_addrs.len() - op.aux as usize;
-            if n != op.mask.count() as usize {
-                return Err(err(format!(
-                    "{n} lane addresses for {} active lanes (mask= must match)",
-                    op.mask.count()
-                )));
-            }
-        }
+        let op = op_line(&mut t, &st, line).map_err(err)?;
         t.ops.push(op);
     }
+    let (have_version, have_isa) = (st.have_version, st.have_isa);
     if !have_version {
         return Err(TextError {
             line: 1,
@@ -337,6 +204,165 @@ pub fn parse(text: &str) -> Result<Trace, TextError> {
         });
     }
     Ok(t)
+}
+
+/// A directive line (`.trace`, `.isa`, `.source`, `.param`, `.mem`, `.code`).
+fn directive(t: &mut Trace, st: &mut TextState, key: &str, rest: &str) -> Result<(), String> {
+    let err = |msg: String| msg;
+    match key {
+        "trace" => {
+            if rest != "1" {
+                return Err(err(format!(
+                    "unsupported text trace version '{rest}' (this rtsim reads 1)"
+                )));
+            }
+            st.have_version = true;
+        }
+        "isa" => {
+            if !t.ops.is_empty() {
+                return Err(err(".isa after the first op".into()));
+            }
+            t.flavour = FlavourId::from_name(rest).ok_or_else(|| {
+                err(format!(
+                    "unknown ISA flavour '{rest}' (lrb16, avx512, avx2, sse4)"
+                ))
+            })?;
+            st.full = LaneMask::full(t.flavour.lanes());
+            st.have_isa = true;
+        }
+        "source" => t.source = rest.to_string(),
+        "param" => {
+            let (k, v) = rest
+                .split_once('=')
+                .ok_or_else(|| err(format!("parameter '{rest}' is not key=value")))?;
+            t.params.push((k.trim().to_string(), v.trim().to_string()));
+        }
+        "mem" => {
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            if f.len() != 5 {
+                return Err(err("expected '.mem ID KIND NAME BASE SIZE'".into()));
+            }
+            let id = f[0]
+                .parse::<u16>()
+                .map_err(|_| err(format!("bad region id '{}'", f[0])))?;
+            if id as usize != t.regions.len() {
+                return Err(err(format!(
+                    "region ids must count up from 0: expected {}, found {id}",
+                    t.regions.len()
+                )));
+            }
+            let kind = MemKind::from_name(f[1])
+                .ok_or_else(|| err(format!("unknown memory kind '{}'", f[1])))?;
+            let base =
+                parse_u64(f[3]).ok_or_else(|| err(format!("bad base address '{}'", f[3])))?;
+            let size = parse_u64(f[4]).ok_or_else(|| err(format!("bad size '{}'", f[4])))?;
+            t.regions.push(MemRegion {
+                id: MemId(id),
+                kind,
+                name: f[2].to_string(),
+                base: Addr(base),
+                size,
+            });
+        }
+        "code" => {
+            st.region = Region::from_name(rest)
+                .ok_or_else(|| err(format!("unknown code region '{rest}'")))?;
+        }
+        _ => return Err(err(format!("unknown directive '.{key}'"))),
+    }
+    Ok(())
+}
+
+/// An op line: `[%D =] CLASS [%S ...] [@REGION+OFFSET:BYTES ...] [mask=M]
+/// [site=N] [taken|not-taken]`.
+fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
+    let err = |msg: String| msg;
+    let mut toks = line.split_whitespace().peekable();
+    let mut op;
+    let first = toks.next().expect("non-empty line");
+    let class_tok = if let Some(d) = first.strip_prefix('%') {
+        let id: u32 = d
+            .parse()
+            .ok()
+            .filter(|&v| v > 0)
+            .ok_or_else(|| err(format!("bad value id '{first}' (ids are %1, %2, ...)")))?;
+        if toks.next() != Some("=") {
+            return Err(err(format!("expected '=' after {first}")));
+        }
+        let c = toks.next().ok_or_else(|| err("missing op class".into()))?;
+        op = Op::new(class_of(c).map_err(&err)?, st.region);
+        op.dst = ValId(id);
+        c
+    } else {
+        op = Op::new(class_of(first).map_err(&err)?, st.region);
+        first
+    };
+    op.mask = default_mask(op.class, st.full);
+    let mut has_mem = false;
+    let mut has_site = false;
+    for tok in toks {
+        if let Some(d) = tok.strip_prefix('%') {
+            let id: u32 = d
+                .parse()
+                .ok()
+                .filter(|&v| v > 0)
+                .ok_or_else(|| err(format!("bad source '{tok}'")))?;
+            if op.nsrc as usize == crate::trace::MAX_SRCS {
+                return Err(err(format!("more than {} sources", crate::trace::MAX_SRCS)));
+            }
+            op.push_src(ValId(id));
+        } else if let Some(m) = tok.strip_prefix('@') {
+            if !op.class.is_mem() {
+                return Err(err(format!("'{class_tok}' does not access memory")));
+            }
+            parse_mem(t, &mut op, m).map_err(&err)?;
+            has_mem = true;
+        } else if let Some(v) = tok.strip_prefix("mask=") {
+            let m = parse_u64(v).ok_or_else(|| err(format!("bad mask '{v}'")))?;
+            if m & !u64::from(st.full.0) != 0 {
+                return Err(err(format!(
+                    "mask {m:#x} has lanes beyond {}",
+                    t.flavour.lanes()
+                )));
+            }
+            op.mask = LaneMask(m as u32);
+        } else if let Some(v) = tok.strip_prefix("site=") {
+            if op.class != OpClass::Branch {
+                return Err(err("site= on an op that is not a branch".into()));
+            }
+            op.aux = v
+                .parse()
+                .map_err(|_| err(format!("bad branch site '{v}'")))?;
+            has_site = true;
+        } else if tok == "taken" || tok == "not-taken" {
+            if op.class != OpClass::Branch {
+                return Err(err(format!("'{tok}' on an op that is not a branch")));
+            }
+            if tok == "taken" {
+                op.flags |= FLAG_TAKEN;
+            }
+        } else {
+            return Err(err(format!("unexpected '{tok}'")));
+        }
+    }
+    if op.class.is_mem() && !has_mem {
+        return Err(err(format!(
+            "'{class_tok}' needs a memory operand @REGION+OFFSET:BYTES"
+        )));
+    }
+    if op.class == OpClass::Branch && !has_site {
+        return Err(err("branch needs site=N".into()));
+    }
+    if op.class.is_per_lane_mem() {
+        let n = t.lane_addrs.len() - op.aux as usize;
+        if n != op.mask.count() as usize {
+            return Err(err(format!(
+                "{n} lane addresses for {} active lanes (mask= must match)",
+                op.mask.count()
+            )));
+        }
+    }
+    Ok(op)
 }
 
 fn class_of(s: &str) -> Result<OpClass, String> {

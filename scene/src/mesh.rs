@@ -280,20 +280,87 @@ struct Element {
     props: Vec<Prop>,
 }
 
+/// Errors of one PLY file, at a line or a byte.
+struct PlyErr<'a>(&'a str);
+
+impl PlyErr<'_> {
+    fn line(&self, l: usize, msg: String) -> MeshError {
+        MeshError {
+            file: self.0.into(),
+            at: Some(format!("line {l}")),
+            msg,
+        }
+    }
+    fn byte(&self, b: usize, msg: String) -> MeshError {
+        MeshError {
+            file: self.0.into(),
+            at: Some(format!("byte {b}")),
+            msg,
+        }
+    }
+    fn at(&self, at: &str, msg: String) -> MeshError {
+        MeshError {
+            file: self.0.into(),
+            at: Some(at.into()),
+            msg,
+        }
+    }
+}
+
+/// A PLY header: format, elements, the body's first byte and the header's
+/// last line number.
+struct PlyHeader {
+    format: PlyFormat,
+    elements: Vec<Element>,
+    body: usize,
+    lines: usize,
+}
+
 /// Parse a PLY file (ASCII or binary, either endianness); vertices `x y z`,
 /// faces `vertex_indices` (or `vertex_index`) lists, fan-triangulated.
 pub fn parse_ply(bytes: &[u8], file: &str) -> Result<Mesh, MeshError> {
-    let e_line = |l: usize, msg: String| MeshError {
-        file: file.into(),
-        at: Some(format!("line {l}")),
-        msg,
+    let e = PlyErr(file);
+    let h = ply_header(bytes, &e)?;
+    let (format, line_no) = (h.format, h.lines);
+    let mut pos = h.body;
+    let mut m = Mesh::default();
+    let mut ascii_lines = if format == PlyFormat::Ascii {
+        Some(
+            std::str::from_utf8(&bytes[pos..])
+                .map_err(|_| e.byte(pos, "ASCII body is not text".into()))?
+                .lines()
+                .enumerate(),
+        )
+    } else {
+        None
     };
-    let e_byte = |b: usize, msg: String| MeshError {
-        file: file.into(),
-        at: Some(format!("byte {b}")),
-        msg,
-    };
-    // Header.
+    for el in &h.elements {
+        let xyz: Vec<Option<usize>> = ["x", "y", "z"]
+            .iter()
+            .map(|n| el.props.iter().position(|p| p.name == *n))
+            .collect();
+        if el.name == "vertex" && xyz.iter().any(Option::is_none) {
+            return Err(e.line(line_no, "vertex element lacks x, y or z".into()));
+        }
+        for k in 0..el.count {
+            let (vals, list, where_) = if let Some(lines) = ascii_lines.as_mut() {
+                ply_ascii_record(lines, el, k, line_no, &e)?
+            } else {
+                let at = format!("byte {pos}");
+                let (vals, list) = ply_binary_record(bytes, &mut pos, el, format, &e)?;
+                (vals, list, at)
+            };
+            add_ply_record(&mut m, el, k, (&vals, &list, &xyz), |msg| {
+                e.at(&where_, msg)
+            })?;
+        }
+    }
+    Ok(m)
+}
+
+/// The header: `ply` magic, format, elements and their properties.
+fn ply_header(bytes: &[u8], e: &PlyErr<'_>) -> Result<PlyHeader, MeshError> {
+    let (e_line, e_byte) = (|l, msg| e.line(l, msg), |b, msg| e.byte(b, msg));
     let mut pos = 0usize;
     let mut line_no = 0usize;
     let mut format = None;
@@ -362,136 +429,152 @@ pub fn parse_ply(bytes: &[u8], file: &str) -> Result<Mesh, MeshError> {
         }
     }
     let format = format.ok_or_else(|| e_line(line_no, "no format line".into()))?;
-    let mut m = Mesh::default();
-    // Body.
-    let mut ascii_lines = if format == PlyFormat::Ascii {
-        Some(
-            std::str::from_utf8(&bytes[pos..])
-                .map_err(|_| e_byte(pos, "ASCII body is not text".into()))?
-                .lines()
-                .enumerate(),
+    Ok(PlyHeader {
+        format,
+        elements,
+        body: pos,
+        lines: line_no,
+    })
+}
+
+/// One value of type `ty` (bytes, float, signed) at `pos` of a binary body.
+fn ply_read_bin(
+    bytes: &[u8],
+    pos: &mut usize,
+    ty: (usize, bool, bool),
+    format: PlyFormat,
+    e: &PlyErr<'_>,
+) -> Result<f64, MeshError> {
+    let (n, float, signed) = ty;
+    let b = bytes
+        .get(*pos..*pos + n)
+        .ok_or_else(|| e.byte(*pos, "file ends inside the data (truncated?)".into()))?;
+    let mut a = [0u8; 8];
+    a[..n].copy_from_slice(b);
+    if format == PlyFormat::Be {
+        a[..n].reverse();
+    }
+    *pos += n;
+    Ok(match (n, float, signed) {
+        (4, true, _) => f64::from(f32::from_le_bytes([a[0], a[1], a[2], a[3]])),
+        (8, true, _) => f64::from_le_bytes(a),
+        (1, false, true) => f64::from(a[0] as i8),
+        (1, false, false) => f64::from(a[0]),
+        (2, false, true) => f64::from(i16::from_le_bytes([a[0], a[1]])),
+        (2, false, false) => f64::from(u16::from_le_bytes([a[0], a[1]])),
+        (4, false, true) => f64::from(i32::from_le_bytes([a[0], a[1], a[2], a[3]])),
+        _ => f64::from(u32::from_le_bytes([a[0], a[1], a[2], a[3]])),
+    })
+}
+
+/// Record `k` of element `el` from the ASCII body: its property values (0
+/// for lists), its vertex index list, and where it is.
+fn ply_ascii_record<'t>(
+    lines: &mut impl Iterator<Item = (usize, &'t str)>,
+    el: &Element,
+    k: usize,
+    line_no: usize,
+    e: &PlyErr<'_>,
+) -> Result<(Vec<f64>, Vec<f64>, String), MeshError> {
+    let e_line = |l, msg| e.line(l, msg);
+    let mut vals: Vec<f64> = Vec::with_capacity(el.props.len());
+    let mut list: Vec<f64> = Vec::new();
+    let (ln, text) = lines.find(|(_, l)| !l.trim().is_empty()).ok_or_else(|| {
+        e_line(
+            line_no,
+            format!(
+                "file ends in element '{}' {k} of {} (truncated?)",
+                el.name, el.count
+            ),
         )
-    } else {
-        None
-    };
-    let read_bin = |pos: &mut usize, ty: (usize, bool, bool)| -> Result<f64, MeshError> {
-        let (n, float, signed) = ty;
-        let b = bytes
-            .get(*pos..*pos + n)
-            .ok_or_else(|| e_byte(*pos, "file ends inside the data (truncated?)".into()))?;
-        let mut a = [0u8; 8];
-        a[..n].copy_from_slice(b);
-        if format == PlyFormat::Be {
-            a[..n].reverse();
-        }
-        *pos += n;
-        Ok(match (n, float, signed) {
-            (4, true, _) => f64::from(f32::from_le_bytes([a[0], a[1], a[2], a[3]])),
-            (8, true, _) => f64::from_le_bytes(a),
-            (1, false, true) => f64::from(a[0] as i8),
-            (1, false, false) => f64::from(a[0]),
-            (2, false, true) => f64::from(i16::from_le_bytes([a[0], a[1]])),
-            (2, false, false) => f64::from(u16::from_le_bytes([a[0], a[1]])),
-            (4, false, true) => f64::from(i32::from_le_bytes([a[0], a[1], a[2], a[3]])),
-            _ => f64::from(u32::from_le_bytes([a[0], a[1], a[2], a[3]])),
-        })
-    };
-    for el in &elements {
-        let is_vertex = el.name == "vertex";
-        let is_face = el.name == "face";
-        let xyz: Vec<Option<usize>> = ["x", "y", "z"]
-            .iter()
-            .map(|n| el.props.iter().position(|p| p.name == *n))
-            .collect();
-        if is_vertex && xyz.iter().any(Option::is_none) {
-            return Err(e_line(line_no, "vertex element lacks x, y or z".into()));
-        }
-        for k in 0..el.count {
-            let mut vals: Vec<f64> = Vec::with_capacity(el.props.len());
-            let mut list: Vec<f64> = Vec::new();
-            let where_;
-            if let Some(lines) = ascii_lines.as_mut() {
-                let (ln, text) = lines.find(|(_, l)| !l.trim().is_empty()).ok_or_else(|| {
-                    e_line(
-                        line_no,
-                        format!(
-                            "file ends in element '{}' {k} of {} (truncated?)",
-                            el.name, el.count
-                        ),
-                    )
-                })?;
-                let body_line = line_no + ln + 1;
-                where_ = format!("line {body_line}");
-                let mut toks = text.split_whitespace();
-                for p in &el.props {
-                    let mut next = || -> Result<f64, MeshError> {
-                        let t = toks.next().ok_or_else(|| {
-                            e_line(body_line, format!("too few values for '{}'", el.name))
-                        })?;
-                        t.parse::<f64>()
-                            .map_err(|_| e_line(body_line, format!("'{t}' is not a number")))
-                    };
-                    if p.list.is_some() {
-                        let n = next()? as usize;
-                        let v: Result<Vec<f64>, _> = (0..n).map(|_| next()).collect();
-                        let v = v?;
-                        if p.name.starts_with("vertex_ind") {
-                            list = v;
-                        }
-                        vals.push(0.0);
-                    } else {
-                        vals.push(next()?);
-                    }
-                }
-            } else {
-                where_ = format!("byte {pos}");
-                for p in &el.props {
-                    if let Some(ct) = p.list {
-                        let n = read_bin(&mut pos, ct)? as usize;
-                        let mut v = Vec::with_capacity(n);
-                        for _ in 0..n {
-                            v.push(read_bin(&mut pos, p.ty)?);
-                        }
-                        if p.name.starts_with("vertex_ind") {
-                            list = v;
-                        }
-                        vals.push(0.0);
-                    } else {
-                        vals.push(read_bin(&mut pos, p.ty)?);
-                    }
-                }
+    })?;
+    let body_line = line_no + ln + 1;
+    let mut toks = text.split_whitespace();
+    for p in &el.props {
+        let mut next = || -> Result<f64, MeshError> {
+            let t = toks
+                .next()
+                .ok_or_else(|| e_line(body_line, format!("too few values for '{}'", el.name)))?;
+            t.parse::<f64>()
+                .map_err(|_| e_line(body_line, format!("'{t}' is not a number")))
+        };
+        if p.list.is_some() {
+            let n = next()? as usize;
+            let v: Result<Vec<f64>, _> = (0..n).map(|_| next()).collect();
+            let v = v?;
+            if p.name.starts_with("vertex_ind") {
+                list = v;
             }
-            let at = |msg: String| MeshError {
-                file: file.into(),
-                at: Some(where_.clone()),
-                msg,
-            };
-            if is_vertex {
-                let p = [
-                    vals[xyz[0].unwrap()] as f32,
-                    vals[xyz[1].unwrap()] as f32,
-                    vals[xyz[2].unwrap()] as f32,
-                ];
-                if p.iter().any(|c| !c.is_finite()) {
-                    return Err(at(format!("vertex {k} is not finite: {p:?}")));
-                }
-                m.positions.push(p);
-            } else if is_face {
-                if list.len() < 3 {
-                    return Err(at(format!("face {k} has {} vertices", list.len())));
-                }
-                let nv = m.positions.len() as f64;
-                if let Some(v) = list.iter().find(|&&v| v < 0.0 || v >= nv) {
-                    return Err(at(format!("face {k} indexes vertex {v} of {nv}")));
-                }
-                for j in 1..list.len() - 1 {
-                    m.tris
-                        .push([list[0] as u32, list[j] as u32, list[j + 1] as u32]);
-                }
-            }
+            vals.push(0.0);
+        } else {
+            vals.push(next()?);
         }
     }
-    Ok(m)
+    Ok((vals, list, format!("line {body_line}")))
+}
+
+/// Record `k` of element `el` from the binary body at `pos`: its property
+/// values (0 for lists) and its vertex index list.
+fn ply_binary_record(
+    bytes: &[u8],
+    pos: &mut usize,
+    el: &Element,
+    format: PlyFormat,
+    e: &PlyErr<'_>,
+) -> Result<(Vec<f64>, Vec<f64>), MeshError> {
+    let mut vals: Vec<f64> = Vec::with_capacity(el.props.len());
+    let mut list: Vec<f64> = Vec::new();
+    for p in &el.props {
+        if let Some(ct) = p.list {
+            let n = ply_read_bin(bytes, pos, ct, format, e)? as usize;
+            let mut v = Vec::with_capacity(n);
+            for _ in 0..n {
+                v.push(ply_read_bin(bytes, pos, p.ty, format, e)?);
+            }
+            if p.name.starts_with("vertex_ind") {
+                list = v;
+            }
+            vals.push(0.0);
+        } else {
+            vals.push(ply_read_bin(bytes, pos, p.ty, format, e)?);
+        }
+    }
+    Ok((vals, list))
+}
+
+/// Add a vertex (finite) or a face (fan-triangulated, indices in range).
+fn add_ply_record(
+    m: &mut Mesh,
+    el: &Element,
+    k: usize,
+    (vals, list, xyz): (&[f64], &[f64], &[Option<usize>]),
+    at: impl Fn(String) -> MeshError,
+) -> Result<(), MeshError> {
+    let (is_vertex, is_face) = (el.name == "vertex", el.name == "face");
+    if is_vertex {
+        let p = [
+            vals[xyz[0].unwrap()] as f32,
+            vals[xyz[1].unwrap()] as f32,
+            vals[xyz[2].unwrap()] as f32,
+        ];
+        if p.iter().any(|c| !c.is_finite()) {
+            return Err(at(format!("vertex {k} is not finite: {p:?}")));
+        }
+        m.positions.push(p);
+    } else if is_face {
+        if list.len() < 3 {
+            return Err(at(format!("face {k} has {} vertices", list.len())));
+        }
+        let nv = m.positions.len() as f64;
+        if let Some(v) = list.iter().find(|&&v| v < 0.0 || v >= nv) {
+            return Err(at(format!("face {k} indexes vertex {v} of {nv}")));
+        }
+        for j in 1..list.len() - 1 {
+            m.tris
+                .push([list[0] as u32, list[j] as u32, list[j + 1] as u32]);
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -323,6 +323,29 @@ impl MachineConfig {
         if self.cores == 0 || self.cores > 1024 {
             return e("cores", "must be 1 to 1024");
         }
+        self.validate_core()?;
+        self.validate_classes()?;
+        self.validate_caches()?;
+        if self.dram.latency <= self.caches.last().map_or(0, |l| l.latency) {
+            return e("dram.latency", "must exceed the last cache level's");
+        }
+        if self.dram.bandwidth_gbs.is_nan() || self.dram.bandwidth_gbs <= 0.0 {
+            return e("dram.bandwidth_gbs", "must be positive");
+        }
+        if self.mshrs == 0 {
+            return e("mshrs", "must be at least 1");
+        }
+        if let Prefetch::Stream(d) = self.prefetch {
+            if d == 0 || d > 64 {
+                return e("prefetch", "Stream degree must be 1 to 64");
+            }
+        }
+        Ok(())
+    }
+
+    /// The core's widths, window and predictor.
+    fn validate_core(&self) -> Result<(), (String, String)> {
+        let e = |f: &str, m: &str| Err((f.to_string(), m.to_string()));
         let c = &self.core;
         if c.width == 0 || c.width > 64 {
             return e("core.width", "must be 1 to 64");
@@ -349,6 +372,12 @@ impl MachineConfig {
                 "history_bits at most 24, predictor_bits 1 to 24",
             );
         }
+        Ok(())
+    }
+
+    /// Every op class has a timing on ports that exist; no unknown class.
+    fn validate_classes(&self) -> Result<(), (String, String)> {
+        let c = &self.core;
         for class in OpClass::ALL {
             let Some(t) = self.classes.get(class.name()) else {
                 return Err((
@@ -389,6 +418,12 @@ impl MachineConfig {
                 "unknown op class (rtsim list classes)".into(),
             ));
         }
+        Ok(())
+    }
+
+    /// Cache levels: ways, line size, whole sets, latencies growing.
+    fn validate_caches(&self) -> Result<(), (String, String)> {
+        let e = |f: &str, m: &str| Err((f.to_string(), m.to_string()));
         if self.caches.is_empty() {
             return e("caches", "at least one cache level");
         }
@@ -419,20 +454,6 @@ impl MachineConfig {
             }
             if i > 0 && l.latency <= self.caches[i - 1].latency {
                 return Err((f("latency"), "must exceed the level above".into()));
-            }
-        }
-        if self.dram.latency <= self.caches.last().map_or(0, |l| l.latency) {
-            return e("dram.latency", "must exceed the last cache level's");
-        }
-        if self.dram.bandwidth_gbs.is_nan() || self.dram.bandwidth_gbs <= 0.0 {
-            return e("dram.bandwidth_gbs", "must be positive");
-        }
-        if self.mshrs == 0 {
-            return e("mshrs", "must be at least 1");
-        }
-        if let Prefetch::Stream(d) = self.prefetch {
-            if d == 0 || d > 64 {
-                return e("prefetch", "Stream degree must be 1 to 64");
             }
         }
         Ok(())

@@ -24,6 +24,18 @@ struct Thread<'a> {
     pred: Gshare,
 }
 
+/// The core's shared state: class timings, pipes, miss slots.
+struct Core {
+    classes: Vec<ClassT>,
+    /// L1 latency (a per-lane access pays its lines beyond it).
+    l1: u64,
+    penalty: u64,
+    width: usize,
+    no_back_to_back: bool,
+    pipe_free: Vec<u64>,
+    mshr: crate::memory::Mshrs,
+}
+
 /// Time `traces` as the hardware threads of one in-order core; stats count
 /// each thread's ops from its `count_from` index on.
 pub fn run(
@@ -34,12 +46,15 @@ pub fn run(
     count_from: usize,
 ) -> u64 {
     let c = &m.core;
-    let classes: Vec<ClassT> = class_table(m);
-    let l1 = u64::from(m.caches[0].latency);
-    let penalty = u64::from(c.mispredict_penalty);
-    let width = c.width as usize;
-    let mut pipe_free = vec![0u64; c.ports as usize];
-    let mut mshr = crate::memory::Mshrs::new(m.mshrs as usize);
+    let mut core = Core {
+        classes: class_table(m),
+        l1: u64::from(m.caches[0].latency),
+        penalty: u64::from(c.mispredict_penalty),
+        width: c.width as usize,
+        no_back_to_back: c.no_back_to_back,
+        pipe_free: vec![0u64; c.ports as usize],
+        mshr: crate::memory::Mshrs::new(m.mshrs as usize),
+    };
     let mut th: Vec<Thread> = traces
         .iter()
         .map(|t| Thread {
@@ -52,141 +67,21 @@ pub fn run(
             pred: Gshare::new(c.history_bits, c.predictor_bits),
         })
         .collect();
-    let n = th.len();
     let mut cycle = 0u64;
     let mut rr = 0usize;
     let mut last_charge = 0u64;
     let mut max_done = 0u64;
-    // Earliest cycle thread `k`'s next op could issue (ignoring pipes), or None if done.
-    let earliest = |t: &Thread, cycle: u64| -> Option<u64> {
-        let op = t.t.ops.get(t.pos)?;
-        let mut e = cycle.max(t.stall_until);
-        if c.no_back_to_back {
-            if let Some(l) = t.last_issue {
-                e = e.max(l + 2);
-            }
-        }
-        for &v in op.sources() {
-            e = e.max(t.values.get(v));
-        }
-        Some(e)
-    };
     loop {
         let mut issued = 0usize;
-        let mut chosen = None;
-        for k in 0..n {
-            let i = (rr + k) % n;
-            if earliest(&th[i], cycle) != Some(cycle) {
-                continue;
-            }
-            let op = &th[i].t.ops[th[i].pos];
-            let ct = &classes[op.class as usize];
-            if !ct.uops.is_empty() && !any_free(ct.uops[0], &pipe_free, cycle) {
-                continue;
-            }
-            chosen = Some(i);
-            break;
-        }
-        if let Some(i) = chosen {
-            let mut used_pipes = 0u32;
-            while issued < width {
-                let t = &mut th[i];
-                let Some(op) = t.t.ops.get(t.pos) else { break };
-                if op.sources().iter().any(|v| t.values.get(*v) > cycle) {
-                    break;
-                }
-                let ct = &classes[op.class as usize];
-                let pipe = if ct.uops.is_empty() {
-                    None
-                } else {
-                    match first_free(ct.uops[0] & !used_pipes, &pipe_free, cycle) {
-                        Some(p) => Some(p),
-                        None => break,
-                    }
-                };
-                // Execute.
-                let mut occ = ct.occ;
-                let mut done = cycle + ct.lat;
-                let mut missed = false;
-                if op.class.is_per_lane_mem() {
-                    let mut lines: Vec<u64> =
-                        t.t.lanes_of(op)
-                            .iter()
-                            .map(|a| mem.line_of(a.0).0)
-                            .collect();
-                    lines.sort_unstable();
-                    lines.dedup();
-                    occ += ct.per_line * (lines.len() as u64).saturating_sub(1);
-                    let mut extra = 0;
-                    for l in lines {
-                        let sv =
-                            mem.access(0, l * mem.line_bytes(), op.class.is_store(), op.mem, cycle);
-                        extra = extra.max(sv.latency.saturating_sub(l1));
-                    }
-                    done += extra;
-                    missed = extra > 0;
-                } else if op.class.is_load() {
-                    let mut start = cycle;
-                    let mut slot = None;
-                    if !mem.in_l1(0, op.addr.0) {
-                        let (j, free) = mshr.earliest();
-                        start = start.max(free);
-                        slot = Some(j);
-                        missed = true;
-                    }
-                    let sv = mem.access(0, op.addr.0, false, op.mem, start);
-                    if let Some(j) = slot {
-                        mshr.hold(j, start + sv.latency);
-                    }
-                    done = start + sv.latency;
-                } else if op.class.is_store() {
-                    mem.access(0, op.addr.0, true, op.mem, cycle);
-                }
-                if let Some(p) = pipe {
-                    pipe_free[p] = cycle + occ;
-                    used_pipes |= 1 << p;
-                }
-                if op.dst.is_some() {
-                    t.values.set(op.dst, done);
-                }
-                max_done = max_done.max(done);
-                if missed {
-                    t.miss_until = t.miss_until.max(done);
-                }
-                if op.class == OpClass::Branch {
-                    let ok = t.pred.predict_and_update(op.site().0, op.taken());
-                    if t.pos >= count_from {
-                        s.branches += 1;
-                        s.mispredicts += u64::from(!ok);
-                    }
-                    if !ok {
-                        t.stall_until = done + penalty;
-                    }
-                }
-                if t.pos >= count_from {
-                    s.ops += 1;
-                    s.uops += ct.uops.len() as u64;
-                    s.region_ops[op.region as usize] += 1;
-                    s.class_ops[op.class as usize] += 1;
-                    if op.class.is_vector() {
-                        s.vector_ops += 1;
-                        s.active_lanes += u64::from(op.mask.count());
-                    }
-                    if issued == 0 {
-                        let delta = cycle + 1 - last_charge;
-                        s.region_cycles[op.region as usize] += delta;
-                        // Idle cycles before this one were charged while waiting.
-                        s.stalls[Stall::Issue as usize] += 1;
-                        last_charge = cycle + 1;
-                    }
-                }
-                t.pos += 1;
-                t.last_issue = Some(cycle);
-                issued += 1;
-                if op.class == OpClass::Branch && t.stall_until > cycle {
-                    break;
-                }
-            }
+        if let Some(i) = core.choose(&th, rr, cycle) {
+            let t = &mut th[i];
+            issued = core.issue(
+                t,
+                cycle,
+                mem,
+                s,
+                (count_from, &mut last_charge, &mut max_done),
+            );
             rr = i + 1;
         }
         if th.iter().all(|t| t.pos >= t.t.ops.len()) {
@@ -195,30 +90,205 @@ pub fn run(
         if issued > 0 {
             cycle += 1;
         } else {
-            // Nothing could issue: jump to the next cycle anything can, charging the wait.
-            let next_any = th
-                .iter()
-                .filter_map(|t| earliest(t, cycle + 1))
-                .min()
-                .unwrap_or(cycle + 1)
-                .max(cycle + 1);
-            let next = next_any;
-            let waiting_on_miss = th
-                .iter()
-                .any(|t| t.pos < t.t.ops.len() && t.miss_until > cycle);
-            let branch = th.iter().any(|t| t.stall_until > cycle);
-            let why = if waiting_on_miss {
-                Stall::Memory
-            } else if branch {
-                Stall::Branch
-            } else {
-                Stall::Core
-            };
-            s.stalls[why as usize] += next - cycle;
-            cycle = next;
+            cycle = core.wait(&th, cycle, s);
         }
     }
     cycle.max(max_done)
+}
+
+impl Core {
+    /// Earliest cycle thread `t`'s next op could issue (ignoring pipes), or
+    /// None if it is done.
+    fn earliest(&self, t: &Thread, cycle: u64) -> Option<u64> {
+        let op = t.t.ops.get(t.pos)?;
+        let mut e = cycle.max(t.stall_until);
+        if self.no_back_to_back {
+            if let Some(l) = t.last_issue {
+                e = e.max(l + 2);
+            }
+        }
+        for &v in op.sources() {
+            e = e.max(t.values.get(v));
+        }
+        Some(e)
+    }
+
+    /// The thread that issues this cycle: round-robin from `rr` among those
+    /// whose next op is ready and has a free pipe.
+    fn choose(&self, th: &[Thread], rr: usize, cycle: u64) -> Option<usize> {
+        let n = th.len();
+        for k in 0..n {
+            let i = (rr + k) % n;
+            if self.earliest(&th[i], cycle) != Some(cycle) {
+                continue;
+            }
+            let op = &th[i].t.ops[th[i].pos];
+            let ct = &self.classes[op.class as usize];
+            if !ct.uops.is_empty() && !any_free(ct.uops[0], &self.pipe_free, cycle) {
+                continue;
+            }
+            return Some(i);
+        }
+        None
+    }
+
+    /// Issue up to `width` ops of thread `t` in order this cycle (each with
+    /// its sources ready and a free pipe); the number issued.
+    fn issue(
+        &mut self,
+        t: &mut Thread,
+        cycle: u64,
+        mem: &mut Hierarchy,
+        s: &mut Stats,
+        (count_from, last_charge, max_done): (usize, &mut u64, &mut u64),
+    ) -> usize {
+        let mut issued = 0usize;
+        let mut used_pipes = 0u32;
+        while issued < self.width {
+            let Some(op) = t.t.ops.get(t.pos) else { break };
+            if op.sources().iter().any(|v| t.values.get(*v) > cycle) {
+                break;
+            }
+            let ct = &self.classes[op.class as usize];
+            let pipe = if ct.uops.is_empty() {
+                None
+            } else {
+                match first_free(ct.uops[0] & !used_pipes, &self.pipe_free, cycle) {
+                    Some(p) => Some(p),
+                    None => break,
+                }
+            };
+            let nuops = ct.uops.len();
+            let (done, occ, missed) = self.execute(t.t, op, cycle, mem);
+            if let Some(p) = pipe {
+                self.pipe_free[p] = cycle + occ;
+                used_pipes |= 1 << p;
+            }
+            if op.dst.is_some() {
+                t.values.set(op.dst, done);
+            }
+            *max_done = (*max_done).max(done);
+            if missed {
+                t.miss_until = t.miss_until.max(done);
+            }
+            if op.class == OpClass::Branch {
+                let ok = t.pred.predict_and_update(op.site().0, op.taken());
+                if t.pos >= count_from {
+                    s.branches += 1;
+                    s.mispredicts += u64::from(!ok);
+                }
+                if !ok {
+                    t.stall_until = done + self.penalty;
+                }
+            }
+            if t.pos >= count_from {
+                count(s, op, nuops, (issued, cycle, last_charge));
+            }
+            t.pos += 1;
+            t.last_issue = Some(cycle);
+            issued += 1;
+            if op.class == OpClass::Branch && t.stall_until > cycle {
+                break;
+            }
+        }
+        issued
+    }
+
+    /// Execute one op issued at `cycle`: (result cycle, pipe occupancy,
+    /// whether it missed L1).
+    fn execute(
+        &mut self,
+        tr: &Trace,
+        op: &isa::Op,
+        cycle: u64,
+        mem: &mut Hierarchy,
+    ) -> (u64, u64, bool) {
+        let ct = &self.classes[op.class as usize];
+        let (l1, mshr) = (self.l1, &mut self.mshr);
+        let mut occ = ct.occ;
+        let mut done = cycle + ct.lat;
+        let mut missed = false;
+        if op.class.is_per_lane_mem() {
+            let mut lines: Vec<u64> = tr.lanes_of(op).iter().map(|a| mem.line_of(a.0).0).collect();
+            lines.sort_unstable();
+            lines.dedup();
+            occ += ct.per_line * (lines.len() as u64).saturating_sub(1);
+            let mut extra = 0;
+            for l in lines {
+                let sv = mem.access(0, l * mem.line_bytes(), op.class.is_store(), op.mem, cycle);
+                extra = extra.max(sv.latency.saturating_sub(l1));
+            }
+            done += extra;
+            missed = extra > 0;
+        } else if op.class.is_load() {
+            let mut start = cycle;
+            let mut slot = None;
+            if !mem.in_l1(0, op.addr.0) {
+                let (j, free) = mshr.earliest();
+                start = start.max(free);
+                slot = Some(j);
+                missed = true;
+            }
+            let sv = mem.access(0, op.addr.0, false, op.mem, start);
+            if let Some(j) = slot {
+                mshr.hold(j, start + sv.latency);
+            }
+            done = start + sv.latency;
+        } else if op.class.is_store() {
+            mem.access(0, op.addr.0, true, op.mem, cycle);
+        }
+        (done, occ, missed)
+    }
+
+    /// Nothing could issue: the next cycle anything can, the wait charged
+    /// to its reason (a miss, a mispredict, or the core).
+    fn wait(&self, th: &[Thread], cycle: u64, s: &mut Stats) -> u64 {
+        let next_any = th
+            .iter()
+            .filter_map(|t| self.earliest(t, cycle + 1))
+            .min()
+            .unwrap_or(cycle + 1)
+            .max(cycle + 1);
+        let next = next_any;
+        let waiting_on_miss = th
+            .iter()
+            .any(|t| t.pos < t.t.ops.len() && t.miss_until > cycle);
+        let branch = th.iter().any(|t| t.stall_until > cycle);
+        let why = if waiting_on_miss {
+            Stall::Memory
+        } else if branch {
+            Stall::Branch
+        } else {
+            Stall::Core
+        };
+        s.stalls[why as usize] += next - cycle;
+        next
+    }
+}
+
+/// Count an issued op into the statistics; the first op a thread issues in
+/// a cycle charges the cycles since the last charge to its region.
+fn count(
+    s: &mut Stats,
+    op: &isa::Op,
+    uops: usize,
+    (issued, cycle, last_charge): (usize, u64, &mut u64),
+) {
+    s.ops += 1;
+    s.uops += uops as u64;
+    s.region_ops[op.region as usize] += 1;
+    s.class_ops[op.class as usize] += 1;
+    if op.class.is_vector() {
+        s.vector_ops += 1;
+        s.active_lanes += u64::from(op.mask.count());
+    }
+    if issued == 0 {
+        let delta = cycle + 1 - *last_charge;
+        s.region_cycles[op.region as usize] += delta;
+        // Idle cycles before this one were charged while waiting.
+        s.stalls[Stall::Issue as usize] += 1;
+        *last_charge = cycle + 1;
+    }
 }
 
 fn any_free(mask: u32, pipe_free: &[u64], cycle: u64) -> bool {

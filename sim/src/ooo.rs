@@ -19,7 +19,7 @@ use crate::config::MachineConfig;
 use crate::memory::Hierarchy;
 use crate::predictor::Gshare;
 use crate::stats::{Stall, Stats};
-use isa::{OpClass, Trace, ValId};
+use isa::{Op, OpClass, Trace, ValId};
 
 /// Cycles the port calendars look ahead.
 const WINDOW: u64 = 1 << 16;
@@ -285,130 +285,22 @@ impl OooCore {
         s: &mut Stats,
         count_from: usize,
     ) {
+        // The class table is read while the core's state changes.
+        let classes = std::mem::take(&mut self.classes);
         for i in range {
             let op = &t.ops[i];
-            let ct = &self.classes[op.class as usize];
-            // ---- dispatch ----
-            let fused_away = self.macro_fusion
-                && op.class == OpClass::Branch
-                && op.nsrc == 1
-                && self.prev_cmp == Some(op.srcs[0]);
-            let f = if fused_away { 0 } else { ct.fused };
-            let mut d = self.d;
-            if self.dcount + f > self.width {
-                d += 1;
-            }
-            let mut why = Stall::Issue;
-            if self.fetch_block > d {
-                d = self.fetch_block;
-                why = Stall::Branch;
-            }
-            if f > 0 {
-                let need = self.rob_ring[wrap(self.rob_seq, f as usize - 1, self.rob)];
-                if need > d {
-                    d = need;
-                    why = Stall::Resources;
-                }
-            }
-            let nuops = ct.uops.len();
-            if nuops > 0 {
-                let need = self.rs_ring[wrap(self.rs_seq, nuops - 1, self.sched)];
-                if need > d {
-                    d = need;
-                    why = Stall::Resources;
-                }
-            }
-            if d > self.d {
-                self.dcount = 0;
-                self.cal.advance(d);
-            }
-            self.d = d;
-            self.dcount += f;
-            // ---- issue ----
-            let mut r = d + 1;
-            for &src in op.sources() {
-                r = r.max(self.values.get(src));
-            }
-            let mut first = u64::MAX;
-            let mut last = 0;
-            let mut extra_occ = 0;
-            let mut gather_lat = 0u64;
-            if ct.per_lane {
-                // Distinct lines cost port cycles (per_line) and their latency.
-                let lanes = t.lanes_of(op);
-                let mut lines: Vec<u64> = lanes.iter().map(|a| mem.line_of(a.0).0).collect();
-                lines.sort_unstable();
-                lines.dedup();
-                extra_occ = ct.per_line * (lines.len() as u64).saturating_sub(1);
-                for l in lines {
-                    let sv = mem.access(
-                        self.core,
-                        l * mem.line_bytes(),
-                        op.class.is_store(),
-                        op.mem,
-                        r,
-                    );
-                    gather_lat = gather_lat.max(sv.latency.saturating_sub(self.l1_latency));
-                }
-            }
-            for (k, &mask) in ct.uops.iter().enumerate() {
-                let occ = ct.occ + if k == 0 { extra_occ } else { 0 };
-                let c = self.cal.book(mask, r, occ);
-                first = first.min(c);
-                last = last.max(c);
-                self.rs_ring[self.rs_seq] = c;
-                self.rs_seq = wrap(self.rs_seq, 1, self.sched);
-            }
-            if nuops == 0 {
-                first = r;
-                last = r;
-            }
-            // ---- execute ----
+            let ct = &classes[op.class as usize];
+            let counted = i >= count_from;
+            let (d, f, mut why) = self.dispatch(op, ct);
+            let (first, last, gather_lat) = self.issue(t, op, ct, d, mem);
             let mut done = (first + ct.lat).max(last + 1);
             if ct.per_lane {
                 done += gather_lat;
                 if gather_lat > 0 {
                     why = Stall::Memory;
                 }
-            } else if ct.load {
-                let lo = op.addr.0;
-                let hi = lo + u64::from(op.bytes);
-                let fwd = self
-                    .stores
-                    .iter()
-                    .filter(|st| st.0 < hi && lo < st.1)
-                    .map(|st| st.2)
-                    .max();
-                if let Some(data) = fwd {
-                    done = first.max(data) + self.sf_latency;
-                    s.forwarded += u64::from(i >= count_from);
-                } else {
-                    // An L1 miss first waits for a miss slot; the access starts then.
-                    let mut start = first;
-                    let mut slot = None;
-                    if !mem.in_l1(self.core, lo) {
-                        let (j, free) = self.mshr.earliest();
-                        start = start.max(free);
-                        slot = Some(j);
-                        why = Stall::Memory;
-                    }
-                    let sv = mem.access(self.core, lo, false, op.mem, start);
-                    if let Some(j) = slot {
-                        self.mshr.hold(j, start + sv.latency);
-                    }
-                    done = start + sv.latency;
-                }
-            } else if ct.store {
-                mem.access(self.core, op.addr.0, true, op.mem, first);
-                let data = op
-                    .sources()
-                    .iter()
-                    .map(|v| self.values.get(*v))
-                    .max()
-                    .unwrap_or(0);
-                self.stores[self.store_seq % STORES] =
-                    (op.addr.0, op.addr.0 + u64::from(op.bytes), data.max(d + 1));
-                self.store_seq += 1;
+            } else {
+                done = self.execute(op, ct, (d, first, done), mem, (s, counted), &mut why);
             }
             if why == Stall::Issue && done > d + 1 + ct.lat + 1 {
                 why = Stall::Core;
@@ -416,48 +308,219 @@ impl OooCore {
             if op.dst.is_some() {
                 self.values.set(op.dst, done);
             }
-            // ---- branch ----
             if op.class == OpClass::Branch {
-                let taken = op.taken();
-                let ok = self.pred.predict_and_update(op.site().0, taken);
-                if i >= count_from {
-                    s.branches += 1;
-                    s.mispredicts += u64::from(!ok);
-                }
-                if !ok {
-                    self.fetch_block = done + self.penalty;
-                }
+                self.branch(op, done, (s, counted));
             }
             self.prev_cmp = (op.class == OpClass::Cmp).then_some(op.dst);
-            // ---- retire ----
-            let mut ret = done.max(self.last_ret);
-            if ret > self.last_ret {
-                self.ret_count = 0;
-            }
-            if self.ret_count + f > self.retire_width {
-                ret += 1;
-                self.ret_count = 0;
-            }
-            self.ret_count += f;
-            for _ in 0..f {
-                self.rob_ring[self.rob_seq] = ret;
-                self.rob_seq = wrap(self.rob_seq, 1, self.rob);
-            }
-            if i >= count_from {
-                let delta = ret - self.last_ret;
-                s.ops += 1;
-                s.uops += nuops as u64;
-                s.region_ops[op.region as usize] += 1;
-                s.region_cycles[op.region as usize] += delta;
-                s.stalls[why as usize] += delta;
-                s.class_ops[op.class as usize] += 1;
-                if ct.vector {
-                    s.vector_ops += 1;
-                    s.active_lanes += u64::from(op.mask.count());
-                }
+            let ret = self.retire(f, done);
+            if counted {
+                count(s, op, ct, why, ret - self.last_ret);
             }
             self.last_ret = ret;
             self.now = ret;
         }
+        self.classes = classes;
+    }
+
+    /// Dispatch: the cycle the op enters the window (after the width, a
+    /// mispredict's redirect, a free ROB entry and free scheduler entries);
+    /// (cycle, fused-domain uops, stall reason so far).
+    #[inline(always)]
+    fn dispatch(&mut self, op: &Op, ct: &ClassT) -> (u64, u32, Stall) {
+        let fused_away = self.macro_fusion
+            && op.class == OpClass::Branch
+            && op.nsrc == 1
+            && self.prev_cmp == Some(op.srcs[0]);
+        let f = if fused_away { 0 } else { ct.fused };
+        let mut d = self.d;
+        if self.dcount + f > self.width {
+            d += 1;
+        }
+        let mut why = Stall::Issue;
+        if self.fetch_block > d {
+            d = self.fetch_block;
+            why = Stall::Branch;
+        }
+        if f > 0 {
+            let need = self.rob_ring[wrap(self.rob_seq, f as usize - 1, self.rob)];
+            if need > d {
+                d = need;
+                why = Stall::Resources;
+            }
+        }
+        let nuops = ct.uops.len();
+        if nuops > 0 {
+            let need = self.rs_ring[wrap(self.rs_seq, nuops - 1, self.sched)];
+            if need > d {
+                d = need;
+                why = Stall::Resources;
+            }
+        }
+        if d > self.d {
+            self.dcount = 0;
+            self.cal.advance(d);
+        }
+        self.d = d;
+        self.dcount += f;
+        (d, f, why)
+    }
+
+    /// Issue: every uop on the first free cycle of an allowed port after the
+    /// sources are ready; per-lane accesses pay their distinct lines. (first
+    /// and last issue cycle, the slowest line's latency beyond L1).
+    #[inline(always)]
+    fn issue(
+        &mut self,
+        t: &Trace,
+        op: &Op,
+        ct: &ClassT,
+        d: u64,
+        mem: &mut Hierarchy,
+    ) -> (u64, u64, u64) {
+        let nuops = ct.uops.len();
+        let mut r = d + 1;
+        for &src in op.sources() {
+            r = r.max(self.values.get(src));
+        }
+        let mut first = u64::MAX;
+        let mut last = 0;
+        let mut extra_occ = 0;
+        let mut gather_lat = 0u64;
+        if ct.per_lane {
+            // Distinct lines cost port cycles (per_line) and their latency.
+            let lanes = t.lanes_of(op);
+            let mut lines: Vec<u64> = lanes.iter().map(|a| mem.line_of(a.0).0).collect();
+            lines.sort_unstable();
+            lines.dedup();
+            extra_occ = ct.per_line * (lines.len() as u64).saturating_sub(1);
+            for l in lines {
+                let sv = mem.access(
+                    self.core,
+                    l * mem.line_bytes(),
+                    op.class.is_store(),
+                    op.mem,
+                    r,
+                );
+                gather_lat = gather_lat.max(sv.latency.saturating_sub(self.l1_latency));
+            }
+        }
+        for (k, &mask) in ct.uops.iter().enumerate() {
+            let occ = ct.occ + if k == 0 { extra_occ } else { 0 };
+            let c = self.cal.book(mask, r, occ);
+            first = first.min(c);
+            last = last.max(c);
+            self.rs_ring[self.rs_seq] = c;
+            self.rs_seq = wrap(self.rs_seq, 1, self.sched);
+        }
+        if nuops == 0 {
+            first = r;
+            last = r;
+        }
+        (first, last, gather_lat)
+    }
+
+    /// Execute a load (store forwarding, or a miss slot then the hierarchy)
+    /// or a store (into the hierarchy and the store buffer); the cycle the
+    /// result is ready.
+    #[inline(always)]
+    fn execute(
+        &mut self,
+        op: &Op,
+        ct: &ClassT,
+        (d, first, mut done): (u64, u64, u64),
+        mem: &mut Hierarchy,
+        (s, counted): (&mut Stats, bool),
+        why: &mut Stall,
+    ) -> u64 {
+        if ct.load {
+            let lo = op.addr.0;
+            let hi = lo + u64::from(op.bytes);
+            let fwd = self
+                .stores
+                .iter()
+                .filter(|st| st.0 < hi && lo < st.1)
+                .map(|st| st.2)
+                .max();
+            if let Some(data) = fwd {
+                done = first.max(data) + self.sf_latency;
+                s.forwarded += u64::from(counted);
+            } else {
+                // An L1 miss first waits for a miss slot; the access starts then.
+                let mut start = first;
+                let mut slot = None;
+                if !mem.in_l1(self.core, lo) {
+                    let (j, free) = self.mshr.earliest();
+                    start = start.max(free);
+                    slot = Some(j);
+                    *why = Stall::Memory;
+                }
+                let sv = mem.access(self.core, lo, false, op.mem, start);
+                if let Some(j) = slot {
+                    self.mshr.hold(j, start + sv.latency);
+                }
+                done = start + sv.latency;
+            }
+        } else if ct.store {
+            mem.access(self.core, op.addr.0, true, op.mem, first);
+            let data = op
+                .sources()
+                .iter()
+                .map(|v| self.values.get(*v))
+                .max()
+                .unwrap_or(0);
+            self.stores[self.store_seq % STORES] =
+                (op.addr.0, op.addr.0 + u64::from(op.bytes), data.max(d + 1));
+            self.store_seq += 1;
+        }
+        done
+    }
+
+    /// Predict a branch, update the predictor; a mispredict blocks fetch
+    /// until it resolves plus the penalty.
+    #[inline(always)]
+    fn branch(&mut self, op: &Op, done: u64, (s, counted): (&mut Stats, bool)) {
+        let taken = op.taken();
+        let ok = self.pred.predict_and_update(op.site().0, taken);
+        if counted {
+            s.branches += 1;
+            s.mispredicts += u64::from(!ok);
+        }
+        if !ok {
+            self.fetch_block = done + self.penalty;
+        }
+    }
+
+    /// Retire in order at the retire width; the op's retire cycle.
+    #[inline(always)]
+    fn retire(&mut self, f: u32, done: u64) -> u64 {
+        let mut ret = done.max(self.last_ret);
+        if ret > self.last_ret {
+            self.ret_count = 0;
+        }
+        if self.ret_count + f > self.retire_width {
+            ret += 1;
+            self.ret_count = 0;
+        }
+        self.ret_count += f;
+        for _ in 0..f {
+            self.rob_ring[self.rob_seq] = ret;
+            self.rob_seq = wrap(self.rob_seq, 1, self.rob);
+        }
+        ret
+    }
+}
+
+/// Count a timed op into the statistics: `delta` cycles to its retire.
+#[inline(always)]
+fn count(s: &mut Stats, op: &Op, ct: &ClassT, why: Stall, delta: u64) {
+    s.ops += 1;
+    s.uops += ct.uops.len() as u64;
+    s.region_ops[op.region as usize] += 1;
+    s.region_cycles[op.region as usize] += delta;
+    s.stalls[why as usize] += delta;
+    s.class_ops[op.class as usize] += 1;
+    if ct.vector {
+        s.vector_ops += 1;
+        s.active_lanes += u64::from(op.mask.count());
     }
 }

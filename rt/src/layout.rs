@@ -26,7 +26,7 @@ pub const NODE_BYTES: usize = 128;
 pub const HIT_BYTES: usize = 16;
 
 /// The scene's buffers in a machine's address space.
-pub struct SceneBufs {
+pub struct Bvh4Bufs {
     /// BVH4 nodes.
     pub nodes: Buf,
     /// Triangle blocks.
@@ -36,7 +36,7 @@ pub struct SceneBufs {
 }
 
 /// Lay a BVH4 (built over `mesh` with leaves of at most 8 triangles) into `m`'s memory.
-pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> SceneBufs {
+pub fn lay_out_bvh4<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> Bvh4Bufs {
     let mut node_words: Vec<u32> = Vec::with_capacity(b4.nodes.len() * 32);
     for i in 0..b4.nodes.len() {
         node_words.extend_from_slice(&b4.record(i));
@@ -48,7 +48,7 @@ pub fn lay_out<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) -> Scen
     let tris = m
         .space()
         .alloc_u32(MemKind::Triangles, "tri-blocks", &block_words, 64);
-    SceneBufs {
+    Bvh4Bufs {
         nodes,
         tris,
         root_bounds: b4.root_bounds,
@@ -94,31 +94,31 @@ fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u32> 
 
 /// A BVH2 laid into a machine's memory ([`scene::bvh::Bvh2Layout`] nodes,
 /// the same triangle blocks); `root` is the root's ref.
-pub struct SceneBufs2 {
+pub struct Bvh2Bufs {
     /// BVH2 nodes, 64 bytes each.
     pub nodes: Buf,
     /// Triangle blocks.
     pub tris: Buf,
     /// The root's ref (a node, or a leaf for a one-leaf tree).
     pub root: u32,
-    /// [`lay_out2_multi`] only: each leaf's box at 32 x its first block
+    /// [`lay_out_bvh2_multi`] only: each leaf's box at 32 x its first block
     /// (`lo.xyz, 0, hi.xyz, 0` f32), for per-ray leaf tests.
     pub leaf_boxes: Option<Buf>,
 }
 
 /// Lay a BVH2 (leaves of at most 8 triangles) into `m`'s memory.
-pub fn lay_out2<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> SceneBufs2 {
-    lay_out2_with(m, mesh, b2, false)
+pub fn lay_out_bvh2<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> Bvh2Bufs {
+    lay_out_bvh2_with(m, mesh, b2, false)
 }
 
 /// Lay a BVH2 with leaves of any size (up to [`scene::bvh::LEAF_MAX_BLOCKS`]
 /// blocks) into `m`'s memory: a leaf ref names its first block and block
 /// count (the MFT kernel's shallow BVH).
-pub fn lay_out2_multi<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> SceneBufs2 {
-    lay_out2_with(m, mesh, b2, true)
+pub fn lay_out_bvh2_multi<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2) -> Bvh2Bufs {
+    lay_out_bvh2_with(m, mesh, b2, true)
 }
 
-fn lay_out2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool) -> SceneBufs2 {
+fn lay_out_bvh2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool) -> Bvh2Bufs {
     let lay = scene::bvh::Bvh2Layout::new(b2);
     let words: Vec<u32> = lay.nodes.iter().flatten().copied().collect();
     let words = if words.is_empty() {
@@ -148,7 +148,7 @@ fn lay_out2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool) -> 
         m.space()
             .alloc_u32(MemKind::Nodes, "bvh2-leaf-boxes", &words, 64)
     });
-    SceneBufs2 {
+    Bvh2Bufs {
         nodes,
         tris,
         root: lay.root,

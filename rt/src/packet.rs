@@ -34,7 +34,7 @@
 //! iterates triangle4 lists by their count; the hybrid kernel's single-ray
 //! leaves test 1 ray vs 8 triangles (the paper: 1 vs 4).
 
-use crate::layout::{SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
+use crate::layout::{Bvh2Bufs, Bvh4Bufs, BLOCK_BYTES, NODE_BYTES};
 use crate::single::{moller_sided, walk4, Block, Moller, RayState, STACK_ENTRIES};
 use crate::stats::Tests;
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
@@ -239,15 +239,15 @@ impl PacketBufs {
 /// Which node format a packet kernel walks.
 #[derive(Clone, Copy)]
 enum Tree<'a> {
-    Bvh4(&'a SceneBufs),
-    Bvh2(&'a SceneBufs2),
+    Bvh4(&'a Bvh4Bufs),
+    Bvh2(&'a Bvh2Bufs),
 }
 
 /// Packet BVH4 (`hybrid`: switch to single rays at few active rays;
 /// `shadow`: any hit, a lane stops at its first hit, the packet when all have).
-pub fn trace4<M: Machine>(
+pub fn trace_bvh4<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     pb: &mut PacketBufs,
     hybrid: bool,
     policy: HitPolicy,
@@ -256,7 +256,7 @@ pub fn trace4<M: Machine>(
 }
 
 /// Packet BVH2.
-pub fn trace2<M: Machine>(m: &mut M, s: &SceneBufs2, pb: &mut PacketBufs, policy: HitPolicy) {
+pub fn trace_bvh2<M: Machine>(m: &mut M, s: &Bvh2Bufs, pb: &mut PacketBufs, policy: HitPolicy) {
     trace(m, Tree::Bvh2(s), pb, false, policy);
 }
 
@@ -412,7 +412,7 @@ fn load_packet<M: Machine>(m: &mut M, rays: &Buf, base: M::S) -> Packet<M> {
 /// alone from node `cur` by the single-ray BVH4 kernel, its record updated.
 fn single_rays<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     pb: &mut PacketBufs,
     (base, bits, cur): (M::S, M::S, M::S),
     policy: HitPolicy,

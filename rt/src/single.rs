@@ -7,7 +7,7 @@
 //! Deviations: the closest child is chosen by scalar compares over the hit
 //! lanes (Embree uses a sorting network); a leaf is one block of <= 8 triangles.
 
-use crate::layout::{is_leaf, SceneBufs, SceneBufs2, BLOCK_BYTES, NODE_BYTES};
+use crate::layout::{is_leaf, Bvh2Bufs, Bvh4Bufs, BLOCK_BYTES, NODE_BYTES};
 use crate::stats::Tests;
 use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, Region};
 use scene::bvh::EMPTY_SLOT;
@@ -50,9 +50,9 @@ pub const STACK_ENTRIES: usize = 256;
 /// [`crate::layout::ray_records`]; `hits` holds one 16-byte record per ray
 /// ([`crate::layout::hit_records`]); `stack` needs `STACK_ENTRIES * 8` bytes.
 #[allow(clippy::too_many_arguments)]
-pub fn trace<M: Machine>(
+pub fn trace_bvh4<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     trav: &mut Buf,
     isect: &Buf,
     hits: &mut Buf,
@@ -63,7 +63,7 @@ pub fn trace<M: Machine>(
 ) {
     let root = m.int(0);
     each_ray(m, nrays, |m, ray| {
-        trace_ray(m, s, trav, isect, hits, stack, ray, root, tests, policy);
+        trace_ray_bvh4(m, s, trav, isect, hits, stack, ray, root, tests, policy);
     });
 }
 
@@ -84,9 +84,9 @@ fn each_ray<M: Machine>(m: &mut M, nrays: usize, mut f: impl FnMut(&mut M, M::S)
 /// best hit already in its hit record and its current `t_far`; writes back
 /// the hit record and `t_far` (so ray-stream kernels can fall back to this).
 #[allow(clippy::too_many_arguments)]
-pub fn trace_ray<M: Machine>(
+pub fn trace_ray_bvh4<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     trav: &mut Buf,
     isect: &Buf,
     hits: &mut Buf,
@@ -107,7 +107,7 @@ pub fn trace_ray<M: Machine>(
 /// (`shadow`: stop at the first hit).
 pub fn walk4<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     st: &mut RayState<M>,
     stack: &mut Buf,
     start: M::S,
@@ -523,9 +523,9 @@ pub fn intersect<M: Machine>(
 /// Trace rays `[0, nrays)` through a BVH2 (the DRS paper's "Single BVH2"):
 /// as [`trace`], buffers the same.
 #[allow(clippy::too_many_arguments)]
-pub fn trace2<M: Machine>(
+pub fn trace_bvh2<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     trav: &mut Buf,
     isect: &Buf,
     hits: &mut Buf,
@@ -536,7 +536,7 @@ pub fn trace2<M: Machine>(
 ) {
     each_ray(m, nrays, |m, ray| {
         let root = m.int(i64::from(s.root));
-        trace_ray2(m, s, trav, isect, hits, stack, ray, root, tests, policy);
+        trace_ray_bvh2(m, s, trav, isect, hits, stack, ray, root, tests, policy);
     });
 }
 
@@ -550,9 +550,9 @@ pub fn trace2<M: Machine>(
 /// Deviation: the node test uses the lanes there are (4 of them carry
 /// data), as Embree's BVH2 path does with SSE.
 #[allow(clippy::too_many_arguments)]
-pub fn trace_ray2<M: Machine>(
+pub fn trace_ray_bvh2<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     trav: &mut Buf,
     isect: &Buf,
     hits: &mut Buf,

@@ -27,8 +27,8 @@ use crate::bvh4::{
 };
 use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
 use rt::boxtest::Pat;
-use rt::layout::SceneBufs2;
-use rt::single::trace_ray2;
+use rt::layout::Bvh2Bufs;
+use rt::single::trace_ray_bvh2;
 use scene::HitPolicy;
 
 /// Below this many rays an item is traced ray by ray (the paper's n for BVH2).
@@ -60,11 +60,11 @@ pub mod site {
     pub const ALL: [Site; 8] = [INIT, STACK, FEW, LEAF, CORE, PAD, ITEM, ORDER];
 }
 
-/// Trace rays `[0, nrays)` through a BVH2 (records as for [`rt::single::trace`]).
+/// Trace rays `[0, nrays)` through a BVH2 (records as for [`rt::single::trace_bvh4`]).
 #[allow(clippy::too_many_arguments)]
 pub fn trace<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     st: &mut StreamBufs,
     trav: &mut Buf,
     isect: &Buf,
@@ -82,7 +82,7 @@ pub fn trace<M: Machine>(
 #[allow(clippy::too_many_arguments)]
 fn trace_n<M: Machine, const N: usize>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     st: &mut StreamBufs,
     trav: &mut Buf,
     isect: &Buf,
@@ -128,7 +128,7 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch_if(site::FEW, Cmp::Lt, count, few) {
             m.region(Region::SingleRay);
             for_each_ray(m, &st.lists, rays_at, count, |m, ray| {
-                trace_ray2(
+                trace_ray_bvh2(
                     m,
                     s,
                     trav,
@@ -160,7 +160,7 @@ fn trace_n<M: Machine, const N: usize>(
 #[allow(clippy::too_many_arguments)]
 fn core_node<M: Machine, const N: usize>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     st: &mut StreamBufs,
     trav: &Buf,
     sp: &mut M::S,

@@ -26,8 +26,8 @@
 
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use rt::boxtest::Pat;
-use rt::layout::{SceneBufs, BLOCK_BYTES};
-use rt::single::{intersect, load_block, trace_ray};
+use rt::layout::{Bvh4Bufs, BLOCK_BYTES};
+use rt::single::{intersect, load_block, trace_ray_bvh4};
 use scene::HitPolicy;
 
 /// Below this many rays an item is traced ray by ray (the paper's n for BVH4).
@@ -109,11 +109,11 @@ impl StreamBufs {
     }
 }
 
-/// Trace rays `[0, nrays)` (records as for [`rt::single::trace`]).
+/// Trace rays `[0, nrays)` (records as for [`rt::single::trace_bvh4`]).
 #[allow(clippy::too_many_arguments)]
 pub fn trace<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     st: &mut StreamBufs,
     trav: &mut Buf,
     isect: &Buf,
@@ -131,7 +131,7 @@ pub fn trace<M: Machine>(
 #[allow(clippy::too_many_arguments)]
 fn trace_n<M: Machine, const N: usize>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     st: &mut StreamBufs,
     trav: &mut Buf,
     isect: &Buf,
@@ -201,7 +201,7 @@ fn trace_n<M: Machine, const N: usize>(
         if m.branch_if(site::FEW, Cmp::Lt, count, few) {
             m.region(Region::SingleRay);
             for_each_ray(m, &st.lists, rays_at, count, |m, ray| {
-                trace_ray(
+                trace_ray_bvh4(
                     m,
                     s,
                     trav,
@@ -359,7 +359,7 @@ pub(crate) fn larger_last<M: Machine>(m: &mut M, counts: &[M::S], site: isa::Sit
 #[allow(clippy::too_many_arguments)]
 fn core_node<M: Machine, const N: usize>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     st: &mut StreamBufs,
     trav: &Buf,
     sp: &mut M::S,
@@ -425,7 +425,7 @@ fn core_node<M: Machine, const N: usize>(
 /// each repeated for the rays of an iteration.
 fn node_planes<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     base: M::S,
     oct: M::S,
 ) -> (Vec<M::F>, Vec<M::F>) {
@@ -443,7 +443,7 @@ fn node_planes<M: Machine>(
 
 /// The node's valid children, repeated for the LANES/4 rays of an
 /// iteration (4 bits each).
-fn valid_mask<M: Machine, const N: usize>(m: &mut M, s: &SceneBufs, base: M::S) -> M::S {
+fn valid_mask<M: Machine, const N: usize>(m: &mut M, s: &Bvh4Bufs, base: M::S) -> M::S {
     let r = N / 4;
     let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
     let mut vmask = valid;
@@ -499,7 +499,7 @@ fn closest_conds<M: Machine, const N: usize>(
 /// (closest hit: item 0; any hit: the largest).
 fn push_items<M: Machine>(
     m: &mut M,
-    s: &SceneBufs,
+    s: &Bvh4Bufs,
     st: &mut StreamBufs,
     sp: &mut M::S,
     (base, oct, r): (M::S, M::S, usize),

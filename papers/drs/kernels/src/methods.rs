@@ -1,7 +1,7 @@
 //! Run a traversal kernel on any machine over a ray stream, and compare its
 //! closest hits with the f64 reference (used by the tests and `rtsim run`).
 
-use rt::layout::{hit_records, lay_out, ray_records};
+use rt::layout::{hit_records, lay_out_bvh4, ray_records};
 use scene::agreement::{mismatches, shadow_mismatches};
 use scene::bvh::{Bvh2, Bvh4};
 use scene::reference::Reference;
@@ -15,19 +15,19 @@ use isa::{Machine, MemKind, Program};
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
     /// Single-ray BVH2.
-    Single2,
+    SingleBvh2,
     /// Single-ray BVH4.
-    Single,
+    SingleBvh4,
     /// Dynamic ray stream BVH4.
-    Drs,
+    DrsBvh4,
     /// Dynamic ray stream BVH2.
-    Drs2,
+    DrsBvh2,
     /// 8-ray (LANES-ray) packets, BVH2.
-    Packet2,
+    PacketBvh2,
     /// 8-ray (LANES-ray) packets, BVH4.
-    Packet,
+    PacketBvh4,
     /// Packets switching to single rays, BVH4.
-    Hybrid,
+    HybridBvh4,
 }
 
 /// A kernel over a ray stream of a scene; the output is (t, prim) per ray
@@ -84,38 +84,38 @@ impl<'a> Run<'a> {
 impl Kernel {
     /// Every kernel.
     pub const ALL: [Kernel; 7] = [
-        Kernel::Drs2,
-        Kernel::Drs,
-        Kernel::Single2,
-        Kernel::Single,
-        Kernel::Packet2,
-        Kernel::Packet,
-        Kernel::Hybrid,
+        Kernel::DrsBvh2,
+        Kernel::DrsBvh4,
+        Kernel::SingleBvh2,
+        Kernel::SingleBvh4,
+        Kernel::PacketBvh2,
+        Kernel::PacketBvh4,
+        Kernel::HybridBvh4,
     ];
     /// Stable name (`single-bvh2`, `single-bvh4`, `drs-bvh2`, `drs-bvh4`,
     /// `packet-bvh2`, `packet-bvh4`, `hybrid-bvh4`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
-            Kernel::Single2 => "single-bvh2",
-            Kernel::Single => "single-bvh4",
-            Kernel::Drs => "drs-bvh4",
-            Kernel::Drs2 => "drs-bvh2",
-            Kernel::Packet2 => "packet-bvh2",
-            Kernel::Packet => "packet-bvh4",
-            Kernel::Hybrid => "hybrid-bvh4",
+            Kernel::SingleBvh2 => "single-bvh2",
+            Kernel::SingleBvh4 => "single-bvh4",
+            Kernel::DrsBvh4 => "drs-bvh4",
+            Kernel::DrsBvh2 => "drs-bvh2",
+            Kernel::PacketBvh2 => "packet-bvh2",
+            Kernel::PacketBvh4 => "packet-bvh4",
+            Kernel::HybridBvh4 => "hybrid-bvh4",
         }
     }
     /// Whether it runs on machines of `lanes` lanes.
     #[must_use]
     pub fn supports(self, lanes: usize) -> bool {
         match self {
-            Kernel::Single
-            | Kernel::Single2
-            | Kernel::Packet
-            | Kernel::Packet2
-            | Kernel::Hybrid => true,
-            Kernel::Drs | Kernel::Drs2 => matches!(lanes, 4 | 8),
+            Kernel::SingleBvh4
+            | Kernel::SingleBvh2
+            | Kernel::PacketBvh4
+            | Kernel::PacketBvh2
+            | Kernel::HybridBvh4 => true,
+            Kernel::DrsBvh4 | Kernel::DrsBvh2 => matches!(lanes, 4 | 8),
         }
     }
 }
@@ -132,9 +132,9 @@ impl Program for Run<'_> {
 /// records it reads.
 pub struct Laid {
     /// BVH4 layout (BVH4 kernels).
-    pub bvh4: Option<rt::layout::SceneBufs>,
+    pub bvh4: Option<rt::layout::Bvh4Bufs>,
     /// BVH2 layout (BVH2 kernels).
-    pub bvh2: Option<rt::layout::SceneBufs2>,
+    pub bvh2: Option<rt::layout::Bvh2Bufs>,
 }
 
 impl Run<'_> {
@@ -142,15 +142,15 @@ impl Run<'_> {
     pub fn lay_out<M: Machine>(&self, m: &mut M) -> Laid {
         if matches!(
             self.kernel,
-            Kernel::Single2 | Kernel::Drs2 | Kernel::Packet2
+            Kernel::SingleBvh2 | Kernel::DrsBvh2 | Kernel::PacketBvh2
         ) {
             Laid {
                 bvh4: None,
-                bvh2: Some(rt::layout::lay_out2(m, &self.scene.mesh, self.b2)),
+                bvh2: Some(rt::layout::lay_out_bvh2(m, &self.scene.mesh, self.b2)),
             }
         } else {
             Laid {
-                bvh4: Some(lay_out(m, &self.scene.mesh, self.b2, self.b4)),
+                bvh4: Some(lay_out_bvh4(m, &self.scene.mesh, self.b2, self.b4)),
                 bvh2: None,
             }
         }
@@ -166,18 +166,18 @@ impl Run<'_> {
         let mut tests = rt::stats::Tests::default();
         if matches!(
             self.kernel,
-            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid
+            Kernel::PacketBvh4 | Kernel::PacketBvh2 | Kernel::HybridBvh4
         ) {
             let slots = self
                 .packet_tile
                 .map(|(size, spp)| scene::workload::packet_slots(&self.rays, size, spp, M::LANES));
             let mut pb = rt::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
-            if self.kernel == Kernel::Packet2 {
-                rt::packet::trace2(m, s2(), &mut pb, policy);
+            if self.kernel == Kernel::PacketBvh2 {
+                rt::packet::trace_bvh2(m, s2(), &mut pb, policy);
             } else {
                 let s = s4();
-                let hybrid = self.kernel == Kernel::Hybrid;
-                rt::packet::trace4(m, s, &mut pb, hybrid, policy);
+                let hybrid = self.kernel == Kernel::HybridBvh4;
+                rt::packet::trace_bvh4(m, s, &mut pb, hybrid, policy);
             }
             let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
             return (out, pb.tests);
@@ -193,9 +193,9 @@ impl Run<'_> {
                 .alloc(MemKind::Stack, "stack", rt::single::STACK_ENTRIES * 8, 64)
         };
         match self.kernel {
-            Kernel::Single2 => {
+            Kernel::SingleBvh2 => {
                 let mut stack = single_stack(m);
-                rt::single::trace2(
+                rt::single::trace_bvh2(
                     m,
                     s2(),
                     &mut trav,
@@ -207,9 +207,9 @@ impl Run<'_> {
                     policy,
                 );
             }
-            Kernel::Single => {
+            Kernel::SingleBvh4 => {
                 let mut stack = single_stack(m);
-                rt::single::trace(
+                rt::single::trace_bvh4(
                     m,
                     s4(),
                     &mut trav,
@@ -221,17 +221,19 @@ impl Run<'_> {
                     policy,
                 );
             }
-            Kernel::Drs => {
+            Kernel::DrsBvh4 => {
                 let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
                 crate::bvh4::trace(m, s4(), &mut st, &mut trav, &isect, &mut hits, n, policy);
                 tests = st.tests;
             }
-            Kernel::Drs2 => {
+            Kernel::DrsBvh2 => {
                 let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
                 crate::bvh2::trace(m, s2(), &mut st, &mut trav, &isect, &mut hits, n, policy);
                 tests = st.tests;
             }
-            Kernel::Packet | Kernel::Packet2 | Kernel::Hybrid => unreachable!("handled above"),
+            Kernel::PacketBvh4 | Kernel::PacketBvh2 | Kernel::HybridBvh4 => {
+                unreachable!("handled above")
+            }
         }
         let out = (0..n)
             .map(|i| Hit::from_record(hits.f32_at(16 * i), hits.u32_at(16 * i + 12)))

@@ -15,7 +15,7 @@ fn check(scene_name: &str, streams: &[RayStream], flavours: &[FlavourId]) {
     let (scene, b2, b4) = (&fx.scene, &fx.b2, &fx.b4);
     let refi = fx.reference();
     for st in streams {
-        for kernel in [Kernel::Drs, Kernel::Drs2] {
+        for kernel in [Kernel::DrsBvh4, Kernel::DrsBvh2] {
             let run = Run::new(kernel, scene, b2, b4, st.clone());
             for &fl in flavours {
                 let (traced, tests) = isa::record(&run, fl, kernel.name()).1;

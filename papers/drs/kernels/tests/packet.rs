@@ -15,7 +15,7 @@ fn check(scene_name: &str, streams: &[RayStream], flavours: &[FlavourId]) {
     let (scene, b2, b4) = (&fx.scene, &fx.b2, &fx.b4);
     let refi = fx.reference();
     for st in streams {
-        for kernel in [Kernel::Packet, Kernel::Packet2, Kernel::Hybrid] {
+        for kernel in [Kernel::PacketBvh4, Kernel::PacketBvh2, Kernel::HybridBvh4] {
             let run = Run::new(kernel, scene, b2, b4, st.clone());
             for &fl in flavours {
                 let label = format!("{} {scene_name} {fl} {:?}", kernel.name(), st.kind);

@@ -70,7 +70,7 @@ fn check(kernel: Kernel, scene_name: &str, flavours: &[FlavourId]) {
 #[test]
 fn single_ray_bvh4_matches_the_reference_on_the_sphere_scene() {
     check(
-        Kernel::Single,
+        Kernel::SingleBvh4,
         "sphere",
         &[
             FlavourId::Avx2,
@@ -83,14 +83,14 @@ fn single_ray_bvh4_matches_the_reference_on_the_sphere_scene() {
 
 #[test]
 fn single_ray_bvh4_matches_the_reference_in_rooms_and_foliage() {
-    check(Kernel::Single, "saloon", &[FlavourId::Avx2]);
-    check(Kernel::Single, "fern", &[FlavourId::Avx2]);
+    check(Kernel::SingleBvh4, "saloon", &[FlavourId::Avx2]);
+    check(Kernel::SingleBvh4, "fern", &[FlavourId::Avx2]);
 }
 
 #[test]
 fn single_ray_bvh2_matches_the_reference_on_every_flavour() {
     check(
-        Kernel::Single2,
+        Kernel::SingleBvh2,
         "sphere",
         &[
             FlavourId::Avx2,
@@ -99,6 +99,6 @@ fn single_ray_bvh2_matches_the_reference_on_every_flavour() {
             FlavourId::Avx512,
         ],
     );
-    check(Kernel::Single2, "saloon", &[FlavourId::Avx2]);
-    check(Kernel::Single2, "fern", &[FlavourId::Avx2]);
+    check(Kernel::SingleBvh2, "saloon", &[FlavourId::Avx2]);
+    check(Kernel::SingleBvh2, "fern", &[FlavourId::Avx2]);
 }

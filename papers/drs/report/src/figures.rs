@@ -29,12 +29,12 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             let mut smp = base.clone();
             smp.size = size;
             smp.block = 16u32.div_ceil(size);
-            let acc = measure_loaded(a, &smp, &ld, scene_name, &[Kernel::Drs], &mut ops_total)?;
+            let acc = measure_loaded(a, &smp, &ld, scene_name, &[Kernel::DrsBvh4], &mut ops_total)?;
             let ac = &acc[0];
             let row = |metric: &str, v: f64| {
                 Row::new(metric, v)
                     .key("scene", scene_name)
-                    .key("method", Kernel::Drs.name())
+                    .key("method", Kernel::DrsBvh4.name())
                     .key("tile", format!("{size}x{size}"))
             };
             let rate = chip_mray(&base.m, ac.cycles, ac.rays);
@@ -123,7 +123,7 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
 pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
     let base = sample(a)?;
-    let kernels = [Kernel::Drs, Kernel::Single, Kernel::Hybrid];
+    let kernels = [Kernel::DrsBvh4, Kernel::SingleBvh4, Kernel::HybridBvh4];
     let fovs = [8.0f32, 16.0, 24.0, 32.0, 40.0, 48.0, 56.0, 64.0];
     let scene_name = "dragon";
     let mut ld = load(scene_name)?;

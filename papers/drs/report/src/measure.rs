@@ -55,7 +55,7 @@ pub(crate) struct Sample {
 pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
     let m = a.machine.load()?;
     let fl = m.flavour();
-    if !Kernel::Drs.supports(fl.lanes()) {
+    if !Kernel::DrsBvh4.supports(fl.lanes()) {
         return Err(AppError(format!(
             "--machine {}: {} needs a 4- or 8-lane ISA, {fl} has {} lanes",
             m.name,

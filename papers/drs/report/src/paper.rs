@@ -19,13 +19,13 @@ pub type PaperScene1 = (&'static str, [(f64, f64); 7], f64, f64);
 /// Table 1's rows: Our BVH2, Our BVH4, Single BVH2, Single BVH4, Packet BVH2,
 /// Packet BVH4, Hybrid BVH4.
 pub const TABLE1_KERNELS: [Kernel; 7] = [
-    Kernel::Drs2,
-    Kernel::Drs,
-    Kernel::Single2,
-    Kernel::Single,
-    Kernel::Packet2,
-    Kernel::Packet,
-    Kernel::Hybrid,
+    Kernel::DrsBvh2,
+    Kernel::DrsBvh4,
+    Kernel::SingleBvh2,
+    Kernel::SingleBvh4,
+    Kernel::PacketBvh2,
+    Kernel::PacketBvh4,
+    Kernel::HybridBvh4,
 ];
 
 /// The paper's Table 1 (Fuetterling et al. 2015, total render speed and

@@ -12,7 +12,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
     let smp = sample(a)?;
     let m = &smp.m;
-    let kernels = [Kernel::Single, Kernel::Drs];
+    let kernels = [Kernel::SingleBvh4, Kernel::DrsBvh4];
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
@@ -37,7 +37,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
                 .map(|&(r, c)| (c as f64, r as f64))
                 .collect();
             let ci = ratio_ci(&pairs).map(|h| h * sgray(1, 1));
-            let (pc, ps) = if k == Kernel::Single {
+            let (pc, ps) = if k == Kernel::SingleBvh4 {
                 (paper[0], paper[1])
             } else {
                 (paper[2], paper[3])
@@ -52,7 +52,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(row("bytes_per_ray", ac.per_ray(m).bytes_per_ray).unit("B/ray"));
             rows.push(row("rays", ac.rays as f64));
             rows.push(row("hit_mismatches", ac.bad as f64));
-            if k == Kernel::Drs {
+            if k == Kernel::DrsBvh4 {
                 let mut r = row(
                     "core_loop_cpi",
                     ac.core_cycles as f64 / ac.core_ops.max(1) as f64,

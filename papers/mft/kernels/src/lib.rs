@@ -47,7 +47,7 @@
 pub mod shade;
 
 use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shift};
-use rt::layout::{SceneBufs2, BLOCK, BLOCK_BYTES};
+use rt::layout::{Bvh2Bufs, BLOCK, BLOCK_BYTES};
 use scene::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
 use scene::{Hit, HitPolicy};
 
@@ -504,13 +504,13 @@ impl MftBufs {
     }
 }
 
-/// Trace 16 frusta through a BVH2 laid out by [`rt::layout::lay_out2`]:
+/// Trace 16 frusta through a BVH2 laid out by [`rt::layout::lay_out_bvh2`]:
 /// primary frusta to their closest hits, shadow frusta to the occlusion of
 /// each ray; `cull_back`: back-face culling (the paper's; front faces only).
 ///
 /// # Panics
 /// On machines without 16 lanes.
-pub fn trace<M: Machine>(m: &mut M, s: &SceneBufs2, b: &mut MftBufs, cull_back: bool) {
+pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bool) {
     let shadow = b.policy.is_any();
     assert_eq!(M::LANES, FRUSTA, "MFT runs 16 frusta on 16 lanes");
     m.region(Region::Setup);
@@ -653,7 +653,7 @@ fn store_ray_rcp<M: Machine>(m: &mut M, b: &mut MftBufs, delta: &[M::F; 3]) {
 /// `None` when no packet enters a child.
 fn packets256_node<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     b: &mut MftBufs,
     (nb, mask): (M::S, M::K),
     c: &Consts<M>,
@@ -737,7 +737,7 @@ fn packets256_node<M: Machine>(
 /// next node and its mask, `None` when no frustum enters a child.
 fn frusta_node<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     b: &mut MftBufs,
     (nb, mask): (M::S, M::K),
     (c, fr_regs, dist): (&Consts<M>, &Regs<M>, M::F),
@@ -955,7 +955,7 @@ fn descend<M: Machine>(
 #[allow(clippy::too_many_arguments)]
 fn leaf<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     b: &mut MftBufs,
     node: M::S,
     mask: M::K,
@@ -1313,7 +1313,7 @@ fn live_rays<M: Machine>(m: &mut M, b: &MftBufs, n: usize, lane_bits: M::I, zero
 /// frusta some ray of which reaches the box.
 fn leaf_box_cull<M: Machine>(
     m: &mut M,
-    s: &SceneBufs2,
+    s: &Bvh2Bufs,
     b: &mut MftBufs,
     node: M::S,
     mask: M::K,
@@ -1323,7 +1323,7 @@ fn leaf_box_cull<M: Machine>(
     let boxes = s
         .leaf_boxes
         .as_ref()
-        .expect("Ray-AABB reads the leaf boxes of lay_out2_multi");
+        .expect("Ray-AABB reads the leaf boxes of lay_out_bvh2_multi");
     let fm = m.int(i64::from(LEAF_FIRST_MASK));
     let first = m.s_and(node, fm);
     let off = m.s_shift(Shift::Shl, first, 5);
@@ -1486,7 +1486,7 @@ pub struct FrustaRun<'a> {
 impl Program for FrustaRun<'_> {
     type Out = (Vec<Hit>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let s = rt::layout::lay_out2_multi(m, &self.scene.mesh, self.bvh);
+        let s = rt::layout::lay_out_bvh2_multi(m, &self.scene.mesh, self.bvh);
         let mut out = Vec::with_capacity(self.sets.len() * 256);
         let mut stats = MftStats::default();
         let mut bufs: Option<MftBufs> = None;
@@ -1595,7 +1595,7 @@ impl Program for PacketPrimaryRun<'_> {
     type Out = (Vec<Hit>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         assert_eq!(M::LANES, FRUSTA, "16-ray packets on 16 lanes");
-        let s = rt::layout::lay_out2(m, &self.scene.mesh, self.bvh);
+        let s = rt::layout::lay_out_bvh2(m, &self.scene.mesh, self.bvh);
         let mut out = Vec::with_capacity(self.sets.len() * 256);
         let mut stats = MftStats::default();
         let mut bufs: Option<rt::packet::PacketBufs> = None;
@@ -1624,7 +1624,7 @@ impl Program for PacketPrimaryRun<'_> {
                         bufs.insert(pb)
                     }
                 };
-                rt::packet::trace2(m, &s, pb, f.policy);
+                rt::packet::trace_bvh2(m, &s, pb, f.policy);
                 for (j, &n) in live.iter().enumerate() {
                     for k in 0..FRUSTA {
                         hits[n * FRUSTA + k] = pb.hit(FRUSTA, j * FRUSTA + k);

@@ -210,6 +210,12 @@ impl ReportDef {
 }
 
 impl ReportDef {
+    /// Check `g` and compute the report (nothing printed): what a
+    /// library-level test of a paper's report reads.
+    pub fn compute(&self, g: Given) -> AppResult<Produced> {
+        (self.run)(&self.resolve(g)?)
+    }
+
     /// Compute the report with `a`, print it, and with `--out` write it to
     /// DIR/NAME.{txt,json,csv}; an error if any ray differed from the reference.
     pub fn produce(&self, a: &ReproduceArgs) -> AppResult<()> {

@@ -10,8 +10,7 @@ fn report(name: &str, g: Given) -> serde_json::Value {
         .iter()
         .find(|d| d.name == name)
         .expect("registered");
-    let args = def.resolve(g).expect("valid options");
-    let p = (def.run)(&args).expect("computed");
+    let p = def.compute(g).expect("computed");
     assert_eq!(p.mismatches, 0.0, "{name}: rays differ from the reference");
     serde_json::to_value(&p.report).unwrap()
 }

@@ -23,15 +23,41 @@ fn bad(label: &str, refi: &Reference, sets: &[Frusta], out: &[scene::Hit]) -> us
     mismatches_of(test, label, refi, sets, out)
 }
 
+/// The kernel tests' shared fixture: a scene with the shallow BVH MFT
+/// traverses and the deep BVH of the packet baseline.
+struct Fixture {
+    scene: Scene,
+    shallow: Bvh2,
+    deep: Bvh2,
+}
+
+impl Fixture {
+    fn load(name: &str) -> Fixture {
+        Fixture::of(Scene::load(name).unwrap())
+    }
+    fn of(scene: Scene) -> Fixture {
+        let shallow = Bvh2::build(&scene.mesh, &mft_kernels::SHALLOW_BVH).unwrap();
+        let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
+        Fixture {
+            scene,
+            shallow,
+            deep,
+        }
+    }
+    /// The reference over the deep BVH (both faces).
+    fn reference(&self) -> Reference<'_> {
+        Reference::with_bvh(&self.scene.mesh, &self.deep)
+    }
+}
+
 /// Run MFT (shallow BVH) and 16-ray packets (deep BVH) on `sets`, both
 /// culling modes; the counters of the two-sided run.
-fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
+fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
+    let (scene, shallow, deep) = (&fx.scene, &fx.shallow, &fx.deep);
     let name = &scene.config.name;
-    let shallow = Bvh2::build(&scene.mesh, &mft_kernels::SHALLOW_BVH).unwrap();
-    let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
     let mut last = None;
     for cull_back in [true, false] {
-        let refi = Reference::with_bvh(&scene.mesh, &shallow);
+        let refi = Reference::with_bvh(&scene.mesh, shallow);
         let refi = if cull_back {
             refi.front_faces_only()
         } else {
@@ -40,7 +66,7 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
         let label = format!("{name} cull_back {cull_back}");
         let run = FrustaRun {
             scene,
-            bvh: &shallow,
+            bvh: shallow,
             sets: sets.to_vec(),
             cull_back,
             packets256: false,
@@ -60,7 +86,7 @@ fn check(scene: &Scene, sets: &[Frusta]) -> (MftStats, MftStats) {
         assert!(stats.tris_after_culling <= stats.tris_accessed);
         let pr = PacketPrimaryRun {
             scene,
-            bvh: &deep,
+            bvh: deep,
             sets: sets.to_vec(),
             cull_back,
         };
@@ -121,24 +147,23 @@ fn zero_block(scene: &Scene, refi: &Reference) -> Frusta {
 
 #[test]
 fn mft_primary_frusta_match_the_reference() {
-    let scene = Scene::load("trex").unwrap();
-    let bvh = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
-    let refi = Reference::with_bvh(&scene.mesh, &bvh);
+    let fx = Fixture::load("trex");
+    let (scene, refi) = (&fx.scene, fx.reference());
     let cam = &scene.config.camera;
     let mut sets: Vec<Frusta> = [(30, 30), (32, 28), (25, 35)]
         .iter()
         .map(|&(x, y)| Frusta::primary(cam, x, y))
         .collect();
-    sets.push(zero_block(&scene, &refi));
-    let (s, p) = check(&scene, &sets);
+    sets.push(zero_block(scene, &refi));
+    let (s, p) = check(&fx, &sets);
     assert!(s.isec_tests >= s.tris_after_culling, "{s:?}");
     // The paper's headline: frusta need far fewer box tests than packets.
     assert!(
         p.aabb_tests >= 10 * s.aabb_tests,
         "packets {p:?} vs frusta {s:?}"
     );
-    let fern = Scene::load("fern").unwrap();
-    let cam = &fern.config.camera;
+    let fern = Fixture::load("fern");
+    let cam = &fern.scene.config.camera;
     let sets: Vec<Frusta> = [(30, 30), (20, 40)]
         .iter()
         .map(|&(x, y)| Frusta::primary(cam, x, y))
@@ -148,27 +173,26 @@ fn mft_primary_frusta_match_the_reference() {
 
 #[test]
 fn mft_shadow_frusta_match_the_reference() {
-    let scene = Scene::load("trex").unwrap();
-    let bvh = Bvh2::build(&scene.mesh, &BuildConfig::default()).unwrap();
-    let refi = Reference::with_bvh(&scene.mesh, &bvh);
+    let fx = Fixture::load("trex");
+    let (scene, refi) = (&fx.scene, fx.reference());
     let Some(Light::Quad(c, e1, e2, _)) = scene.config.lights.first().cloned() else {
         panic!("trex has a quad light");
     };
     // 4 x 4 pixel groups around the T-Rex's feet: lit, penumbra and umbra.
     let sets: Vec<Frusta> = [(500, 760), (540, 780), (460, 800), (600, 740)]
         .iter()
-        .map(|&(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+        .map(|&(x, y)| Frusta::shadow(&soft_shadow_group(scene, &refi, x, y), [c, e1, e2]))
         .collect();
     assert!(
         sets.iter().all(|f| f.active != 0),
         "the groups see geometry"
     );
-    let (s, p) = check(&scene, &sets);
+    let (s, p) = check(&fx, &sets);
     assert!(p.aabb_tests > s.aabb_tests, "packets {p:?} vs frusta {s:?}");
     // Frustum shrinking (Table 2) keeps every answer and only ever culls
     // more; on penumbra groups (some frustum partly occluded) as well.
-    let shallow = Bvh2::build(&scene.mesh, &mft_kernels::SHALLOW_BVH).unwrap();
-    let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
+    let shallow = &fx.shallow;
+    let refi = Reference::with_bvh(&scene.mesh, shallow).front_faces_only();
     let partly = |f: &Frusta| {
         (0..16).filter(|&n| f.active & (1 << n) != 0).any(|n| {
             let occ = (0..16)
@@ -185,7 +209,7 @@ fn mft_shadow_frusta_match_the_reference() {
     sets.extend(
         (0..64u32)
             .map(|i| (384 + 8 * i, 700 + 4 * (i % 8)))
-            .map(|(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+            .map(|(x, y)| Frusta::shadow(&soft_shadow_group(scene, &refi, x, y), [c, e1, e2]))
             .filter(partly)
             .take(3),
     );
@@ -193,8 +217,8 @@ fn mft_shadow_frusta_match_the_reference() {
     let mut by = Vec::new();
     for shrink in Shrink::ALL {
         let run = FrustaRun {
-            scene: &scene,
-            bvh: &shallow,
+            scene,
+            bvh: shallow,
             sets: sets.clone(),
             cull_back: true,
             packets256: false,
@@ -236,23 +260,24 @@ fn every_mft_scene_at_small_resolution_matches_the_reference() {
         let Some(Light::Quad(c, e1, e2, _)) = scene.config.lights.first().cloned() else {
             panic!("{name} has a quad light");
         };
-        let shallow = Bvh2::build(&scene.mesh, &mft_kernels::SHALLOW_BVH).unwrap();
-        let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
+        let fx = Fixture::of(scene);
+        let (scene, shallow) = (&fx.scene, &fx.shallow);
+        let refi = Reference::with_bvh(&scene.mesh, shallow).front_faces_only();
         let primary: Vec<Frusta> = (0..4)
             .flat_map(|y| (0..4).map(move |x| (x, y)))
             .map(|(x, y)| Frusta::primary(&cam, x, y))
             .collect();
         let shadow: Vec<Frusta> = (0..16)
             .flat_map(|y| (0..16).map(move |x| (4 * x, 4 * y)))
-            .map(|(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+            .map(|(x, y)| Frusta::shadow(&soft_shadow_group(scene, &refi, x, y), [c, e1, e2]))
             .filter(|f| f.active != 0)
             .collect();
         assert!(!shadow.is_empty(), "{name}: shadow groups");
         let run = |sets: &[Frusta], packets256: bool, shrink: Shrink| {
             isa::run_native(
                 &FrustaRun {
-                    scene: &scene,
-                    bvh: &shallow,
+                    scene,
+                    bvh: shallow,
                     sets: sets.to_vec(),
                     cull_back: true,
                     packets256,

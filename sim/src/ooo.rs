@@ -3,7 +3,8 @@
 //!
 //! - dispatch: `width` fused uops per cycle, after fetch is redirected from a
 //!   mispredicted branch, with a free ROB entry (the entry `rob` back must have
-//!   retired) and a free scheduler entry (the uop `scheduler` back must have issued);
+//!   retired) and free scheduler entries (an entry is held from dispatch until
+//!   its uop issues, as Haswell's reservation station frees it);
 //! - issue: a cycle after dispatch, once every source is ready, on the first free
 //!   cycle of any allowed port (ports keep a booking calendar, so a later op
 //!   can take an earlier free slot: out-of-order issue);
@@ -12,14 +13,15 @@
 //! - retire: in order, `retire_width` per cycle.
 //!
 //! Deviations: a macro-fused compare and branch take one dispatch slot but both
-//! uops still execute; memory ordering is not enforced beyond forwarding; the
-//! scheduler limit counts uops by program order, not by actual occupancy.
+//! uops still execute; memory ordering is not enforced beyond forwarding.
 
 use crate::config::MachineConfig;
 use crate::memory::Hierarchy;
 use crate::predictor::Gshare;
 use crate::stats::{Stall, Stats};
 use isa::{Op, OpClass, Trace, ValId};
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 
 /// Cycles the port calendars look ahead.
 const WINDOW: u64 = 1 << 16;
@@ -224,8 +226,9 @@ pub struct OooCore {
     values: Values,
     rob_ring: Vec<u64>,
     rob_seq: usize,
-    rs_ring: Vec<u64>,
-    rs_seq: usize,
+    /// Issue cycles of the uops still in the scheduler (dispatched, not
+    /// yet issued at the current dispatch cycle), earliest first.
+    rs_held: BinaryHeap<Reverse<u64>>,
     mshr: crate::memory::Mshrs,
     stores: [(u64, u64, u64); STORES],
     store_seq: usize,
@@ -260,8 +263,7 @@ impl OooCore {
             values: Values::new(),
             rob_ring: vec![0; c.rob as usize],
             rob_seq: 0,
-            rs_ring: vec![0; c.scheduler as usize],
-            rs_seq: 0,
+            rs_held: BinaryHeap::with_capacity(c.scheduler as usize + 8),
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
             stores: [(u64::MAX, 0, 0); STORES],
             store_seq: 0,
@@ -350,10 +352,18 @@ impl OooCore {
         }
         let nuops = ct.uops.len();
         if nuops > 0 {
-            let need = self.rs_ring[wrap(self.rs_seq, nuops - 1, self.sched)];
-            if need > d {
-                d = need;
-                why = Stall::Resources;
+            // Entries whose uops issued by cycle d are free; wait for the
+            // earliest-issuing others until `nuops` entries are free.
+            let room = self.sched.saturating_sub(nuops);
+            while let Some(&Reverse(c)) = self.rs_held.peek() {
+                if c > d && self.rs_held.len() <= room {
+                    break;
+                }
+                self.rs_held.pop();
+                if c > d {
+                    d = c;
+                    why = Stall::Resources;
+                }
             }
         }
         if d > self.d {
@@ -409,8 +419,7 @@ impl OooCore {
             let c = self.cal.book(mask, r, occ);
             first = first.min(c);
             last = last.max(c);
-            self.rs_ring[self.rs_seq] = c;
-            self.rs_seq = wrap(self.rs_seq, 1, self.sched);
+            self.rs_held.push(Reverse(c));
         }
         if nuops == 0 {
             first = r;

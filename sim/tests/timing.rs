@@ -203,3 +203,22 @@ fn wrong_flavour_and_too_many_traces_are_errors() {
     };
     assert_eq!(simulate(&m, &[&t], &opt).unwrap().ops, 1);
 }
+
+#[test]
+fn scheduler_entries_free_when_their_uop_issues() {
+    // A 2-entry scheduler: a divide, an op waiting on it, then an independent
+    // dependent chain of four FMAs (5 cycles each).
+    let m = hsw().with_sets(&["core.scheduler=2".into()]).unwrap();
+    let body = "%1 = vdiv\n%2 = vfma %1\n%3 = vfma\n%4 = vfma %3\n%5 = vfma %4\n%6 = vfma %5\n";
+    // The divide issues in cycle 1 (done 22); its user holds an entry until it
+    // issues in 22 (done 27). The chain takes the other entry as each op
+    // issues: its ops dispatch in cycles 1, 2, 7 and 12, complete in 7, 12,
+    // 17 and 22, and retire behind the divide's user, which retires in 27
+    // with three of them; 4 retire a cycle, so the last retires in 28.
+    // Entries freed in program order would hold the chain's second op until
+    // the divide's user issues (dispatch 22): its last FMA would complete in
+    // 38 and retire in 38.
+    assert_eq!(cycles(&m, body), 28);
+    // With the full scheduler nothing waits for an entry: the same 28.
+    assert_eq!(cycles(&hsw(), body), 28);
+}

@@ -20,8 +20,6 @@ use crate::memory::Hierarchy;
 use crate::predictor::Gshare;
 use crate::stats::{Stall, Stats};
 use isa::{Op, OpClass, Trace, ValId};
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 
 /// Cycles the port calendars look ahead.
 const WINDOW: u64 = 1 << 16;
@@ -226,9 +224,13 @@ pub struct OooCore {
     values: Values,
     rob_ring: Vec<u64>,
     rob_seq: usize,
-    /// Issue cycles of the uops still in the scheduler (dispatched, not
-    /// yet issued at the current dispatch cycle), earliest first.
-    rs_held: BinaryHeap<Reverse<u64>>,
+    /// Uops in the scheduler that issue in each cycle (mod [`WINDOW`]),
+    /// for cycles after `rs_cursor`.
+    rs_count: Vec<u16>,
+    /// Uops held in the scheduler at cycle `rs_cursor` (issuing later).
+    rs_held: usize,
+    /// Every uop issuing at or before this cycle has left the scheduler.
+    rs_cursor: u64,
     mshr: crate::memory::Mshrs,
     stores: [(u64, u64, u64); STORES],
     store_seq: usize,
@@ -263,7 +265,9 @@ impl OooCore {
             values: Values::new(),
             rob_ring: vec![0; c.rob as usize],
             rob_seq: 0,
-            rs_held: BinaryHeap::with_capacity(c.scheduler as usize + 8),
+            rs_count: vec![0; WINDOW as usize],
+            rs_held: 0,
+            rs_cursor: 0,
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
             stores: [(u64::MAX, 0, 0); STORES],
             store_seq: 0,
@@ -324,6 +328,28 @@ impl OooCore {
         self.classes = classes;
     }
 
+    /// Free the scheduler entries of uops issuing up to cycle `to`.
+    #[inline(always)]
+    fn rs_free_until(&mut self, to: u64) {
+        if to <= self.rs_cursor {
+            return;
+        }
+        if self.rs_held == 0 || to - self.rs_cursor >= WINDOW {
+            if self.rs_held > 0 {
+                self.rs_count.fill(0);
+                self.rs_held = 0;
+            }
+            self.rs_cursor = to;
+            return;
+        }
+        for c in self.rs_cursor + 1..=to {
+            let k = (c % WINDOW) as usize;
+            self.rs_held -= self.rs_count[k] as usize;
+            self.rs_count[k] = 0;
+        }
+        self.rs_cursor = to;
+    }
+
     /// Dispatch: the cycle the op enters the window (after the width, a
     /// mispredict's redirect, a free ROB entry and free scheduler entries);
     /// (cycle, fused-domain uops, stall reason so far).
@@ -354,16 +380,12 @@ impl OooCore {
         if nuops > 0 {
             // Entries whose uops issued by cycle d are free; wait for the
             // earliest-issuing others until `nuops` entries are free.
+            self.rs_free_until(d);
             let room = self.sched.saturating_sub(nuops);
-            while let Some(&Reverse(c)) = self.rs_held.peek() {
-                if c > d && self.rs_held.len() <= room {
-                    break;
-                }
-                self.rs_held.pop();
-                if c > d {
-                    d = c;
-                    why = Stall::Resources;
-                }
+            while self.rs_held > room {
+                self.rs_free_until(self.rs_cursor + 1);
+                d = self.rs_cursor;
+                why = Stall::Resources;
             }
         }
         if d > self.d {
@@ -419,7 +441,9 @@ impl OooCore {
             let c = self.cal.book(mask, r, occ);
             first = first.min(c);
             last = last.max(c);
-            self.rs_held.push(Reverse(c));
+            debug_assert!(c > self.rs_cursor && c - self.rs_cursor < WINDOW);
+            self.rs_count[(c % WINDOW) as usize] += 1;
+            self.rs_held += 1;
         }
         if nuops == 0 {
             first = r;

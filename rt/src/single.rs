@@ -1,11 +1,17 @@
 //! Single-ray BVH4 traversal, Embree style (the DRS paper's "Single BVH4"):
 //! an ordered stack, the 4 child boxes tested with one set of 4-wide ops
-//! (repeated across the lanes), closest hit first, farther hits pushed with
-//! their entry distance and culled on pop; leaves are 8-wide SoA
-//! Moller-Trumbore blocks (1 ray vs 8 triangles).
+//! (repeated across the lanes), hit children ordered as Embree 2.0's
+//! `BVH4Intersector1` orders them (one: go on; two: push the farther; three
+//! or four: push all and sort them by entry distance with compare-exchange
+//! networks, closest-hit rays only), entries culled on pop when farther than
+//! the hit; leaves are 8-wide SoA Moller-Trumbore blocks (1 ray vs 8
+//! triangles).
 //!
-//! Deviations: the closest child is chosen by scalar compares over the hit
-//! lanes (Embree uses a sorting network); a leaf is one block of <= 8 triangles.
+//! Deviations: a leaf is one block of <= 8 triangles (Embree: triangle4
+//! lists); the sort's exchanges happen in registers before the stores
+//! (Embree exchanges stack entries in memory; the compares and branches are
+//! the same); leaves divide on every test (Embree takes a reciprocal only on
+//! a hit: open, issue 12).
 
 use crate::layout::{is_leaf, Bvh2Bufs, Bvh4Bufs, BLOCK_BYTES, NODE_BYTES};
 use crate::stats::Tests;
@@ -28,7 +34,7 @@ pub mod site {
     pub const ANY_CHILD: Site = isa::sites::SINGLE.at(4);
     /// Next hit child?
     pub const CHILD: Site = isa::sites::SINGLE.at(5);
-    /// Closer than the best so far?
+    /// Two hit children: which is nearer?
     pub const CLOSER: Site = isa::sites::SINGLE.at(6);
     /// Any triangle hit?
     pub const TRI: Site = isa::sites::SINGLE.at(7);
@@ -36,10 +42,12 @@ pub mod site {
     pub const PASS: Site = isa::sites::SINGLE.at(8);
     /// BVH2: the only hit child is the left one?
     pub const SIDE: Site = isa::sites::SINGLE.at(9);
+    /// BVH4, 3 or 4 hit children: one compare-exchange of the sort.
+    pub const SORT: Site = isa::sites::SINGLE.at(10);
 
     /// Every site of the module (checked for duplicates by the layout test).
-    pub const ALL: [Site; 10] = [
-        RAYS, STACK, CULL, LEAF, ANY_CHILD, CHILD, CLOSER, TRI, PASS, SIDE,
+    pub const ALL: [Site; 11] = [
+        RAYS, STACK, CULL, LEAF, ANY_CHILD, CHILD, CLOSER, TRI, PASS, SIDE, SORT,
     ];
 }
 
@@ -161,42 +169,13 @@ pub fn walk4<M: Machine>(
             let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
             let bits = m.movemask(hitk);
             let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
-            let mut bits = m.s_and(bits, valid);
+            let bits = m.s_and(bits, valid);
             let none = m.s_cmp(Cmp::Eq, bits, zero);
             if m.branch(site::ANY_CHILD, none) {
                 node = m.int(i64::from(EMPTY_SLOT));
                 break;
             }
-            // Closest hit child: scalar compares over the hit lanes; the rest are pushed.
-            let mut best_c: Option<(M::S, M::X)> = None;
-            loop {
-                let lane = m.s_tzcnt(bits);
-                let l = lane.get() as usize;
-                let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
-                let d = m.extract(tn_v, l);
-                match best_c {
-                    None => best_c = Some((child, d)),
-                    Some((bc_, bd)) => {
-                        let closer = m.x_cmp(Cmp::Lt, d, bd);
-                        let (push_c, push_d, keep) = if m.branch(site::CLOSER, closer) {
-                            (bc_, bd, (child, d))
-                        } else {
-                            (child, d, (bc_, bd))
-                        };
-                        m.s_store(stack, At::idx(sp, 8, 0), 4, push_c);
-                        m.x_store(stack, At::idx(sp, 8, 4), push_d);
-                        sp = m.s_addi(sp, 1);
-                        best_c = Some(keep);
-                    }
-                }
-                let lm1 = m.s_addi(bits, -1);
-                bits = m.s_and(bits, lm1);
-                let more = m.s_cmp(Cmp::Ne, bits, zero);
-                if !m.branch(site::CHILD, more) {
-                    break;
-                }
-            }
-            node = best_c.expect("a hit child").0;
+            node = descend4(m, (s, base, tn_v), stack, &mut sp, bits, policy);
         }
         if !is_leaf(node.get() as u32) {
             continue;
@@ -205,6 +184,77 @@ pub fn walk4<M: Machine>(
         tests.leaf += 1;
         if st.leaf(m, &s.tris, node, policy) && policy.is_any() {
             break;
+        }
+    }
+}
+
+/// The next node after a BVH4 node test, as Embree 2.0's single-ray
+/// traversal picks it: the hit children (`bits`) in lane order; one: go on
+/// with it; two: push the farther, go on with the nearer; three or four:
+/// push all, sort the stack's top entries by entry distance (closest-hit
+/// rays; Embree's 3- and 4-element compare-exchange networks, here on
+/// registers before the stores), pop the nearest.
+fn descend4<M: Machine>(
+    m: &mut M,
+    (s, base, tn_v): (&Bvh4Bufs, M::S, M::F),
+    stack: &mut Buf,
+    sp: &mut M::S,
+    mut bits: M::S,
+    policy: HitPolicy,
+) -> M::S {
+    let zero = m.int(0);
+    let mut hit: Vec<(M::S, M::X)> = Vec::with_capacity(4);
+    loop {
+        let lane = m.s_tzcnt(bits);
+        let l = lane.get() as usize;
+        let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
+        let d = m.extract(tn_v, l);
+        hit.push((child, d));
+        let lm1 = m.s_addi(bits, -1);
+        bits = m.s_and(bits, lm1);
+        let more = m.s_cmp(Cmp::Ne, bits, zero);
+        if !m.branch(site::CHILD, more) {
+            break;
+        }
+    }
+    let mut push = |m: &mut M, sp: &mut M::S, (c, d): (M::S, M::X)| {
+        m.s_store(stack, At::idx(*sp, 8, 0), 4, c);
+        m.x_store(stack, At::idx(*sp, 8, 4), d);
+        *sp = m.s_addi(*sp, 1);
+    };
+    match hit.len() {
+        1 => hit[0].0,
+        2 => {
+            let (a, b) = (hit[0], hit[1]);
+            let first = m.x_cmp(Cmp::Lt, a.1, b.1);
+            let (near, far) = if m.branch(site::CLOSER, first) {
+                (a, b)
+            } else {
+                (b, a)
+            };
+            push(m, sp, far);
+            near.0
+        }
+        _ => {
+            if !policy.is_any() {
+                // Nearest last: it is popped first.
+                let net: &[(usize, usize)] = if hit.len() == 3 {
+                    &[(0, 1), (1, 2), (0, 1)]
+                } else {
+                    &[(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)]
+                };
+                for &(i, j) in net {
+                    let swap = m.x_cmp(Cmp::Lt, hit[i].1, hit[j].1);
+                    if m.branch(site::SORT, swap) {
+                        hit.swap(i, j);
+                    }
+                }
+            }
+            for &h in &hit {
+                push(m, sp, h);
+            }
+            *sp = m.s_addi(*sp, -1);
+            m.s_load(stack, At::idx(*sp, 8, 0), 4, false)
         }
     }
 }

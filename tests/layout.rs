@@ -53,16 +53,11 @@ fn modules(src: &Path, root: &Path) -> BTreeMap<String, PathBuf> {
     m
 }
 
-/// The files a file refers to through `crate::` and `super::` paths in code
-/// (comments and doc links aside; test modules included: a cycle through a
-/// test is still a cycle).
+/// The files a file refers to through `crate::` and `super::` paths, in
+/// code and in doc links alike (test modules included: a cycle through a
+/// test or a doc link is still a cycle).
 fn edges(file: &Path, me: &str, mods: &BTreeMap<String, PathBuf>) -> BTreeSet<String> {
-    let text: String = std::fs::read_to_string(file)
-        .unwrap()
-        .lines()
-        .filter(|l| !l.trim_start().starts_with("//"))
-        .collect::<Vec<_>>()
-        .join("\n");
+    let text = std::fs::read_to_string(file).unwrap();
     let mut out = BTreeSet::new();
     let parent = me.rsplit_once("::").map_or("", |p| p.0);
     for (prefix, base) in [("crate::", ""), ("super::", parent)] {

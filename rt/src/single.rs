@@ -314,7 +314,7 @@ impl<M: Machine> RayState<M> {
     }
 
     /// Load lane `k` of the SoA packet record at byte `pb` of `pk`
-    /// ([`crate::packet`] layout): broadcasts of its rows; the premultiplied
+    /// (the packet record of [`crate::layout::packet_bytes`]): broadcasts of its rows; the premultiplied
     /// origin is computed (Embree's hybrid kernel does the same in registers).
     pub fn load_packet(m: &mut M, pk: &Buf, pb: M::S, k: usize) -> Self {
         use crate::layout::row;

@@ -1,7 +1,7 @@
 //! What a kernel answers for one ray ([`Hit`]) and which answer it looks for
 //! ([`HitPolicy`]). They live here, below the kernels, because the
-//! hit-agreement rules ([`crate::agreement`]) judge the same type the
-//! kernels return.
+//! hit-agreement rules (the `agreement` module, which uses this one) judge
+//! the same type the kernels return.
 
 /// A kernel's answer for one ray: the distance and triangle of its hit (the
 /// closest, or for an any-hit ray the one that occluded it), or a miss.

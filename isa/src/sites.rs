@@ -19,6 +19,11 @@ pub struct SiteBlock {
 }
 
 impl SiteBlock {
+    /// The block of `len` sites from `first`, owned by module `owner`.
+    #[must_use]
+    pub const fn new(owner: &'static str, first: u32, len: u32) -> SiteBlock {
+        SiteBlock { owner, first, len }
+    }
     /// Site `i` of the block (a compile-time error in a `const` beyond it).
     #[must_use]
     pub const fn at(&self, i: u32) -> Site {
@@ -33,47 +38,19 @@ impl SiteBlock {
 }
 
 /// Calibration microkernels.
-pub const MICRO: SiteBlock = SiteBlock {
-    owner: "micro",
-    first: 1,
-    len: 9,
-};
+pub const MICRO: SiteBlock = SiteBlock::new("micro", 1, 9);
 /// The ray-vs-4-boxes stream (`rt::boxtest`).
-pub const BOXTEST: SiteBlock = SiteBlock {
-    owner: "rt::boxtest",
-    first: 10,
-    len: 10,
-};
+pub const BOXTEST: SiteBlock = SiteBlock::new("rt::boxtest", 10, 10);
 /// Single-ray traversal (`rt::single`).
-pub const SINGLE: SiteBlock = SiteBlock {
-    owner: "rt::single",
-    first: 20,
-    len: 20,
-};
+pub const SINGLE: SiteBlock = SiteBlock::new("rt::single", 20, 20);
 /// DRS over a BVH4 (`drs_kernels::bvh4`).
-pub const DRS_BVH4: SiteBlock = SiteBlock {
-    owner: "drs_kernels::bvh4",
-    first: 40,
-    len: 10,
-};
+pub const DRS_BVH4: SiteBlock = SiteBlock::new("drs_kernels::bvh4", 40, 10);
 /// DRS over a BVH2 (`drs_kernels::bvh2`).
-pub const DRS_BVH2: SiteBlock = SiteBlock {
-    owner: "drs_kernels::bvh2",
-    first: 50,
-    len: 10,
-};
+pub const DRS_BVH2: SiteBlock = SiteBlock::new("drs_kernels::bvh2", 50, 10);
 /// Packet and hybrid traversal (`rt::packet`).
-pub const PACKET: SiteBlock = SiteBlock {
-    owner: "rt::packet",
-    first: 60,
-    len: 20,
-};
+pub const PACKET: SiteBlock = SiteBlock::new("rt::packet", 60, 20);
 /// Multi-frusta traversal (`mft_kernels`).
-pub const MFT: SiteBlock = SiteBlock {
-    owner: "mft_kernels",
-    first: 80,
-    len: 40,
-};
+pub const MFT: SiteBlock = SiteBlock::new("mft_kernels", 80, 40);
 
 /// Every block, in order.
 pub const PLAN: [SiteBlock; 7] = [MICRO, BOXTEST, SINGLE, DRS_BVH4, DRS_BVH2, PACKET, MFT];

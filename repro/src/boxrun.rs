@@ -45,6 +45,8 @@ pub struct RunArgs {
 pub struct Recorded<'a> {
     /// The options.
     pub args: &'a RunArgs,
+    /// The machine `args` named, loaded.
+    pub machine: &'a sim::MachineConfig,
     /// Report name (`run-boxtest`, `run-drs-bvh4`, ...).
     pub name: String,
     /// What was run on what.
@@ -62,8 +64,7 @@ pub struct Recorded<'a> {
 /// Finish a run: write the trace with `--out`, time it when the ISA is the
 /// machine's (else describe the trace), print the report.
 pub fn finish(r: Recorded<'_>) -> AppResult<()> {
-    let a = r.args;
-    let m = a.machine.load()?;
+    let (a, m) = (r.args, r.machine);
     let fl = a.isa.unwrap_or_else(|| m.flavour());
     let mut rows = r.rows;
     let t = &r.trace;
@@ -74,8 +75,8 @@ pub fn finish(r: Recorded<'_>) -> AppResult<()> {
     }
     let timed = fl == m.flavour();
     if timed {
-        let s = sim::simulate(&m, &[t], &sim::SimOptions::default()).map_err(AppError)?;
-        rows.extend(stats_rows(&s, &m, Some(r.rays)));
+        let s = sim::simulate(m, &[t], &sim::SimOptions::default()).map_err(AppError)?;
+        rows.extend(stats_rows(&s, m, Some(r.rays)));
         rows.extend(region_rows(&s, t));
     } else {
         rows.extend(info_rows(t));
@@ -110,6 +111,7 @@ pub fn run_boxtest(a: &RunArgs) -> AppResult<()> {
     ];
     finish(Recorded {
         args: a,
+        machine: &m,
         name: "run-boxtest".into(),
         input: format!("{} rays vs 4 boxes, seed {}", a.rays, a.seed),
         trace: t,

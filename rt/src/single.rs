@@ -203,13 +203,16 @@ fn descend4<M: Machine>(
     policy: HitPolicy,
 ) -> M::S {
     let zero = m.int(0);
-    let mut hit: Vec<(M::S, M::X)> = Vec::with_capacity(4);
+    // At most 4 hit children, kept on the host stack (no allocation per node).
+    let mut hit: [Option<(M::S, M::X)>; 4] = [None; 4];
+    let mut n = 0;
     loop {
         let lane = m.s_tzcnt(bits);
         let l = lane.get() as usize;
         let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
         let d = m.extract(tn_v, l);
-        hit.push((child, d));
+        hit[n] = Some((child, d));
+        n += 1;
         let lm1 = m.s_addi(bits, -1);
         bits = m.s_and(bits, lm1);
         let more = m.s_cmp(Cmp::Ne, bits, zero);
@@ -222,10 +225,11 @@ fn descend4<M: Machine>(
         m.x_store(stack, At::idx(*sp, 8, 4), d);
         *sp = m.s_addi(*sp, 1);
     };
-    match hit.len() {
-        1 => hit[0].0,
+    let at = |hit: &[Option<(M::S, M::X)>; 4], i: usize| hit[i].expect("a hit child");
+    match n {
+        1 => at(&hit, 0).0,
         2 => {
-            let (a, b) = (hit[0], hit[1]);
+            let (a, b) = (at(&hit, 0), at(&hit, 1));
             let first = m.x_cmp(Cmp::Lt, a.1, b.1);
             let (near, far) = if m.branch(site::CLOSER, first) {
                 (a, b)
@@ -238,19 +242,19 @@ fn descend4<M: Machine>(
         _ => {
             if !policy.is_any() {
                 // Nearest last: it is popped first.
-                let net: &[(usize, usize)] = if hit.len() == 3 {
+                let net: &[(usize, usize)] = if n == 3 {
                     &[(0, 1), (1, 2), (0, 1)]
                 } else {
                     &[(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)]
                 };
                 for &(i, j) in net {
-                    let swap = m.x_cmp(Cmp::Lt, hit[i].1, hit[j].1);
+                    let swap = m.x_cmp(Cmp::Lt, at(&hit, i).1, at(&hit, j).1);
                     if m.branch(site::SORT, swap) {
                         hit.swap(i, j);
                     }
                 }
             }
-            for &h in &hit {
+            for &h in hit[..n].iter().flatten() {
                 push(m, sp, h);
             }
             *sp = m.s_addi(*sp, -1);

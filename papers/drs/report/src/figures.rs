@@ -4,14 +4,8 @@
 use crate::measure::*;
 use crate::paper::*;
 use drs_kernels::methods::Kernel;
-use repro::sampling::ratio_ci;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
-
-/// Chip Mray/s of `rays` in `cycles` of one core (times the cores).
-fn chip_mray(m: &sim::MachineConfig, cycles: u64, rays: u64) -> f64 {
-    sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).mray_per_s_chip
-}
 
 /// `drs-fig5`: Our BVH4's Mray/s and B/ray against the tile size (4 x 4 to
 /// 28 x 28 pixels at 16 spp, so streams of 256 to 12544 rays); each size is
@@ -37,15 +31,10 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("method", Kernel::DrsBvh4.name())
                     .key("tile", format!("{size}x{size}"))
             };
-            let rate = chip_mray(&base.m, ac.cycles, ac.rays);
+            let (rate, ci) = ac.chip_mray_ci(&base.m);
             let bpr = ac.per_ray(&base.m).bytes_per_ray;
-            let pairs: Vec<(f64, f64)> = ac
-                .tiles
-                .iter()
-                .map(|&(r, c)| (r as f64, c as f64))
-                .collect();
             let mut r = row("mray_per_s", rate).unit("Mray/s");
-            r.ci95 = ratio_ci(&pairs).map(|h| h * chip_mray(&base.m, 1, 1));
+            r.ci95 = ci;
             rows.push(r);
             rows.push(row("bytes_per_ray", bpr).unit("B/ray"));
             rows.push(row("rays", ac.rays as f64));
@@ -141,20 +130,15 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         let acc = measure_loaded(a, &base, &ld, scene_name, &kernels, &mut ops_total)?;
         for (ki, k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
-            let rate = chip_mray(&base.m, ac.cycles, ac.rays);
+            let (rate, ci) = ac.chip_mray_ci(&base.m);
             let row = |metric: &str, v: f64| {
                 Row::new(metric, v)
                     .key("scene", scene_name)
                     .key("method", k.name())
                     .key("fov", fov)
             };
-            let pairs: Vec<(f64, f64)> = ac
-                .tiles
-                .iter()
-                .map(|&(r, c)| (r as f64, c as f64))
-                .collect();
             let mut r = row("mray_per_s", rate).unit("Mray/s");
-            r.ci95 = ratio_ci(&pairs).map(|h| h * chip_mray(&base.m, 1, 1));
+            r.ci95 = ci;
             rows.push(r);
             rows.push(row("hit_mismatches", ac.bad as f64));
             series[ki].points.push((f64::from(fov), rate));

@@ -4,7 +4,7 @@
 
 use drs_kernels::methods::{Kernel, Run};
 use isa::Region;
-use repro::sampling::mix;
+use repro::sampling::{mix, ratio_ci};
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::loaded::Loaded;
 use scene::reference::Reference;
@@ -35,6 +35,37 @@ impl Acc {
     pub(crate) fn per_ray(&self, m: &sim::MachineConfig) -> sim::PerRay {
         sim::PerRay::of(self.cycles, self.dram, self.rays, m.clock_ghz, m.cores)
     }
+    /// Chip Mray/s and its 95% CI over the tiles (ratio rays / cycles).
+    pub(crate) fn chip_mray_ci(&self, m: &sim::MachineConfig) -> (f64, Option<f64>) {
+        let pairs: Vec<(f64, f64)> = self
+            .tiles
+            .iter()
+            .map(|&(r, c)| (r as f64, c as f64))
+            .collect();
+        let ci = ratio_ci(&pairs).map(|h| h * chip_mray(m, 1, 1));
+        (chip_mray(m, self.cycles, self.rays), ci)
+    }
+    /// Chip s/Gray and its 95% CI over the tiles (ratio cycles / rays).
+    pub(crate) fn chip_sgray_ci(&self, m: &sim::MachineConfig) -> (f64, Option<f64>) {
+        let pairs: Vec<(f64, f64)> = self
+            .tiles
+            .iter()
+            .map(|&(r, c)| (c as f64, r as f64))
+            .collect();
+        let ci = ratio_ci(&pairs).map(|h| h * chip_sgray(m, 1, 1));
+        (chip_sgray(m, self.cycles, self.rays), ci)
+    }
+}
+
+/// Chip Mray/s of `rays` in `cycles` of one core (the paper ran one
+/// thread per core: the rate times the cores).
+pub(crate) fn chip_mray(m: &sim::MachineConfig, cycles: u64, rays: u64) -> f64 {
+    sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).mray_per_s_chip
+}
+
+/// Chip s/Gray of `rays` in `cycles` of one core.
+pub(crate) fn chip_sgray(m: &sim::MachineConfig, cycles: u64, rays: u64) -> f64 {
+    sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).s_per_gray_chip
 }
 
 /// The machine and tile sample of a reproduce run.

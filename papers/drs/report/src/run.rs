@@ -95,6 +95,7 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
     ];
     finish(Recorded {
         args: a,
+        machine: &m,
         name: format!("run-{}", kernel.name()),
         input: format!(
             "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}",

@@ -3,7 +3,6 @@
 
 use crate::measure::*;
 use crate::paper::*;
-use repro::sampling::ratio_ci;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
@@ -26,10 +25,7 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
-    // Chip rate: one core's simulated rate times the cores (4 threads in the paper).
-    let mray = |cycles: u64, rays: u64| {
-        sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).mray_per_s_chip
-    };
+    let mray = |cycles: u64, rays: u64| chip_mray(m, cycles, rays);
     for (scene_name, paper, paper_trav, paper_share) in PAPER_TABLE1 {
         let acc = measure(a, &smp, scene_name, &kernels, &mut ops_total)?;
         for (ki, &k) in kernels.iter().enumerate() {
@@ -39,14 +35,8 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("scene", scene_name)
                     .key("method", k.name())
             };
-            // Rate = rays / cycles, scaled like `mray`.
-            let pairs: Vec<(f64, f64)> = ac
-                .tiles
-                .iter()
-                .map(|&(r, c)| (r as f64, c as f64))
-                .collect();
-            let ci = ratio_ci(&pairs).map(|h| h * mray(1, 1));
-            let mut r = row("mray_per_s", mray(ac.cycles, ac.rays)).unit("Mray/s");
+            let (rate, ci) = ac.chip_mray_ci(m);
+            let mut r = row("mray_per_s", rate).unit("Mray/s");
             r.paper = Some(paper[ki].0);
             r.ci95 = ci;
             rows.push(r);

@@ -4,7 +4,6 @@
 use crate::measure::*;
 use crate::paper::*;
 use drs_kernels::methods::Kernel;
-use repro::sampling::ratio_ci;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
@@ -20,9 +19,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
         let acc = measure(a, &smp, scene_name, &kernels, &mut ops_total)?;
         // s/Gray for the whole chip: per-core seconds per ray over the cores
         // (the paper measured 4 threads on 4 cores).
-        let sgray = |cycles: u64, rays: u64| {
-            sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).s_per_gray_chip
-        };
+        let sgray = |cycles: u64, rays: u64| chip_sgray(m, cycles, rays);
         for (ki, &k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
             let row = |metric: &str, v: f64| {
@@ -30,13 +27,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("scene", scene_name)
                     .key("method", k.name())
             };
-            // Time per ray = cycles / rays, scaled like `sgray`.
-            let pairs: Vec<(f64, f64)> = ac
-                .tiles
-                .iter()
-                .map(|&(r, c)| (c as f64, r as f64))
-                .collect();
-            let ci = ratio_ci(&pairs).map(|h| h * sgray(1, 1));
+            let (sg, ci) = ac.chip_sgray_ci(m);
             let (pc, ps) = if k == Kernel::SingleBvh4 {
                 (paper[0], paper[1])
             } else {
@@ -45,7 +36,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             let mut r = row("cpi", ac.cycles as f64 / ac.ops.max(1) as f64);
             r.paper = Some(pc);
             rows.push(r);
-            let mut r = row("s_per_gray", sgray(ac.cycles, ac.rays)).unit("s/Gray");
+            let mut r = row("s_per_gray", sg).unit("s/Gray");
             r.paper = Some(ps);
             r.ci95 = ci;
             rows.push(r);

@@ -13,7 +13,8 @@
 //!   their half-swapped copies;
 //! - the core loop tests LANES/4 rays per iteration (2 on AVX2), fmsub on the
 //!   premultiplied origin, scalar appends to all 3 lists advanced by their
-//!   conditions, the last index duplicated as padding;
+//!   conditions, the last index duplicated as padding; software-pipelined
+//!   as the paper's listing ([`crate::pipeline`]);
 //! - leaves test an item's rays against the block loaded once; below
 //!   [`FALLBACK2`] rays an item is traced ray by ray;
 //! - shadow rays: one item per hit child, the larger popped first.
@@ -22,9 +23,8 @@
 //! planes (`posNegMask`); this kernel takes a max for near and a min for far
 //! (one more op per axis); list counters live in memory between nodes.
 
-use crate::bvh4::{
-    append, for_each_ray, larger_last, leaf_item, load_rays, pad_and_push, StreamBufs,
-};
+use crate::bvh4::{for_each_ray, larger_last, leaf_item, pad_and_push, StreamBufs};
+use crate::pipeline::core_loop;
 use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::Bvh2Bufs;
@@ -189,9 +189,8 @@ fn core_node<M: Machine, const N: usize>(
     let mut cnt = starts.clone();
     let zero_v = m.splat(0.0);
     m.region(Region::CoreLoop);
-    let mut j = m.int(0);
-    loop {
-        let (idx, dir_near, org_far) = load_rays::<M, N>(m, &st.lists, trav, j, at);
+    let sites = (site::CORE, site::PAD);
+    core_loop::<M, N>(m, st, trav, at, count, &mut cnt, sites, |m, dir_near, org_far| {
         // Lanes 0, 1 of each ray's 4: entry of left, right; lanes 2, 3: exit.
         let mut tmax = m.permute(dir_near, &sp4[3]);
         let mut tmin = m.permute(org_far, &sp4[3]);
@@ -210,13 +209,7 @@ fn core_node<M: Machine, const N: usize>(
         let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
         if policy.is_any() {
             // Shadow rays: list 0 left, list 1 right, no order.
-            let conds = [hbits, shr(m, hbits, 1)];
-            append(m, st, &idx, &conds, &mut cnt, site::PAD);
-            j = m.s_addi(j, r as i64);
-            if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
-                break;
-            }
-            continue;
+            return vec![hbits, shr(m, hbits, 1)];
         }
         let other = m.permute(tmax, swp);
         let right_first = m.cmp(Cmp::Lt, other, tmax);
@@ -226,13 +219,8 @@ fn core_node<M: Machine, const N: usize>(
         let order = m.s_and(obits, h1);
         let all = m.int(0xFFFF);
         let norder = m.s_op(isa::SOp::Xor, order, all);
-        let conds = [m.s_and(hbits, norder), h1, m.s_and(hbits, order)];
-        append(m, st, &idx, &conds, &mut cnt, site::PAD);
-        j = m.s_addi(j, r as i64);
-        if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
-            break;
-        }
-    }
+        vec![m.s_and(hbits, norder), h1, m.s_and(hbits, order)]
+    });
     m.region(Region::Traversal);
     let zero = m.int(0);
     if policy.is_any() {

@@ -13,6 +13,9 @@
 //!   premultiplied origin, and appends each ray index to all 9 lists with
 //!   scalar stores, advancing each list by its condition (branch-free); the
 //!   last index of an item is duplicated as padding, and skipped on reading;
+//!   the loop is software-pipelined as the paper's Appendix A
+//!   ([`crate::pipeline`]): the next rays are fetched during the box test and
+//!   the last ray's appends are deferred to the next iteration;
 //! - leaves test all of an item's rays against the leaf block, loaded once;
 //! - below [`FALLBACK`] active rays an item switches to single-ray traversal;
 //! - shadow rays (any hit) all take one path: one item per hit child (4
@@ -21,10 +24,10 @@
 //!
 //! Deviations: runs on 4- and 8-lane flavours (the paper's Haswell kernel);
 //! list counters live in a small array in memory, loaded and stored once per
-//! node (the paper keeps list pointers in registers); a ray's traversal and
-//! intersection records are read by index, not prefetched a step ahead.
+//! node (the paper keeps list pointers in registers).
 
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
+use crate::pipeline::core_loop;
 use rt::boxtest::Pat;
 use rt::layout::{Bvh4Bufs, BLOCK_BYTES};
 use rt::single::{intersect, load_block, trace_ray_bvh4};
@@ -383,10 +386,8 @@ fn core_node<M: Machine, const N: usize>(
     let mut cnt = starts.clone();
     let sp4 = &Pat::<N>::SPLAT;
     m.region(Region::CoreLoop);
-    let mut j = m.int(0);
-    loop {
-        // r ray indices (the last may be padding, a copy of the one before).
-        let (idx, dir_near, org_far) = load_rays::<M, N>(m, &st.lists, trav, j, at);
+    let sites = (site::CORE, site::PAD);
+    core_loop::<M, N>(m, st, trav, at, count, &mut cnt, sites, |m, dir_near, org_far| {
         let mut tn = m.permute(dir_near, &sp4[3]);
         let mut tf = m.permute(org_far, &sp4[3]);
         for a in 0..3 {
@@ -400,24 +401,13 @@ fn core_node<M: Machine, const N: usize>(
         let hit = m.cmp(Cmp::Le, tn, tf);
         let hbits = m.movemask(hit);
         let hbits = m.s_and(hbits, vmask);
-        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
         if policy.is_any() {
             // Shadow rays: one list per child, no order.
-            let conds = [hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
-            append(m, st, &idx, &conds, &mut cnt, site::PAD);
-            j = m.s_addi(j, r as i64);
-            if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
-                break;
-            }
-            continue;
+            let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+            return vec![hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
         }
-        let conds = closest_conds::<M, N>(m, (hit, tn, hbits), inf);
-        append(m, st, &idx, &conds, &mut cnt, site::PAD);
-        j = m.s_addi(j, r as i64);
-        if !m.branch_if(site::CORE, Cmp::Lt, j, count) {
-            break;
-        }
-    }
+        closest_conds::<M, N>(m, (hit, tn, hbits), inf).to_vec()
+    });
     push_items(m, s, st, sp, (base, oct, r), (&starts, &cnt), policy);
 }
 
@@ -531,76 +521,5 @@ fn push_items<M: Machine>(
             false,
         );
         pad_and_push(m, st, sp, k, child, starts[k], cnt[k], oct, r);
-    }
-}
-
-/// The core loop's ray fetch: the next LANES/4 ray indices of an item (at
-/// byte `at` of `lists`, iteration `j`) and their traversal records, as
-/// `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
-pub(crate) fn load_rays<M: Machine, const N: usize>(
-    m: &mut M,
-    lists: &Buf,
-    trav: &Buf,
-    j: M::S,
-    at: M::S,
-) -> (Vec<M::S>, M::F, M::F) {
-    let r = N / 4;
-    let (dn, of) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR);
-    let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
-    let idx: Vec<M::S> = (0..r)
-        .map(|q| {
-            let o = m.s_shift(Shift::Shl, j, 1);
-            let o = m.s_add(o, at);
-            m.s_load(lists, At::idx(o, 1, 2 * q), 2, false)
-        })
-        .collect();
-    let (dir_near, org_far) = if r == 1 {
-        let ro = m.s_shift(Shift::Shl, idx[0], 5);
-        (
-            m.load(trav, At::idx(ro, 1, 0)),
-            m.load(trav, At::idx(ro, 1, 16)),
-        )
-    } else {
-        let ra = m.s_shift(Shift::Shl, idx[0], 5);
-        let rb = m.s_shift(Shift::Shl, idx[1], 5);
-        let a = m.loadu(trav, At::idx(ra, 1, 0));
-        let b = m.loadu(trav, At::idx(rb, 1, 0));
-        let d = if dn_id { a } else { m.shuffle2(a, b, dn) };
-        let o = if of_id { b } else { m.shuffle2(a, b, of) };
-        (d, o)
-    };
-    (idx, dir_near, org_far)
-}
-
-/// Append each ray of an iteration (skipping padding duplicates) to every
-/// list with a scalar store, advancing list k by ray q's condition bit 4q
-/// of `conds[k]` (branch-free).
-pub(crate) fn append<M: Machine>(
-    m: &mut M,
-    st: &mut StreamBufs,
-    idx: &[M::S],
-    conds: &[M::S],
-    cnt: &mut [M::S],
-    pad: isa::Site,
-) {
-    for q in 0..idx.len() {
-        if q > 0 {
-            let dup = m.s_cmp(Cmp::Eq, idx[q], idx[q - 1]);
-            if m.branch(pad, dup) {
-                continue;
-            }
-        }
-        st.tests.core_loop += 1;
-        let one = m.int(1);
-        for k in 0..conds.len() {
-            m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx[q]);
-            let c = if q == 0 {
-                conds[k]
-            } else {
-                m.s_shift(Shift::Shr, conds[k], 4 * q as u32)
-            };
-            let inc = m.s_and(c, one);
-            cnt[k] = m.s_add(cnt[k], inc);
-        }
     }
 }

@@ -1,8 +1,9 @@
 //! # drs-kernels
 //!
-//! The DRS paper's simulated code (Fuetterling et al. 2015, "Efficient Ray
-//! Tracing Kernels for Modern CPU Architectures"): dynamic ray stream
-//! traversal over a BVH4 ([`bvh4`]) and a BVH2 ([`bvh2`]), and [`methods`],
+//! The DRS paper's simulated code (Barringer and Akenine-Moller 2014,
+//! "Dynamic Ray Stream Traversal"): dynamic ray stream traversal over a BVH4
+//! ([`bvh4`]) and a BVH2 ([`bvh2`]), their shared software-pipelined core
+//! loop ([`pipeline`]), and [`methods`],
 //! the seven traversal methods its Table 1 compares, run over one ray stream.
 
 #![warn(missing_docs)]
@@ -12,6 +13,7 @@
 pub mod bvh2;
 pub mod bvh4;
 pub mod methods;
+mod pipeline;
 
 /// The BVH the DRS kernels traverse: binned SAH with leaves of up to 8
 /// triangles (one 8-wide triangle block per leaf), traversal cost 1; the

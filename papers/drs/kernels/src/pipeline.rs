@@ -1,0 +1,158 @@
+//! The software-pipelined core loop both DRS kernels share (the paper's
+//! Appendix A, section 5): each iteration tests the LANES/4 rays fetched by
+//! the one before, and while its box test runs it already fetches the next
+//! iteration's ray indices and rays; the last ray's appends wait for the
+//! next iteration, so they do not sit behind their own iteration's chain.
+//!
+//! As in the paper's listing:
+//! - one running pointer over the item's 16-bit ray indices, compared with
+//!   the item's end (`activeRays < lastActiveRay`);
+//! - the first iteration's deferred append stores index 0 with every
+//!   condition clear (the paper's `mask = 0`): stores that advance nothing;
+//! - the padding duplicate can only be the last iteration's last ray, so
+//!   the padding check is out of the loop, on the deferred append after it.
+//!
+//! The read-ahead after the last iteration reads up to LANES/4 indices past
+//! the item's padding. Those entries lie inside the list (each list has 16
+//! spare entries per tree level) and hold ray indices of earlier items or
+//! zero, so the rays they name are in bounds; their loads are what the
+//! hardware would issue too, and their results are never used.
+
+use crate::bvh4::StreamBufs;
+use isa::{At, Buf, Cmp, Machine, Shift, Site};
+use rt::boxtest::Pat;
+
+/// One iteration's rays: their indices and records as `[dir, tnear]` and
+/// `[org * idir, tfar]` per 4 lanes.
+pub(crate) struct Rays<M: Machine> {
+    idx: Vec<M::S>,
+    dir_near: M::F,
+    org_far: M::F,
+}
+
+/// A ray whose appends are deferred to the next iteration.
+struct Deferred<M: Machine> {
+    idx: M::S,
+    conds: Vec<M::S>,
+}
+
+/// The core loop over an item: `count` ray indices at byte `at` of the
+/// lists; `test` takes an iteration's `dir_near`, `org_far` and returns one
+/// condition per list (ray q's at bit 4q); `cnt` are the lists' ends,
+/// advanced by the appends. `sites` are the loop's back edge and the
+/// padding check.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn core_loop<M: Machine, const N: usize>(
+    m: &mut M,
+    st: &mut StreamBufs,
+    trav: &Buf,
+    at: M::S,
+    count: M::S,
+    cnt: &mut [M::S],
+    (back, pad): (Site, Site),
+    mut test: impl FnMut(&mut M, M::F, M::F) -> Vec<M::S>,
+) {
+    let r = N / 4;
+    let bytes = m.s_shift(Shift::Shl, count, 1);
+    let end = m.s_add(at, bytes);
+    let mut p = at;
+    let mut next = fetch::<M, N>(m, &st.lists, trav, p);
+    let zero = m.int(0);
+    let mut deferred = Deferred::<M> {
+        idx: zero,
+        conds: vec![zero; cnt.len()],
+    };
+    let mut first = true;
+    loop {
+        // The previous iteration's last ray (nothing advances on the first).
+        append_ray(m, st, deferred.idx, &deferred.conds, cnt, !first);
+        first = false;
+        let cur = next;
+        p = m.s_addi(p, 2 * r as i64);
+        next = fetch::<M, N>(m, &st.lists, trav, p);
+        let conds = test(m, cur.dir_near, cur.org_far);
+        for q in 0..r - 1 {
+            let c = shifted(m, &conds, q);
+            append_ray(m, st, cur.idx[q], &c, cnt, true);
+        }
+        deferred = Deferred {
+            idx: cur.idx[r - 1],
+            conds: shifted(m, &conds, r - 1),
+        };
+        if !m.branch_if(back, Cmp::Lt, p, end) {
+            // The last ray, unless it is the padding copy of the one before.
+            if r > 1 {
+                let dup = m.s_cmp(Cmp::Eq, cur.idx[r - 1], cur.idx[r - 2]);
+                if m.branch(pad, dup) {
+                    return;
+                }
+            }
+            append_ray(m, st, deferred.idx, &deferred.conds, cnt, true);
+            return;
+        }
+    }
+}
+
+/// The conditions of ray `q` at bit 0.
+fn shifted<M: Machine>(m: &mut M, conds: &[M::S], q: usize) -> Vec<M::S> {
+    if q == 0 {
+        return conds.to_vec();
+    }
+    conds
+        .iter()
+        .map(|&c| m.s_shift(Shift::Shr, c, 4 * q as u32))
+        .collect()
+}
+
+/// The LANES/4 ray indices at byte `p` of `lists` and their traversal
+/// records, as `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
+fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S) -> Rays<M> {
+    let r = N / 4;
+    let (dn, of) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR);
+    let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
+    let idx: Vec<M::S> = (0..r)
+        .map(|q| m.s_load(lists, At::idx(p, 1, 2 * q), 2, false))
+        .collect();
+    let (dir_near, org_far) = if r == 1 {
+        let ro = m.s_shift(Shift::Shl, idx[0], 5);
+        (
+            m.load(trav, At::idx(ro, 1, 0)),
+            m.load(trav, At::idx(ro, 1, 16)),
+        )
+    } else {
+        let ra = m.s_shift(Shift::Shl, idx[0], 5);
+        let rb = m.s_shift(Shift::Shl, idx[1], 5);
+        let a = m.loadu(trav, At::idx(ra, 1, 0));
+        let b = m.loadu(trav, At::idx(rb, 1, 0));
+        let d = if dn_id { a } else { m.shuffle2(a, b, dn) };
+        let o = if of_id { b } else { m.shuffle2(a, b, of) };
+        (d, o)
+    };
+    Rays {
+        idx,
+        dir_near,
+        org_far,
+    }
+}
+
+/// Append one ray index to every list with a scalar store, advancing list
+/// k by bit 0 of `conds[k]` (branch-free). `counted`: a real ray-node test
+/// (not the first iteration's empty append).
+fn append_ray<M: Machine>(
+    m: &mut M,
+    st: &mut StreamBufs,
+    idx: M::S,
+    conds: &[M::S],
+    cnt: &mut [M::S],
+    counted: bool,
+) {
+    if counted {
+        st.tests.core_loop += 1;
+    }
+    let one = m.int(1);
+    for k in 0..conds.len() {
+        m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx);
+        let inc = m.s_and(conds[k], one);
+        cnt[k] = m.s_add(cnt[k], inc);
+    }
+}

@@ -35,7 +35,7 @@
 //! leaves test 1 ray vs 8 triangles (the paper: 1 vs 4).
 
 use crate::layout::{Bvh2Bufs, Bvh4Bufs, BLOCK_BYTES, NODE_BYTES};
-use crate::single::{moller_sided, walk4, Block, Moller, RayState, STACK_ENTRIES};
+use crate::single::{moller_sided, walk4, Block, Moller, RayState, Sides, STACK_ENTRIES};
 use crate::stats::Tests;
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use scene::bvh::{EMPTY_SLOT, LEAF};
@@ -67,7 +67,7 @@ pub mod site {
     pub const CLOSER: Site = isa::sites::PACKET.at(6);
     /// Empty triangle slot?
     pub const TRI_SLOT: Site = isa::sites::PACKET.at(7);
-    /// Any ray hits the triangle?
+    /// Any ray passes the triangle's depth test?
     pub const TRI: Site = isa::sites::PACKET.at(8);
     /// Few active rays: switch to single-ray traversal?
     pub const SWITCH: Site = isa::sites::PACKET.at(9);
@@ -75,10 +75,13 @@ pub mod site {
     pub const SWITCH_RAY: Site = isa::sites::PACKET.at(10);
     /// Shadow packet: any lane not yet occluded?
     pub const ALIVE: Site = isa::sites::PACKET.at(11);
+    /// Any ray passes the triangle's edge tests?
+    pub const TRI_EDGE: Site = isa::sites::PACKET.at(12);
 
     /// Every site of the module (checked for duplicates by the layout test).
-    pub const ALL: [Site; 12] = [
+    pub const ALL: [Site; 13] = [
         PACKETS, DONE, CULL, LEAF, EMPTY, HIT, CLOSER, TRI_SLOT, TRI, SWITCH, SWITCH_RAY, ALIVE,
+        TRI_EDGE,
     ];
 }
 
@@ -133,9 +136,9 @@ pub struct PacketBufs {
     pub tests: Tests,
     /// Each ray's lane slot.
     slot_of: Vec<usize>,
-    /// Back-face culling at leaves (front faces only), for the MFT
-    /// comparison's packet baseline.
-    pub one_sided: bool,
+    /// Faces the leaves report ([`Sides::Front`]: back-face culling, for the
+    /// MFT comparison's packet baseline).
+    pub sides: Sides,
     /// The MFT paper's counters for the packet baseline: box tests (one per
     /// child box per packet), triangles tested per packet (all of them are
     /// 16-wide intersection tests; no culling).
@@ -183,7 +186,7 @@ impl PacketBufs {
             single_stack: sp.alloc(MemKind::Stack, "stack-single", STACK_ENTRIES * 8, 64),
             tests: Tests::default(),
             slot_of,
-            one_sided: false,
+            sides: Sides::Both,
             frusta_stats: crate::stats::MftStats::default(),
         }
     }
@@ -309,7 +312,7 @@ fn trace_packet<M: Machine>(
     m.store(snear, At::off(4 * w), pk.tnear);
     let mut sp = m.int(2);
     let (mut aabb, mut tri_tests) = (0u64, 0u64);
-    let one_sided = pb.one_sided;
+    let sides = pb.sides;
     let leaf_flag = m.int(i64::from(LEAF));
     loop {
         m.region(Region::Traversal);
@@ -369,7 +372,7 @@ fn trace_packet<M: Machine>(
             &mut pk,
             &mut pb.rays,
             base,
-            (policy, one_sided),
+            (policy, sides),
             &mut tri_tests,
         );
         if policy.is_any() {
@@ -555,7 +558,7 @@ fn leaf<M: Machine>(
     pk: &mut Packet<M>,
     rays: &mut Buf,
     base: M::S,
-    (policy, one_sided): (HitPolicy, bool),
+    (policy, sides): (HitPolicy, Sides),
     tri_tests: &mut u64,
 ) {
     let w = M::LANES;
@@ -576,18 +579,18 @@ fn leaf<M: Machine>(
         let pf = r(9);
         let prim = m.bits_to_i(pf);
         let blk = Block::<M> { v0, e1, e2, prim };
-        let Moller {
+        *tri_tests += 1;
+        let ray = (&pk.org, &pk.dir, pk.tfar);
+        let sites = [site::TRI_EDGE, site::TRI];
+        let Some(Moller {
             t,
             u: tu,
             v: tv,
             valid: hit,
-        } = moller_sided(m, &blk, &pk.org, &pk.dir, pk.tfar, one_sided);
-        *tri_tests += 1;
-        let hit = m.kand(hit, valid);
-        let any = m.any(hit);
-        if !m.branch(site::TRI, any) {
+        }) = moller_sided(m, &blk, ray, sides, Some(valid), sites)
+        else {
             continue;
-        }
+        };
         let at = |r: usize| At::idx(base, 1, row(w, r));
         if policy.is_any() {
             let done = m.splat(-1.0);

@@ -190,37 +190,46 @@ fn core_node<M: Machine, const N: usize>(
     let zero_v = m.splat(0.0);
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
-    core_loop::<M, N>(m, st, trav, at, count, &mut cnt, sites, |m, dir_near, org_far| {
-        // Lanes 0, 1 of each ray's 4: entry of left, right; lanes 2, 3: exit.
-        let mut tmax = m.permute(dir_near, &sp4[3]);
-        let mut tmin = m.permute(org_far, &sp4[3]);
-        for a in 0..3 {
-            let d = m.permute(dir_near, &sp4[a]);
-            let o = m.permute(org_far, &sp4[a]);
-            let neg = m.cmp(Cmp::Lt, d, zero_v);
-            let planes = m.select(neg, swapped[a], rows[a]);
-            let t = m.fmsub(planes, d, o);
-            tmax = m.max(tmax, t);
-            tmin = m.min(tmin, t);
-        }
-        let exit = m.permute(tmin, swg);
-        let hit = m.cmp(Cmp::Le, tmax, exit);
-        let hbits = m.movemask(hit);
-        let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
-        if policy.is_any() {
-            // Shadow rays: list 0 left, list 1 right, no order.
-            return vec![hbits, shr(m, hbits, 1)];
-        }
-        let other = m.permute(tmax, swp);
-        let right_first = m.cmp(Cmp::Lt, other, tmax);
-        let obits = m.movemask(right_first);
-        // Ray q's conditions at bit 4q: left-first, right, left-second.
-        let h1 = shr(m, hbits, 1);
-        let order = m.s_and(obits, h1);
-        let all = m.int(0xFFFF);
-        let norder = m.s_op(isa::SOp::Xor, order, all);
-        vec![m.s_and(hbits, norder), h1, m.s_and(hbits, order)]
-    });
+    core_loop::<M, N>(
+        m,
+        st,
+        trav,
+        at,
+        count,
+        &mut cnt,
+        sites,
+        |m, dir_near, org_far| {
+            // Lanes 0, 1 of each ray's 4: entry of left, right; lanes 2, 3: exit.
+            let mut tmax = m.permute(dir_near, &sp4[3]);
+            let mut tmin = m.permute(org_far, &sp4[3]);
+            for a in 0..3 {
+                let d = m.permute(dir_near, &sp4[a]);
+                let o = m.permute(org_far, &sp4[a]);
+                let neg = m.cmp(Cmp::Lt, d, zero_v);
+                let planes = m.select(neg, swapped[a], rows[a]);
+                let t = m.fmsub(planes, d, o);
+                tmax = m.max(tmax, t);
+                tmin = m.min(tmin, t);
+            }
+            let exit = m.permute(tmin, swg);
+            let hit = m.cmp(Cmp::Le, tmax, exit);
+            let hbits = m.movemask(hit);
+            let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+            if policy.is_any() {
+                // Shadow rays: list 0 left, list 1 right, no order.
+                return vec![hbits, shr(m, hbits, 1)];
+            }
+            let other = m.permute(tmax, swp);
+            let right_first = m.cmp(Cmp::Lt, other, tmax);
+            let obits = m.movemask(right_first);
+            // Ray q's conditions at bit 4q: left-first, right, left-second.
+            let h1 = shr(m, hbits, 1);
+            let order = m.s_and(obits, h1);
+            let all = m.int(0xFFFF);
+            let norder = m.s_op(isa::SOp::Xor, order, all);
+            vec![m.s_and(hbits, norder), h1, m.s_and(hbits, order)]
+        },
+    );
     m.region(Region::Traversal);
     let zero = m.int(0);
     if policy.is_any() {

@@ -26,8 +26,8 @@
 //! list counters live in a small array in memory, loaded and stored once per
 //! node (the paper keeps list pointers in registers).
 
-use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use crate::pipeline::core_loop;
+use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::{Bvh4Bufs, BLOCK_BYTES};
 use rt::single::{intersect, load_block, trace_ray_bvh4};
@@ -387,27 +387,36 @@ fn core_node<M: Machine, const N: usize>(
     let sp4 = &Pat::<N>::SPLAT;
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
-    core_loop::<M, N>(m, st, trav, at, count, &mut cnt, sites, |m, dir_near, org_far| {
-        let mut tn = m.permute(dir_near, &sp4[3]);
-        let mut tf = m.permute(org_far, &sp4[3]);
-        for a in 0..3 {
-            let d = m.permute(dir_near, &sp4[a]);
-            let o = m.permute(org_far, &sp4[a]);
-            let t0 = m.fmsub(near[a], d, o);
-            let t1 = m.fmsub(far[a], d, o);
-            tn = m.max(tn, t0);
-            tf = m.min(tf, t1);
-        }
-        let hit = m.cmp(Cmp::Le, tn, tf);
-        let hbits = m.movemask(hit);
-        let hbits = m.s_and(hbits, vmask);
-        if policy.is_any() {
-            // Shadow rays: one list per child, no order.
-            let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
-            return vec![hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
-        }
-        closest_conds::<M, N>(m, (hit, tn, hbits), inf).to_vec()
-    });
+    core_loop::<M, N>(
+        m,
+        st,
+        trav,
+        at,
+        count,
+        &mut cnt,
+        sites,
+        |m, dir_near, org_far| {
+            let mut tn = m.permute(dir_near, &sp4[3]);
+            let mut tf = m.permute(org_far, &sp4[3]);
+            for a in 0..3 {
+                let d = m.permute(dir_near, &sp4[a]);
+                let o = m.permute(org_far, &sp4[a]);
+                let t0 = m.fmsub(near[a], d, o);
+                let t1 = m.fmsub(far[a], d, o);
+                tn = m.max(tn, t0);
+                tf = m.min(tf, t1);
+            }
+            let hit = m.cmp(Cmp::Le, tn, tf);
+            let hbits = m.movemask(hit);
+            let hbits = m.s_and(hbits, vmask);
+            if policy.is_any() {
+                // Shadow rays: one list per child, no order.
+                let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+                return vec![hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
+            }
+            closest_conds::<M, N>(m, (hit, tn, hbits), inf).to_vec()
+        },
+    );
     push_items(m, s, st, sp, (base, oct, r), (&starts, &cnt), policy);
 }
 

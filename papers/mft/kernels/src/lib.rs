@@ -48,6 +48,7 @@ pub mod shade;
 
 use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shift};
 use rt::layout::{Bvh2Bufs, BLOCK, BLOCK_BYTES};
+use rt::single::Sides;
 use scene::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
 use scene::{Hit, HitPolicy};
 
@@ -1620,7 +1621,11 @@ impl Program for PacketPrimaryRun<'_> {
                         let tf = vec![0.0f32; FRUSTA * FRUSTA];
                         let mut pb = rt::packet::PacketBufs::new(m, &full, &full, &tf, None);
                         pb.reload(FRUSTA, &org, &dir, &tfar, None);
-                        pb.one_sided = self.cull_back;
+                        pb.sides = if self.cull_back {
+                            Sides::Front
+                        } else {
+                            Sides::Both
+                        };
                         bufs.insert(pb)
                     }
                 };

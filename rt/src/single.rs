@@ -271,6 +271,9 @@ pub struct RayState<M: Machine> {
     /// Lane of an SoA packet record the ray came from (hybrid kernel), or
     /// `None` for the AoS ray records.
     lane: Option<usize>,
+    /// Triangles per leaf test: `min(LANES, 8)`, or 4 in the hybrid kernel
+    /// (Embree 2.0's hybrid tests one ray against a triangle4).
+    leaf_lanes: usize,
     ro: M::S,
     ho: M::S,
     idir: [M::F; 3],
@@ -304,6 +307,7 @@ impl<M: Machine> RayState<M> {
         let best_prim = m.s_load(hits, At::idx(ho, 1, 12), 4, true);
         RayState {
             lane: None,
+            leaf_lanes: M::LANES.min(8),
             ro,
             ho,
             idir,
@@ -344,6 +348,7 @@ impl<M: Machine> RayState<M> {
         let best_prim = m.s_load(pk, At::idx(pb, 1, row(w, row::PRIM) + 4 * k), 4, true);
         RayState {
             lane: Some(k),
+            leaf_lanes: 4,
             ro: pb,
             ho: pb,
             idir,
@@ -359,20 +364,20 @@ impl<M: Machine> RayState<M> {
         }
     }
 
-    /// Leaf `node`: one block of 8 triangles, in passes of the lanes there
-    /// are; whether a triangle was hit. A shadow ray's t_far becomes -1 on a
+    /// Leaf `node`: one block of 8 triangles, in passes of `leaf_lanes`
+    /// triangles; whether a triangle was hit. A shadow ray's t_far becomes -1 on a
     /// hit (it is done).
     fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S, policy: HitPolicy) -> bool {
         let mut any = false;
-        let width = M::LANES.min(8);
+        let width = self.leaf_lanes;
         m.region(Region::Leaf);
         let mask_idx = m.int(i64::from(!scene::bvh::LEAF));
         let blk = m.s_and(node, mask_idx);
         let bytes = m.int(BLOCK_BYTES as i64);
         let bb = m.s_op(isa::SOp::Mul, blk, bytes);
         for p in 0..8 / width {
-            let blk = load_block(m, tris, bb, p);
-            if let Some(h) = intersect(m, &blk, &self.org, &self.dir, self.tfar) {
+            let blk = load_block(m, tris, bb, p, width);
+            if let Some(h) = intersect(m, &blk, width, &self.org, &self.dir, self.tfar) {
                 self.tfar_x = h.t;
                 self.tfar = h.tb;
                 self.best_u = h.u;
@@ -424,14 +429,18 @@ pub struct Block<M: Machine> {
     pub prim: M::I,
 }
 
-/// Load pass `p` of the block at byte `bb` of `tris`.
-pub fn load_block<M: Machine>(m: &mut M, tris: &Buf, bb: M::S, p: usize) -> Block<M> {
+/// Load pass `p` of `width` triangles (4 or 8, at most the lanes there
+/// are) of the block at byte `bb` of `tris`, repeated across wider vectors.
+pub fn load_block<M: Machine>(m: &mut M, tris: &Buf, bb: M::S, p: usize, width: usize) -> Block<M> {
     let n = M::LANES;
-    let width = n.min(8);
+    assert!(
+        width <= n.min(8) && 8 % width == 0,
+        "{width} triangles per pass"
+    );
     let mut row = |r: usize| {
         let at = At::idx(bb, 1, 32 * r + 4 * width * p);
-        if n > 8 {
-            m.load_repeat(tris, at, 8)
+        if n > width {
+            m.load_repeat(tris, at, width)
         } else {
             m.load(tris, at)
         }
@@ -587,18 +596,19 @@ pub struct Moller<M: Machine> {
     pub valid: M::K,
 }
 
-/// 8-wide Moller-Trumbore of one ray (`org`, `dir` broadcast) against a
-/// block, hits with 0 < t < `tfar`; the closest, if any (a recorded branch).
+/// Moller-Trumbore of one ray (`org`, `dir` broadcast) against a block
+/// pass of `width` triangles, hits with 0 < t < `tfar`; the closest, if any.
 pub fn intersect<M: Machine>(
     m: &mut M,
     b: &Block<M>,
+    width: usize,
     org: &[M::F; 3],
     dir: &[M::F; 3],
     tfar: M::F,
 ) -> Option<BlockHit<M>> {
     let inf = m.splat(f32::INFINITY);
-    // Wider flavours repeat the block's 8 triangles: the low 8 lanes only.
-    let live = (M::LANES > 8).then(|| m.mask(0xFF));
+    // Wider vectors repeat the pass's triangles: its low lanes only.
+    let live = (M::LANES > width).then(|| m.mask((1 << width) - 1));
     let sites = [site::TRI_EDGE, site::TRI];
     let Moller { t, u, v, valid } = moller(m, b, (org, dir, tfar), live, sites)?;
     let tv = m.select(valid, t, inf);

@@ -310,7 +310,9 @@ pub(crate) fn leaf_item<M: Machine>(
     let blk = m.s_and(node, idx_mask);
     let bytes = m.int(BLOCK_BYTES as i64);
     let bb = m.s_op(isa::SOp::Mul, blk, bytes);
-    let blocks: Vec<_> = (0..passes).map(|p| load_block(m, tris, bb, p)).collect();
+    let blocks: Vec<_> = (0..passes)
+        .map(|p| load_block(m, tris, bb, p, width))
+        .collect();
     for_each_ray(m, lists, at, count, |m, ray| {
         let ro = m.s_shift(Shift::Shl, ray, 5);
         let bc = |m: &mut M, b: &Buf, k: usize| m.load_bcast(b, At::idx(ro, 1, 4 * k));
@@ -319,7 +321,7 @@ pub(crate) fn leaf_item<M: Machine>(
         let mut tfar = bc(m, trav, 7);
         let mut best = None;
         for (p, b) in blocks.iter().enumerate() {
-            if let Some(h) = intersect(m, b, &org, &dir, tfar) {
+            if let Some(h) = intersect(m, b, width, &org, &dir, tfar) {
                 tfar = h.tb;
                 best = Some((p, h));
             }

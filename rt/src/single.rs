@@ -125,6 +125,7 @@ pub fn walk4<M: Machine>(
     policy: HitPolicy,
 ) {
     let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
+    let neg = sign_bits(m, &idir);
     // Push the start node.
     let mut sp = m.int(0);
     m.s_store(stack, At::off(0), 4, start);
@@ -156,22 +157,30 @@ pub fn walk4<M: Machine>(
             let base = m.s_shift(isa::Shift::Shl, node, NODE_BYTES.trailing_zeros());
             tests.other += 1;
             let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
-            let mut tn_v = tnear_ray;
-            let mut tf_v = st.tfar;
+            // The near and far planes by the ray's direction signs, as Embree
+            // 2.0: an empty slot's bounds (+inf) miss for either sign.
+            let mut t_near = [tnear_ray; 3];
+            let mut t_far = [st.tfar; 3];
             for a in 0..3 {
-                let lo = b(m, 2 * a);
-                let hi = b(m, 2 * a + 1);
-                let t0 = m.fmsub(lo, idir[a], oid[a]);
-                let t1 = m.fmsub(hi, idir[a], oid[a]);
-                let mn = m.min(t0, t1);
-                let mx = m.max(t0, t1);
-                tn_v = m.max(tn_v, mn);
-                tf_v = m.min(tf_v, mx);
+                let lo = b(m, 2 * a + neg[a]);
+                let hi = b(m, 2 * a + 1 - neg[a]);
+                t_near[a] = m.fmsub(lo, idir[a], oid[a]);
+                t_far[a] = m.fmsub(hi, idir[a], oid[a]);
             }
+            let n01 = m.max(t_near[0], t_near[1]);
+            let n2r = m.max(t_near[2], tnear_ray);
+            let tn_v = m.max(n01, n2r);
+            let f01 = m.min(t_far[0], t_far[1]);
+            let f2r = m.min(t_far[2], st.tfar);
+            let tf_v = m.min(f01, f2r);
             let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
-            let bits = m.movemask(hitk);
-            let valid = m.s_load(&s.nodes, At::idx(base, 1, 112), 4, false);
-            let bits = m.s_and(bits, valid);
+            let mut bits = m.movemask(hitk);
+            if M::LANES > 4 {
+                // The 4 children are repeated across wider vectors (Embree's
+                // SSE test moves exactly 4 bits): one more op.
+                let low = m.int(0xF);
+                bits = m.s_and(bits, low);
+            }
             let none = m.s_cmp(Cmp::Eq, bits, zero);
             if m.branch(site::ANY_CHILD, none) {
                 node = m.int(i64::from(EMPTY_SLOT));
@@ -188,6 +197,19 @@ pub fn walk4<M: Machine>(
             break;
         }
     }
+}
+
+/// Per axis, 1 if the ray's direction is negative (the row offset of its
+/// near plane), 0 otherwise: a compare, a mask move and a mask per axis,
+/// once per ray (Embree 2.0's `nearX`, `nearY`, `nearZ`).
+fn sign_bits<M: Machine>(m: &mut M, idir: &[M::F; 3]) -> [usize; 3] {
+    let zero_v = m.splat(0.0);
+    let one = m.int(1);
+    idir.map(|d| {
+        let lt = m.cmp(Cmp::Lt, d, zero_v);
+        let bits = m.movemask(lt);
+        m.s_and(bits, one).get() as usize
+    })
 }
 
 /// The next node after a BVH4 node test, as Embree 2.0's single-ray

@@ -103,6 +103,20 @@ pub trait Flavour<const N: usize>: Copy + Default + fmt::Debug + 'static {
     const PERMUTE2: bool;
     /// Mantissa bits of the approximate reciprocal and rsqrt.
     const RCP_BITS: u32;
+    /// A vector divide. Without one (LRBni), `div` is a reciprocal of
+    /// [`Flavour::RCP_BITS`] bits and a multiply, and `rcp` the reciprocal.
+    const DIV: bool;
+
+    /// `op` on two lanes as this flavour computes it (divide: see [`Flavour::DIV`]).
+    #[inline(always)]
+    #[must_use]
+    fn eval(op: crate::BinOp, x: f32, y: f32) -> f32 {
+        if op == crate::BinOp::Div && !Self::DIV {
+            x * crate::lanes::rcp_approx(y, Self::RCP_BITS)
+        } else {
+            op.eval(x, y)
+        }
+    }
 }
 
 /// Larrabee LRBni (Seiler et al. 2008; Abrash, "A First Look at the Larrabee New Instructions").
@@ -129,6 +143,7 @@ impl Flavour<16> for Lrb16 {
     const CROSS_PERMUTE: bool = true;
     const PERMUTE2: bool = true;
     const RCP_BITS: u32 = 23;
+    const DIV: bool = false; // no divide in LRBni [Abrash]: vrcp23ps and a multiply
 }
 
 impl Flavour<16> for Avx512 {
@@ -142,6 +157,7 @@ impl Flavour<16> for Avx512 {
     const CROSS_PERMUTE: bool = true;
     const PERMUTE2: bool = true;
     const RCP_BITS: u32 = 14;
+    const DIV: bool = true; // vdivps
 }
 
 impl Flavour<8> for Avx2 {
@@ -155,6 +171,7 @@ impl Flavour<8> for Avx2 {
     const CROSS_PERMUTE: bool = true;
     const PERMUTE2: bool = false;
     const RCP_BITS: u32 = 12;
+    const DIV: bool = true; // vdivps
 }
 
 impl Flavour<4> for Sse4 {
@@ -168,6 +185,7 @@ impl Flavour<4> for Sse4 {
     const CROSS_PERMUTE: bool = true; // 4 lanes are one 128-bit lane: pshufd reaches all
     const PERMUTE2: bool = false;
     const RCP_BITS: u32 = 12;
+    const DIV: bool = true; // vdivps
 }
 
 #[cfg(test)]

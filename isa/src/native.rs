@@ -200,11 +200,11 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
 
     #[inline(always)]
     fn bin(&mut self, op: BinOp, a: Vf<N>, b: Vf<N>) -> Vf<N> {
-        a.zip(b, |x, y| op.eval(x, y))
+        a.zip(b, |x, y| FL::eval(op, x, y))
     }
     #[inline(always)]
     fn masked(&mut self, op: BinOp, k: Vk<N>, src: Vf<N>, a: Vf<N>, b: Vf<N>) -> Vf<N> {
-        k.select(a.zip(b, |x, y| op.eval(x, y)), src)
+        k.select(a.zip(b, |x, y| FL::eval(op, x, y)), src)
     }
     #[inline(always)]
     fn fma(&mut self, kind: Fma, a: Vf<N>, b: Vf<N>, c: Vf<N>) -> Vf<N> {
@@ -228,6 +228,9 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     }
     #[inline(always)]
     fn rcp(&mut self, a: Vf<N>) -> Vf<N> {
+        if !FL::DIV {
+            return self.rcp_approx(a);
+        }
         a.map(|x| 1.0 / x)
     }
     #[inline(always)]

@@ -9,7 +9,8 @@
 //! | `select` | vmaskmov | vblend | vblend |
 //! | `fma` | vfma | vfma | vmul + vadd (+ vlogic for -(ab)-c) |
 //! | `masked_fma` | vfma{k} | vfma + vblend | vmul + vadd + vblend |
-//! | `rcp` / `rsqrt` (exact) | vdiv / vsqrt + vdiv | same | same |
+//! | `bin(Div)`, `rcp` (exact) | lrb16 (no divide): vrcp + vmul, vrcp; avx512: vdiv | vdiv | vdiv |
+//! | `rsqrt` (exact) | vsqrt + vdiv (lrb16: vsqrt + vrcp) | same | same |
 //! | `abs`, `neg` | vlogic | vlogic | vlogic |
 //! | `extract(i)`, i > 0 | vshuf (i < 4), else vperm (+ vshuf if i % 4 != 0) | same | vshuf |
 //! | `permute` | vshuf in-lane, else vperm | same | vshuf |
@@ -244,10 +245,21 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
         )
     }
 
+    /// The divisor's value for a divide without a divide op (LRBni): its
+    /// reciprocal, recorded; the divide itself is then a multiply.
+    fn divisor(&mut self, op: BinOp, b: ValId) -> ValId {
+        if op == BinOp::Div && !FL::DIV {
+            self.v(OpClass::VRcp, &[b])
+        } else {
+            b
+        }
+    }
+
     fn bin_class(op: BinOp) -> OpClass {
         match op {
             BinOp::Add | BinOp::Sub => OpClass::VAdd,
             BinOp::Mul => OpClass::VMul,
+            BinOp::Div if !FL::DIV => OpClass::VMul,
             BinOp::Div => OpClass::VDiv,
             BinOp::Min | BinOp::Max => OpClass::VMinMax,
         }
@@ -442,11 +454,16 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
 
     fn bin(&mut self, op: BinOp, a: TF<N>, b: TF<N>) -> TF<N> {
-        let id = self.v(Self::bin_class(op), &[a.id, b.id]);
-        Self::tf(a.v.zip(b.v, |x, y| op.eval(x, y)), id)
+        let b_id = self.divisor(op, b.id);
+        let id = self.v(Self::bin_class(op), &[a.id, b_id]);
+        Self::tf(a.v.zip(b.v, |x, y| FL::eval(op, x, y)), id)
     }
     fn masked(&mut self, op: BinOp, k: TK<N>, src: TF<N>, a: TF<N>, b: TF<N>) -> TF<N> {
-        let v = k.v.select(a.v.zip(b.v, |x, y| op.eval(x, y)), src.v);
+        let v = k.v.select(a.v.zip(b.v, |x, y| FL::eval(op, x, y)), src.v);
+        let b = TF {
+            v: b.v,
+            id: self.divisor(op, b.id),
+        };
         let id = if FL::MASK_REGS {
             self.emit(
                 Self::bin_class(op),
@@ -493,6 +510,9 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         Self::tf(a.v.map(f32::sqrt), id)
     }
     fn rcp(&mut self, a: TF<N>) -> TF<N> {
+        if !FL::DIV {
+            return self.rcp_approx(a);
+        }
         let id = self.v(OpClass::VDiv, &[a.id]);
         Self::tf(a.v.map(|x| 1.0 / x), id)
     }
@@ -502,7 +522,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     fn rsqrt(&mut self, a: TF<N>) -> TF<N> {
         let s = self.v(OpClass::VSqrt, &[a.id]);
-        let id = self.v(OpClass::VDiv, &[s]);
+        let inv = if FL::DIV {
+            OpClass::VDiv
+        } else {
+            OpClass::VRcp
+        };
+        let id = self.v(inv, &[s]);
         Self::tf(a.v.map(|x| 1.0 / x.sqrt()), id)
     }
     fn rsqrt_approx(&mut self, a: TF<N>) -> TF<N> {

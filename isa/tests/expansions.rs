@@ -382,3 +382,59 @@ fn dependencies_are_recorded() {
     assert_eq!(ops[1].addr.0, t.regions[1].base.0 + 32);
     assert_eq!(ops[1].bytes, 32);
 }
+
+#[test]
+fn divide_without_a_divide_is_reciprocal_and_multiply() {
+    assert_eq!(
+        classes_of::<Lrb16, 16>(|m| {
+            let a = m.splat(3.0);
+            m.bin(BinOp::Div, a, a);
+        }),
+        [VRcp, VMul]
+    );
+    assert_eq!(
+        classes_of::<Lrb16, 16>(|m| {
+            let (k, a) = (m.mask(0xff), m.splat(3.0));
+            m.masked(BinOp::Div, k, a, a, a);
+        }),
+        [VRcp, VMul]
+    );
+    assert_eq!(
+        classes_of::<Lrb16, 16>(|m| {
+            let a = m.splat(3.0);
+            m.rcp(a);
+        }),
+        [VRcp]
+    );
+    for run in [
+        classes_of::<Avx2, 8>(|m| {
+            let a = m.splat(3.0);
+            m.bin(BinOp::Div, a, a);
+        }),
+        classes_of::<Avx512, 16>(|m| {
+            let a = m.splat(3.0);
+            m.rcp(a);
+        }),
+        classes_of::<Sse4, 4>(|m| {
+            let a = m.splat(3.0);
+            m.bin(BinOp::Div, a, a);
+        }),
+    ] {
+        assert_eq!(run, [VDiv]);
+    }
+}
+
+#[test]
+fn divide_without_a_divide_rounds_as_reciprocal_times_dividend() {
+    use isa::Machine as _;
+    let mut t = isa::traced::Traced::<Lrb16, 16>::new("test");
+    let (a, b) = (t.splat(1.0), t.splat(3.0));
+    let q = t.bin(BinOp::Div, a, b);
+    let want = 1.0f32 * isa::lanes::rcp_approx(3.0, 23);
+    assert_eq!(t.lane(q, 0), want);
+    assert_eq!(
+        want,
+        1.0 / 3.0,
+        "23 bits: the reciprocal is exact to rounding"
+    );
+}

@@ -108,6 +108,10 @@ op_classes! {
     Store = "store",
     /// Conditional branch (jcc).
     Branch = "branch",
+    /// A vector memory operand folded into the op that reads it (LRBni:
+    /// full, {1to16}, {4to16}; AVX-512: full, {1to16}; AVX2, SSE: full,
+    /// micro-fused); see [`crate::Machine::load_operand`].
+    VLoadFold = "vloadfold",
 }
 
 impl OpClass {
@@ -128,6 +132,7 @@ impl OpClass {
             self,
             OpClass::VLoad
                 | OpClass::VLoadBcast
+                | OpClass::VLoadFold
                 | OpClass::VLoadMasked
                 | OpClass::VGather
                 | OpClass::Load

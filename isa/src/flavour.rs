@@ -107,6 +107,21 @@ pub trait Flavour<const N: usize>: Copy + Default + fmt::Debug + 'static {
     /// [`Flavour::RCP_BITS`] bits and a multiply, and `rcp` the reciprocal.
     const DIV: bool;
 
+    /// Whether a memory operand of `n` floats repeated across the lanes
+    /// folds into the op that reads it (see [`crate::Machine::load_operand`]).
+    fn folds(n: usize) -> bool {
+        match Self::ID {
+            // {1to16}, {4to16} and full operands [Abrash].
+            FlavourId::Lrb16 => matches!(n, 1 | 4) || n == N,
+            // m32bcst and full operands (Intel SDM, EVEX embedded broadcast).
+            FlavourId::Avx512 => n == 1 || n == N,
+            // Full operands; on AVX2 also 4, standing for a 128-bit op's m128
+            // (the single-ray kernels run 4-wide tests in wider lanes).
+            FlavourId::Avx2 => n == 4 || n == N,
+            FlavourId::Sse4 => n == N,
+        }
+    }
+
     /// `op` on two lanes as this flavour computes it (divide: see [`Flavour::DIV`]).
     #[inline(always)]
     #[must_use]

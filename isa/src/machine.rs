@@ -242,6 +242,15 @@ pub trait Machine {
     fn load_bcast(&mut self, buf: &Buf, at: At<Self::S>) -> Self::F;
     /// Load `n` f32 and repeat them across the lanes (n = 4: vbroadcastf128, {4to16}).
     fn load_repeat(&mut self, buf: &Buf, at: At<Self::S>, n: usize) -> Self::F;
+    /// A memory operand of the next op: `n` floats at `at` repeated across
+    /// the lanes (1: a broadcast, LANES: a full vector). Folded into the op
+    /// that reads it where the flavour allows (recorded as `vloadfold`, which
+    /// the machine prices: no issue slot on Larrabee, a micro-fused uop on
+    /// Haswell), else a separate load as [`Machine::load_repeat`]. For
+    /// operands read by one op only.
+    fn load_operand(&mut self, buf: &Buf, at: At<Self::S>, n: usize) -> Self::F {
+        self.load_repeat(buf, at, n)
+    }
     /// `k ? mem : src` (vmaskmovps; load + blend on SSE4).
     fn load_masked(&mut self, k: Self::K, src: Self::F, buf: &Buf, at: At<Self::S>) -> Self::F;
     /// Aligned store.

@@ -744,6 +744,16 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         let id = self.mem(OpClass::VLoadBcast, &[ix], Self::FULL, buf, off, 4, true);
         Self::tf(Vf([buf.f32_at(off); N]), id)
     }
+    fn load_operand(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
+        if !FL::folds(n) {
+            return self.load_repeat(buf, at, n);
+        }
+        assert!(N.is_multiple_of(n), "repeat of {n} lanes in {N}");
+        let (off, ix) = Self::ea(&at);
+        let id = self.mem(OpClass::VLoadFold, &[ix], Self::FULL, buf, off, 4 * n, true);
+        let v: [f32; N] = std::array::from_fn(|i| buf.f32_at(off + 4 * (i % n)));
+        Self::tf(Vf(v), id)
+    }
     fn load_repeat(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
         assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
         let (off, ix) = Self::ea(&at);

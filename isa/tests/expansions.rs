@@ -438,3 +438,28 @@ fn divide_without_a_divide_rounds_as_reciprocal_times_dividend() {
         "23 bits: the reciprocal is exact to rounding"
     );
 }
+
+#[test]
+fn memory_operands_fold_where_the_flavour_can() {
+    fn ops<FL: isa::Flavour<N>, const N: usize>(n: usize) -> Vec<isa::OpClass> {
+        classes_of::<FL, N>(|m| {
+            let b = m.space().alloc(MemKind::Other, "d", 256, 64);
+            let v = m.load_operand(&b, At::off(0), n);
+            m.fma(Fma::MAdd, v, v, v);
+        })
+    }
+    // LRBni: full, {1to16} and {4to16} operands are read by the op.
+    assert_eq!(ops::<Lrb16, 16>(1), [VLoadFold, VFma]);
+    assert_eq!(ops::<Lrb16, 16>(4), [VLoadFold, VFma]);
+    assert_eq!(ops::<Lrb16, 16>(16), [VLoadFold, VFma]);
+    // AVX-512: m32bcst and full; 4-float repeats need their own load.
+    assert_eq!(ops::<Avx512, 16>(1), [VLoadFold, VFma]);
+    assert_eq!(ops::<Avx512, 16>(4), [VLoadBcast, VFma]);
+    // AVX2: full (and a 128-bit op's m128); broadcasts are separate loads.
+    assert_eq!(ops::<Avx2, 8>(8), [VLoadFold, VFma]);
+    assert_eq!(ops::<Avx2, 8>(4), [VLoadFold, VFma]);
+    assert_eq!(ops::<Avx2, 8>(1), [VLoadBcast, VFma]);
+    // SSE4: full operands only.
+    assert_eq!(ops::<Sse4, 4>(4), [VLoadFold, VMul, VAdd]);
+    assert_eq!(ops::<Sse4, 4>(1), [VLoadBcast, VMul, VAdd]);
+}

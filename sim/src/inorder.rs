@@ -5,7 +5,9 @@
 //! only; scalar ops pair on U or V). With `no_back_to_back` a thread cannot
 //! issue in two consecutive cycles (Knights Corner). A mispredicted branch
 //! stops its thread until it resolves plus the penalty; loads do not block
-//! until their result is used.
+//! until their result is used. A memory operand folded into its op
+//! (`vloadfold`, fused: 0) takes neither an issue slot nor a pipe, and on an
+//! L1 hit delays its op by nothing.
 
 use crate::config::MachineConfig;
 use crate::memory::Hierarchy;
@@ -159,6 +161,8 @@ impl Core {
                 }
             };
             let nuops = ct.uops.len();
+            // A folded memory operand (fused: 0) takes no issue slot.
+            let slot = ct.fused > 0;
             let (done, occ, missed) = self.execute(t.t, op, cycle, mem);
             if let Some(p) = pipe {
                 self.pipe_free[p] = cycle + occ;
@@ -185,8 +189,10 @@ impl Core {
                 count(s, op, nuops, (issued, cycle, last_charge));
             }
             t.pos += 1;
-            t.last_issue = Some(cycle);
-            issued += 1;
+            if slot {
+                t.last_issue = Some(cycle);
+                issued += 1;
+            }
             if op.class == OpClass::Branch && t.stall_until > cycle {
                 break;
             }
@@ -234,6 +240,11 @@ impl Core {
                 mshr.hold(j, start + sv.latency);
             }
             done = start + sv.latency;
+            if op.class == OpClass::VLoadFold {
+                // A memory operand is read in the pipeline stages before
+                // execute: an L1 hit adds nothing to the op that reads it.
+                done = done.saturating_sub(l1).max(cycle);
+            }
         } else if op.class.is_store() {
             mem.access(0, op.addr.0, true, op.mem, cycle);
         }

@@ -222,3 +222,54 @@ fn scheduler_entries_free_when_their_uop_issues() {
     // With the full scheduler nothing waits for an entry: the same 28.
     assert_eq!(cycles(&hsw(), body), 28);
 }
+
+/// A body after a prefix that brings line `d+0x0` into L1 and waits for it.
+fn warm(body: &str) -> String {
+    format!("%100 = vload @d+0x0:64\n%101 = vfma %100\n{body}")
+}
+
+#[test]
+fn larrabee_folded_operand_takes_no_issue_slot() {
+    let m = larrabee()
+        .with_sets(&["core.no_back_to_back=false".into()])
+        .unwrap();
+    let regs = warm("%1 = vfma\n%2 = vfma\n%3 = vfma\n%4 = vfma\n");
+    let folded = warm(
+        "%1 = vloadfold @d+0x0:64\n%2 = vfma %1\n%3 = vloadfold @d+0x0:4\n%4 = vfma %3\n\
+         %5 = vloadfold @d+0x0:16\n%6 = vfma %5\n%7 = vloadfold @d+0x0:64\n%8 = vfma %7\n",
+    );
+    let separate = warm(
+        "%1 = vload @d+0x0:64\n%2 = vfma %1\n%3 = vloadbcast @d+0x0:4\n%4 = vfma %3\n\
+         %5 = vloadbcast @d+0x0:16\n%6 = vfma %5\n%7 = vload @d+0x0:64\n%8 = vfma %7\n",
+    );
+    let base = threads(&m, &[&regs]);
+    // Folded: the four FMAs issue as if their operands were registers.
+    assert_eq!(threads(&m, &[&folded]), base);
+    // Separate loads take the U pipe and stall each FMA on its load (3
+    // cycles, L1 hit): each pair takes 4 issue cycles instead of 1.
+    assert_eq!(threads(&m, &[&separate]), base + 4 * (4 - 1));
+}
+
+#[test]
+fn haswell_folded_load_is_micro_fused() {
+    let m = hsw();
+    // Eight FMAs, each with its own load (two load ports, 4 cycles L1).
+    let pairs = |class: &str| {
+        warm(
+            &(1..=8)
+                .map(|k| {
+                    format!(
+                        "%{a} = {class} @d+0x0:32\n%{b} = vfma %{a}\n",
+                        a = 2 * k,
+                        b = 2 * k + 1
+                    )
+                })
+                .collect::<String>(),
+        )
+    };
+    let folded = cycles(&m, &pairs("vloadfold"));
+    let separate = cycles(&m, &pairs("vload"));
+    // The same uops and ports; folded, the 16 ops dispatch in 8 slots, not 16.
+    assert!(folded < separate, "{folded} {separate}");
+    assert_eq!(separate - folded, 2);
+}

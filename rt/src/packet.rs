@@ -479,7 +479,7 @@ fn down<M: Machine>(
                     }
                     // Rows min_x max_x min_y max_y min_z max_z, child i at 4i.
                     let plane = |m: &mut M, r: usize| {
-                        m.load_bcast(&s.nodes, At::idx(nb, 1, 16 * r + 4 * i))
+                        m.load_operand(&s.nodes, At::idx(nb, 1, 16 * r + 4 * i), 1)
                     };
                     let (lnear, lhit) = box_test(m, pk, plane);
                     (child, lnear, lhit)
@@ -490,7 +490,7 @@ fn down<M: Machine>(
                     // Per axis [min_l, min_r, max_l, max_r]: min at 4i, max at 8 + 4i.
                     let plane = |m: &mut M, r: usize| {
                         let off = 16 * (r / 2) + 8 * (r % 2) + 4 * i;
-                        m.load_bcast(&s.nodes, At::idx(nb, 1, off))
+                        m.load_operand(&s.nodes, At::idx(nb, 1, off), 1)
                     };
                     let (lnear, lhit) = box_test(m, pk, plane);
                     (child, lnear, lhit)
@@ -522,7 +522,8 @@ fn down<M: Machine>(
 
 /// One child box against every ray of the packet: (entry distances, hit
 /// mask). `plane(m, r)` broadcasts the box's row r (min_x, max_x, min_y,
-/// max_y, min_z, max_z).
+/// max_y, min_z, max_z) as the fmsub's memory operand (folded on LRBni; a
+/// vbroadcastss load on AVX2, as Embree's `msub(node->lower_x[i], ...)`).
 fn box_test<M: Machine>(
     m: &mut M,
     pk: &Packet<M>,

@@ -156,9 +156,11 @@ pub fn walk4<M: Machine>(
             // node * 128: a shift.
             let base = m.s_shift(isa::Shift::Shl, node, NODE_BYTES.trailing_zeros());
             tests.other += 1;
-            let b = |m: &mut M, k: usize| m.load_repeat(&s.nodes, At::idx(base, 1, 16 * k), 4);
             // The near and far planes by the ray's direction signs, as Embree
-            // 2.0: an empty slot's bounds (+inf) miss for either sign.
+            // 2.0 (`msub(load4f(node + nearX), rdir.x, org_rdir.x)`: the plane
+            // is the fmsub's memory operand); an empty slot's bounds (+inf)
+            // miss for either sign.
+            let b = |m: &mut M, k: usize| m.load_operand(&s.nodes, At::idx(base, 1, 16 * k), 4);
             let mut t_near = [tnear_ray; 3];
             let mut t_far = [st.tfar; 3];
             for a in 0..3 {

@@ -285,9 +285,9 @@ fn count(
     uops: usize,
     (issued, cycle, last_charge): (usize, u64, &mut u64),
 ) {
-    s.ops += 1;
+    s.ops += crate::stats::instructions(op.class);
     s.uops += uops as u64;
-    s.region_ops[op.region as usize] += 1;
+    s.region_ops[op.region as usize] += crate::stats::instructions(op.class);
     s.class_ops[op.class as usize] += 1;
     if op.class.is_vector() {
         s.vector_ops += 1;

@@ -118,7 +118,11 @@ pub fn simulate(m: &MachineConfig, traces: &[&Trace], opt: &SimOptions) -> Resul
                 s.cycles = inorder::run(m, traces, &mut mem, &mut s, opt.warmup_ops);
                 // Cycles of the counted part only: time of the warm-up removed pro rata.
                 if opt.warmup_ops > 0 {
-                    let total: usize = traces.iter().map(|t| t.ops.len()).sum();
+                    let total: u64 = traces
+                        .iter()
+                        .flat_map(|t| &t.ops)
+                        .map(|o| stats::instructions(o.class))
+                        .sum();
                     let counted = s.ops as f64 / total.max(1) as f64;
                     s.cycles = (s.cycles as f64 * counted).round() as u64;
                 }
@@ -217,9 +221,9 @@ fn estimate(
                 busy[p] += ct.occ;
             }
             fused += u64::from(ct.fused);
-            s.ops += 1;
+            s.ops += crate::stats::instructions(op.class);
             s.uops += ct.uops.len() as u64;
-            s.region_ops[op.region as usize] += 1;
+            s.region_ops[op.region as usize] += crate::stats::instructions(op.class);
             s.class_ops[op.class as usize] += 1;
             branches += u64::from(op.class == OpClass::Branch);
             if op.class.is_vector() {

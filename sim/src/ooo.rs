@@ -546,9 +546,9 @@ impl OooCore {
 /// Count a timed op into the statistics: `delta` cycles to its retire.
 #[inline(always)]
 fn count(s: &mut Stats, op: &Op, ct: &ClassT, why: Stall, delta: u64) {
-    s.ops += 1;
+    s.ops += crate::stats::instructions(op.class);
     s.uops += ct.uops.len() as u64;
-    s.region_ops[op.region as usize] += 1;
+    s.region_ops[op.region as usize] += crate::stats::instructions(op.class);
     s.region_cycles[op.region as usize] += delta;
     s.stalls[why as usize] += delta;
     s.class_ops[op.class as usize] += 1;

@@ -47,11 +47,12 @@ impl Stall {
 pub struct Stats {
     /// Core cycles (for several cores or threads: of the slowest).
     pub cycles: u64,
-    /// Instructions (ops).
+    /// Instructions: ops, a folded memory operand ([`isa::OpClass::VLoadFold`])
+    /// counted as part of the op that reads it.
     pub ops: u64,
     /// Unfused uops executed.
     pub uops: u64,
-    /// Ops per code region.
+    /// Instructions per code region (as [`Stats::ops`]).
     pub region_ops: [u64; 8],
     /// Cycles charged to each code region (retire-time deltas).
     pub region_cycles: [u64; 8],
@@ -182,4 +183,11 @@ impl PerRay {
             bytes_per_ray: dram_bytes as f64 / rays.max(1) as f64,
         }
     }
+}
+
+/// 1 if `class` is an instruction of its own, 0 for a folded memory operand.
+#[inline(always)]
+#[must_use]
+pub fn instructions(class: isa::OpClass) -> u64 {
+    u64::from(class != isa::OpClass::VLoadFold)
 }

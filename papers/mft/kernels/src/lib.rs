@@ -52,6 +52,9 @@ use rt::single::Sides;
 use scene::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
 use scene::{Hit, HitPolicy};
 
+/// Scratch row of a node's boxes relative to the common origin.
+pub const SCRATCH_BOX: usize = 11;
+
 /// Frusta traced together (the SIMD width of the kernel).
 pub const FRUSTA: usize = 16;
 
@@ -435,7 +438,8 @@ pub struct MftBufs {
     pub hits: Buf,
     /// Traversal stack: (node u32, frustum mask u32) entries.
     pub stack: Buf,
-    /// Per-triangle values read back by broadcast (11 rows).
+    /// Per-triangle values read back by broadcast (rows 0-10) and a node's
+    /// boxes relative to the common origin (row [`SCRATCH_BOX`]).
     pub scratch: Buf,
     /// Shadow frusta: occlusion bits of each frustum's rays (u32 each).
     pub occl: Buf,
@@ -471,7 +475,7 @@ impl MftBufs {
             },
             hits: sp.alloc_f32(MemKind::Hits, "frusta-hits", &hits, 64),
             stack: sp.alloc(MemKind::Stack, "frusta-stack", 8 * 256, 64),
-            scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * 11, 64),
+            scratch: sp.alloc(MemKind::Stack, "frusta-scratch", 64 * (SCRATCH_BOX + 1), 64),
             occl: sp.alloc(MemKind::Hits, "frusta-occlusion", 64, 64),
             policy: f.policy,
             packets256: false,
@@ -533,8 +537,8 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
         rhi,
         dlo,
         dhi,
-        neg: [0, 1, 2].map(|a| m.cmp(Cmp::Lt, dhi[a], zero_v)),
         zero_axis: [0, 1, 2].map(|_| m.mask(0)),
+        culls: [0, 1, 2].map(|_| m.mask(0)),
         any_zero: m.int(0),
         corner,
     };
@@ -542,14 +546,11 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
     let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
     let lane_bits = m.consts_i(&lane_bits);
     let zero_i = m.splat_i(0);
-    let (ninf, pinf) = (m.splat(f32::NEG_INFINITY), m.splat(f32::INFINITY));
     let fmax = m.splat(f32::MAX);
     let c = Consts {
         lane_bits,
         zero_i,
         zero_v,
-        ninf,
-        pinf,
         fmax,
         org,
         org_node,
@@ -623,8 +624,6 @@ struct Consts<M: Machine> {
     lane_bits: M::I,
     zero_i: M::I,
     zero_v: M::F,
-    ninf: M::F,
-    pinf: M::F,
     fmax: M::F,
     /// Each frustum's origin, and the common origin laid out per node row.
     org: [M::F; 3],
@@ -745,63 +744,59 @@ fn frusta_node<M: Machine>(
     sp: &mut M::S,
 ) -> Option<(M::S, M::K)> {
     let shadow = b.policy.is_any();
-    let (zero_v, ninf, pinf, fmax, org, org_node) =
-        (c.zero_v, c.ninf, c.pinf, c.fmax, c.org, c.org_node);
-    let rel = if shadow {
-        None
-    } else {
+    let (zero_v, fmax, org, org_node) = (c.zero_v, c.fmax, c.org, c.org_node);
+    if !shadow {
+        // The paper's `box16 = node - origin4`, kept in memory: each plane
+        // is then a broadcast memory operand of its multiply.
         let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
-        Some(m.sub(boxes, org_node))
-    };
-    let nodes = &s.nodes;
+        let rel = m.sub(boxes, org_node);
+        m.store(&mut b.scratch, At::off(64 * SCRATCH_BOX), rel);
+    }
+    let (nodes, scratch) = (&s.nodes, &b.scratch);
+    // A plane relative to each frustum's origin.
     let plane = |m: &mut M, a: usize, max: bool, child: usize| {
         let lane = 4 * a + 2 * usize::from(max) + child;
-        match rel {
-            Some(rel) => m.permute(rel, &[lane as u8; FRUSTA]),
-            None => {
-                let p = m.load_bcast(nodes, At::idx(nb, 1, 4 * lane));
-                m.sub(p, org[a])
-            }
+        if shadow {
+            let p = m.load_operand(nodes, At::idx(nb, 1, 4 * lane), 1);
+            m.sub(p, org[a])
+        } else {
+            m.load_operand(scratch, At::off(64 * SCRATCH_BOX + 4 * lane), 1)
         }
     };
+    let r = fr_regs;
     let test = |m: &mut M, child: usize| {
         let mut near = zero_v;
         let mut far = dist;
-        let mut parts = Vec::with_capacity(3);
         for a in 0..3 {
             let lo = plane(m, a, false, child);
             let hi = plane(m, a, true, child);
-            // Entry plane and exit plane by the direction's sign.
-            let r = &fr_regs;
-            let en = m.select(r.neg[a], hi, lo);
-            let ex = m.select(r.neg[a], lo, hi);
-            let n0 = m.mul(en, r.rlo[a]);
-            let n1 = m.mul(en, r.rhi[a]);
-            let x0 = m.mul(ex, r.rlo[a]);
-            let x1 = m.mul(ex, r.rhi[a]);
-            let mut na = m.min(n0, n1);
-            let mut xa = m.max(x0, x1);
-            // A direction interval holding zero culls nothing on its axis.
-            na = m.select(r.zero_axis[a], ninf, na);
-            xa = m.select(r.zero_axis[a], pinf, xa);
-            near = m.max(near, na);
-            far = m.min(far, xa);
-            parts.push((lo, hi));
+            // Sign-free interval slab: with r in [rlo, rhi] of one sign, the
+            // entry is at least min(lo rlo, hi rhi) and the exit at most
+            // max(lo rlo, hi rhi) (near is clamped at 0).
+            let t0 = m.mul(lo, r.rlo[a]);
+            let t1 = m.mul(hi, r.rhi[a]);
+            let na = m.min(t0, t1);
+            let xa = m.max(t0, t1);
+            // An axis whose direction interval holds zero culls nothing:
+            // its lanes are masked out.
+            near = m.masked(BinOp::Max, r.culls[a], near, near, na);
+            far = m.masked(BinOp::Min, r.culls[a], far, far, xa);
         }
         let mut hit = m.cmp(Cmp::Le, near, far);
         hit = m.kand(hit, mask);
-        (near, far, hit, parts)
+        (near, far, hit)
     };
-    let (nl, fl_, mut hl, pl) = test(m, 0);
-    let (nr, fr_, mut hr, pr) = test(m, 1);
+    let (nl, fl_, mut hl) = test(m, 0);
+    let (nr, fr_, mut hr) = test(m, 1);
     // The zero-interval fix: on an axis whose direction interval holds
     // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
     if m.branch(site::ZERO, fr_regs.any_zero) {
         let r = &fr_regs;
-        for (near, far, hit, parts) in [(nl, fl_, &mut hl, &pl), (nr, fr_, &mut hr, &pr)] {
+        for (child, near, far, hit) in [(0, nl, fl_, &mut hl), (1, nr, fr_, &mut hr)] {
             let far_c = m.min(far, fmax);
             for a in 0..3 {
-                let (lo, hi) = parts[a];
+                let lo = plane(m, a, false, child);
+                let hi = plane(m, a, true, child);
                 let p0 = m.mul(near, r.dlo[a]);
                 let p1 = m.mul(far_c, r.dlo[a]);
                 let q0 = m.mul(near, r.dhi[a]);
@@ -811,8 +806,7 @@ fn frusta_node<M: Machine>(
                 let below = m.cmp(Cmp::Le, pmin, hi);
                 let above = m.cmp(Cmp::Ge, qmax, lo);
                 let ok = m.kand(below, above);
-                let not_zero = m.knot(r.zero_axis[a]);
-                let ok = m.kor(ok, not_zero);
+                let ok = m.kor(ok, r.culls[a]);
                 *hit = m.kand(*hit, ok);
             }
         }
@@ -848,8 +842,9 @@ struct Regs<M: Machine> {
     rhi: [M::F; 3],
     dlo: [M::F; 3],
     dhi: [M::F; 3],
-    neg: [M::K; 3],
     zero_axis: [M::K; 3],
+    /// Lanes whose axis culls: its direction interval does not hold zero.
+    culls: [M::K; 3],
     /// Any lane with a zero-holding axis (a scalar for the branch).
     any_zero: M::S,
     corner: [[M::F; 3]; 4],
@@ -864,6 +859,7 @@ impl<M: Machine> Regs<M> {
             let h = m.cmp(Cmp::Ge, self.dhi[a], zero_v);
             m.kand(l, h)
         });
+        self.culls = self.zero_axis.map(|z| m.knot(z));
         let zx = m.kor(self.zero_axis[0], self.zero_axis[1]);
         let k = m.kor(zx, self.zero_axis[2]);
         self.any_zero = m.any(k);
@@ -1457,7 +1453,6 @@ fn shrink<M: Machine>(
                 regs.rhi[a] = m.select(k, rh, regs.rhi[a]);
                 regs.dlo[a] = m.select(k, lo, regs.dlo[a]);
                 regs.dhi[a] = m.select(k, hi, regs.dhi[a]);
-                regs.neg[a] = m.cmp(Cmp::Lt, regs.dhi[a], zero_v);
             }
             regs.zero_axes(m);
         }

@@ -2,7 +2,7 @@
 //! BVHs, frusta sets), cycles sampled over batches of sets, the report frame.
 
 use isa::Program;
-use mft_kernels::{Frusta, FrustaRun, PacketPrimaryRun, Shrink};
+use mft_kernels::{Frusta, FrustaRun, MftStats, PacketPrimaryRun, Shrink};
 use repro::sampling::{mix, ratio_ci};
 use repro::{AppError, AppResult, Report, ReproduceArgs, Row};
 use scene::bvh::{BuildConfig, Bvh2};
@@ -15,7 +15,7 @@ use std::time::Instant;
 /// Simulated cycles of `sets` on one core: `batches` seeded systematic
 /// samples of `per` sets spread over the image, each split round-robin over
 /// the core's hardware threads; (cycles scaled to all sets, 95% CI half-width, ops simulated).
-pub(crate) fn sampled_cycles<P: Program>(
+pub(crate) fn sampled_cycles<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
     m: &sim::MachineConfig,
     sets: &[Frusta],
     batches: usize,
@@ -23,13 +23,58 @@ pub(crate) fn sampled_cycles<P: Program>(
     seed: u64,
     prog: impl Fn(Vec<Frusta>) -> P,
 ) -> AppResult<(f64, Option<f64>, u64)> {
+    let s = sample(m, sets, batches, per, seed, prog)?;
+    Ok((s.cycles, s.ci, s.ops))
+}
+
+/// What [`sample`] measured.
+pub(crate) struct Sample {
+    /// Cycles scaled to all sets.
+    pub cycles: f64,
+    /// Their 95% CI half-width.
+    pub ci: Option<f64>,
+    /// Ops simulated.
+    pub ops: u64,
+    /// The sampled sets' counts.
+    pub stats: MftStats,
+    /// Simulated instructions and cycles per region, summed over batches.
+    pub regions: sim::Stats,
+}
+
+impl Sample {
+    /// (instructions, cycles) of `region` per `n` tests.
+    pub fn per(&self, region: isa::Region, n: u64) -> (f64, f64) {
+        let r = region as usize;
+        let n = n.max(1) as f64;
+        (
+            self.regions.region_ops[r] as f64 / n,
+            self.regions.region_cycles[r] as f64 / n,
+        )
+    }
+}
+
+/// [`sampled_cycles`], with the sample's counts and per-region statistics.
+pub(crate) fn sample<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
+    m: &sim::MachineConfig,
+    sets: &[Frusta],
+    batches: usize,
+    per: usize,
+    seed: u64,
+    prog: impl Fn(Vec<Frusta>) -> P,
+) -> AppResult<Sample> {
+    let mut out = Sample {
+        cycles: 0.0,
+        ci: None,
+        ops: 0,
+        stats: MftStats::default(),
+        regions: sim::Stats::default(),
+    };
     if sets.is_empty() {
-        return Ok((0.0, None, 0));
+        return Ok(out);
     }
     let threads = m.core.threads.max(1) as usize;
     let per = per.min(sets.len());
     let mut pairs = Vec::new();
-    let mut ops = 0u64;
     // Each batch: a systematic sample over the image (every stride-th set
     // from a seeded offset), so a batch is not one patch of sky or wall.
     let stride = sets.len() / per;
@@ -44,19 +89,24 @@ pub(crate) fn sampled_cycles<P: Program>(
                     .step_by(threads)
                     .map(|f| (*f).clone())
                     .collect();
-                isa::record(&prog(mine), m.flavour(), "mft").0
+                let (trace, (_, st)) = isa::record(&prog(mine), m.flavour(), "mft");
+                out.stats.add(st);
+                trace
             })
             .collect();
         let refs: Vec<&isa::Trace> = traces.iter().collect();
         let s = sim::simulate(m, &refs, &sim::SimOptions::default()).map_err(AppError)?;
-        ops += traces.iter().map(|t| t.ops.len() as u64).sum::<u64>();
+        out.ops += traces.iter().map(|t| t.ops.len() as u64).sum::<u64>();
+        out.regions.merge(&s);
         pairs.push((s.cycles as f64, per as f64));
     }
     let (c, n) = pairs
         .iter()
         .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
     let scale = sets.len() as f64;
-    Ok((c / n * scale, ratio_ci(&pairs).map(|h| h * scale), ops))
+    out.cycles = c / n * scale;
+    out.ci = ratio_ci(&pairs).map(|h| h * scale);
+    Ok(out)
 }
 
 /// The machine of a 16-lane MFT report (the report's own, Larrabee, unless

@@ -203,13 +203,14 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
         ));
         ms.stats[mi] = st;
         let per = if mi < 2 { per_p } else { per_s };
-        let (cyc, ci, ops) = match (baseline, p256) {
-            (false, _) => sampled_cycles(m, sets, batches, per, su.seed, frusta)?,
-            (true, false) => sampled_cycles(m, sets, batches, per, su.seed, packets)?,
-            (true, true) => sampled_cycles(m, sets, batches, per, su.seed, big)?,
+        let smp = match (baseline, p256) {
+            (false, _) => sample(m, sets, batches, per, su.seed, frusta)?,
+            (true, false) => sample(m, sets, batches, per, su.seed, packets)?,
+            (true, true) => sample(m, sets, batches, per, su.seed, big)?,
         };
-        ms.ops += ops;
-        ms.cycles[mi] = (cyc, ci);
+        ms.ops += smp.ops;
+        ms.cycles[mi] = (smp.cycles, smp.ci);
+        unit_cost_rows(&mut ms.rows, &smp, (scene_name, mi, p256));
         if !baseline {
             ms.frusta_out[mi / 2] = out;
         }
@@ -393,5 +394,21 @@ fn method_name(mi: usize, p256: bool) -> &'static str {
         "packet256"
     } else {
         METHODS[mi]
+    }
+}
+
+/// Instructions and cycles per 16-wide AABB test (traversal region) and per
+/// triangle accessed (leaf region) on the sampled sets: the unit costs the
+/// paper's Appendix A code implies (about 14-20 VPU ops per AABB test).
+fn unit_cost_rows(rows: &mut Vec<Row>, smp: &Sample, (scene_name, mi, p256): (&str, usize, bool)) {
+    let (ops_a, cyc_a) = smp.per(isa::Region::Traversal, smp.stats.aabb_tests);
+    let (ops_t, cyc_t) = smp.per(isa::Region::Leaf, smp.stats.tris_accessed);
+    for (metric, v) in [
+        ("traversal_ops_per_aabb_test", ops_a),
+        ("traversal_cycles_per_aabb_test", cyc_a),
+        ("leaf_ops_per_tri_accessed", ops_t),
+        ("leaf_cycles_per_tri_accessed", cyc_t),
+    ] {
+        rows.push(keyed(Row::new(metric, v), scene_name, mi, p256));
     }
 }

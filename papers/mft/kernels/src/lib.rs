@@ -114,6 +114,19 @@ pub mod row {
     pub const ROWS_SHADOW: usize = 117;
 }
 
+/// Rays nearly in a triangle's plane: `d . n` (the sum of the three edge
+/// tests) below the rounding noise of the edge tests, where the inside test
+/// is meaningless. Not in the paper.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PlaneNoise {
+    /// The edge tests' verdict stands (the paper).
+    #[default]
+    Keep,
+    /// Such rays miss: 5 more ops per intersection test and 5 per
+    /// triangle a frustum reaches (the noise floor, stored).
+    Reject,
+}
+
 /// Frustum shrinking for partly occluded shadow frusta (the paper's section
 /// 5.3 and Table 2).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -450,6 +463,8 @@ pub struct MftBufs {
     pub packets256: bool,
     /// Frustum shrinking (shadow frusta).
     pub shrink: Shrink,
+    /// Rays nearly in a triangle's plane.
+    pub plane_noise: PlaneNoise,
     /// Per-ray reciprocal directions of the 256-ray packet traversal.
     pub rcp: Buf,
     /// Frusta terminated because all their rays were occluded.
@@ -480,6 +495,7 @@ impl MftBufs {
             policy: f.policy,
             packets256: false,
             shrink: Shrink::None,
+            plane_noise: PlaneNoise::Keep,
             rcp: sp.alloc(MemKind::Rays, "packet-rcp", 64 * 48, 64),
             terminated: 0,
             stats: MftStats::default(),
@@ -539,7 +555,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
         dhi,
         zero_axis: [0, 1, 2].map(|_| m.mask(0)),
         culls: [0, 1, 2].map(|_| m.mask(0)),
-        any_zero: m.int(0),
+        any_zero: [0, 1, 2].map(|_| m.int(0)),
         corner,
     };
     fr_regs.zero_axes(m);
@@ -790,25 +806,27 @@ fn frusta_node<M: Machine>(
     let (nr, fr_, mut hr) = test(m, 1);
     // The zero-interval fix: on an axis whose direction interval holds
     // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
-    if m.branch(site::ZERO, fr_regs.any_zero) {
-        let r = &fr_regs;
+    // Only the axes where some frustum's interval holds zero (a branch each).
+    let r = &fr_regs;
+    for a in 0..3 {
+        if !m.branch(site::ZERO, r.any_zero[a]) {
+            continue;
+        }
         for (child, near, far, hit) in [(0, nl, fl_, &mut hl), (1, nr, fr_, &mut hr)] {
             let far_c = m.min(far, fmax);
-            for a in 0..3 {
-                let lo = plane(m, a, false, child);
-                let hi = plane(m, a, true, child);
-                let p0 = m.mul(near, r.dlo[a]);
-                let p1 = m.mul(far_c, r.dlo[a]);
-                let q0 = m.mul(near, r.dhi[a]);
-                let q1 = m.mul(far_c, r.dhi[a]);
-                let pmin = m.min(p0, p1);
-                let qmax = m.max(q0, q1);
-                let below = m.cmp(Cmp::Le, pmin, hi);
-                let above = m.cmp(Cmp::Ge, qmax, lo);
-                let ok = m.kand(below, above);
-                let ok = m.kor(ok, r.culls[a]);
-                *hit = m.kand(*hit, ok);
-            }
+            let lo = plane(m, a, false, child);
+            let hi = plane(m, a, true, child);
+            let p0 = m.mul(near, r.dlo[a]);
+            let p1 = m.mul(far_c, r.dlo[a]);
+            let q0 = m.mul(near, r.dhi[a]);
+            let q1 = m.mul(far_c, r.dhi[a]);
+            let pmin = m.min(p0, p1);
+            let qmax = m.max(q0, q1);
+            let below = m.cmp(Cmp::Le, pmin, hi);
+            let above = m.cmp(Cmp::Ge, qmax, lo);
+            let ok = m.kand(below, above);
+            let ok = m.kor(ok, r.culls[a]);
+            *hit = m.kand(*hit, ok);
         }
     }
     let lb = m.movemask(hl);
@@ -845,8 +863,8 @@ struct Regs<M: Machine> {
     zero_axis: [M::K; 3],
     /// Lanes whose axis culls: its direction interval does not hold zero.
     culls: [M::K; 3],
-    /// Any lane with a zero-holding axis (a scalar for the branch).
-    any_zero: M::S,
+    /// Per axis: any lane whose interval holds zero (a scalar for the branch).
+    any_zero: [M::S; 3],
     corner: [[M::F; 3]; 4],
 }
 
@@ -860,9 +878,7 @@ impl<M: Machine> Regs<M> {
             m.kand(l, h)
         });
         self.culls = self.zero_axis.map(|z| m.knot(z));
-        let zx = m.kor(self.zero_axis[0], self.zero_axis[1]);
-        let k = m.kor(zx, self.zero_axis[2]);
-        self.any_zero = m.any(k);
+        self.any_zero = self.zero_axis.map(|z| m.any(z));
     }
 }
 
@@ -1077,10 +1093,14 @@ fn load_triangle<M: Machine>(
     zero_v: M::F,
 ) -> LeafTri<M> {
     let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
-    let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
+    let (e1, e2) = ([r(3), r(4), r(5)], [r(6), r(7), r(8)]);
     let prim_f = r(9);
-    // Vertices relative to each frustum's origin.
-    let a = [0, 1, 2].map(|i| m.sub(v0[i], org[i]));
+    // Vertices relative to each frustum's origin; v0 is read once, as the
+    // subtraction's broadcast memory operand.
+    let a = [0, 1, 2].map(|i| {
+        let v0 = m.load_operand(tris, At::idx(bb, 1, 32 * i + 4 * j), 1);
+        m.sub(v0, org[i])
+    });
     let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
     let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
     let nrm = cross3(m, e1, e2);
@@ -1174,6 +1194,9 @@ fn store_per_frustum<M: Machine>(m: &mut M, b: &mut MftBufs, t3: &LeafTri<M>, ed
         }
     }
     keep(m, &mut b.scratch, t3.an);
+    if b.plane_noise == PlaneNoise::Keep {
+        return;
+    }
     let a2 = dot3(m, t3.a, t3.a);
     let a4 = m.mul(a2, a2);
     let k = m.splat((4.0 * f32::EPSILON) * (4.0 * f32::EPSILON));
@@ -1200,7 +1223,8 @@ fn intersect_rays<M: Machine>(
     loop {
         let lane = m.s_tzcnt(bits);
         let n = lane.get() as usize;
-        let bc = |m: &mut M, buf: &Buf, off: usize| m.load_bcast(buf, At::off(off));
+        // Per-frustum values, each read once: broadcast memory operands.
+        let bc = |m: &mut M, buf: &Buf, off: usize| m.load_operand(buf, At::off(off), 1);
         // Rays of frustum n: start[n] + delta (shadow: frustum n's own deltas).
         let d = [0, 1, 2].map(|i| {
             let st = bc(m, &b.frusta, at_row(row::START + i) + 4 * n);
@@ -1227,15 +1251,17 @@ fn intersect_rays<M: Machine>(
         let ht = 128 * n;
         let pos = m.cmp(Cmp::Gt, t, zero_v);
         let mut hit = m.kand(inside.expect("3 edges"), pos);
-        // A ray nearly in the triangle's plane: d . n (the sum of the three
-        // edge tests) below their rounding noise makes the inside test
-        // meaningless; such rays miss (robustness; not in the paper).
-        let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
-        let d2 = dot3(m, d, d);
-        let noise = m.mul(fl, d2);
-        let dn2 = m.mul(dn, dn);
-        let reliable = m.cmp(Cmp::Gt, dn2, noise);
-        hit = m.kand(hit, reliable);
+        if b.plane_noise == PlaneNoise::Reject {
+            // A ray nearly in the triangle's plane: d . n (the sum of the
+            // three edge tests) below their rounding noise makes the inside
+            // test meaningless; such rays miss.
+            let fl = bc(m, &b.scratch, 64 * 10 + 4 * n);
+            let d2 = dot3(m, d, d);
+            let noise = m.mul(fl, d2);
+            let dn2 = m.mul(dn, dn);
+            let reliable = m.cmp(Cmp::Gt, dn2, noise);
+            hit = m.kand(hit, reliable);
+        }
         if shadow {
             // Rays not yet occluded, t below the limit.
             let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
@@ -1477,6 +1503,8 @@ pub struct FrustaRun<'a> {
     pub packets256: bool,
     /// Frustum shrinking of shadow frusta (section 5.3).
     pub shrink: Shrink,
+    /// Rays nearly in a triangle's plane (off in the paper).
+    pub plane_noise: PlaneNoise,
 }
 
 impl Program for FrustaRun<'_> {
@@ -1496,6 +1524,7 @@ impl Program for FrustaRun<'_> {
             };
             b.packets256 = self.packets256;
             b.shrink = self.shrink;
+            b.plane_noise = self.plane_noise;
             trace(m, &s, b, self.cull_back);
             for n in 0..FRUSTA {
                 for k in 0..FRUSTA {

@@ -223,6 +223,10 @@ pub trait Machine {
     fn knot(&mut self, a: Self::K) -> Self::K;
     /// Bits of the mask in a scalar (movmskps, kmovw).
     fn movemask(&mut self, k: Self::K) -> Self::S;
+    /// A mask from the low LANES bits of a scalar: one move with mask
+    /// registers (LRBni, AVX-512 `kmovw k, r32`); without them a broadcast,
+    /// an and with each lane's bit and a compare.
+    fn kmov(&mut self, bits: Self::S) -> Self::K;
     /// Number of active lanes.
     fn popcnt(&mut self, k: Self::K) -> Self::S;
     /// Lowest active lane, or LANES if none.

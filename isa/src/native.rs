@@ -340,6 +340,10 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
         a.zip(a, |x, _| !x)
     }
     #[inline(always)]
+    fn kmov(&mut self, bits: NS) -> Vk<N> {
+        Vk::from_bits((bits.0 as u64 & ((1u64 << N) - 1)) as u32)
+    }
+    #[inline(always)]
     fn movemask(&mut self, k: Vk<N>) -> NS {
         NS(i64::from(k.bits()))
     }

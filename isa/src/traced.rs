@@ -684,6 +684,17 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    fn kmov(&mut self, bits: TS) -> TK<N> {
+        let v = Vk::from_bits((bits.v as u64 & ((1u64 << N) - 1)) as u32);
+        let id = if FL::MASK_REGS {
+            self.v(OpClass::KLogic, &[bits.id])
+        } else {
+            let b = self.v(OpClass::VBcast, &[bits.id]);
+            let a = self.v(OpClass::VILogic, &[b]);
+            self.v(OpClass::VICmp, &[a])
+        };
+        TK { v, id }
+    }
     fn movemask(&mut self, k: TK<N>) -> TS {
         let id = self.s(OpClass::MovMsk, &[k.id]);
         TS {

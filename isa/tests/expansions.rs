@@ -463,3 +463,37 @@ fn memory_operands_fold_where_the_flavour_can() {
     assert_eq!(ops::<Sse4, 4>(4), [VLoadFold, VMul, VAdd]);
     assert_eq!(ops::<Sse4, 4>(1), [VLoadBcast, VMul, VAdd]);
 }
+
+#[test]
+fn general_register_to_mask_is_one_move_with_mask_registers() {
+    assert_eq!(
+        classes_of::<Lrb16, 16>(|m| {
+            let b = m.int(0b1011);
+            let k = m.kmov(b);
+            assert_eq!(m.bits(k), 0b1011);
+        }),
+        [KLogic]
+    );
+    assert_eq!(
+        classes_of::<Avx512, 16>(|m| {
+            let b = m.int(0x1_0001);
+            let k = m.kmov(b);
+            assert_eq!(m.bits(k), 1, "bits beyond the lanes are dropped");
+        }),
+        [KLogic]
+    );
+    for run in [
+        classes_of::<Avx2, 8>(|m| {
+            let b = m.int(0b101);
+            let k = m.kmov(b);
+            assert_eq!(m.bits(k), 0b101);
+        }),
+        classes_of::<Sse4, 4>(|m| {
+            let b = m.int(0b11);
+            let k = m.kmov(b);
+            assert_eq!(m.bits(k), 0b11);
+        }),
+    ] {
+        assert_eq!(run, [VBcast, VILogic, VICmp]);
+    }
+}

@@ -34,10 +34,9 @@
 //!
 //! Deviations from the paper: triangles come from our 8-wide blocks (v0 and
 //! two edges precomputed; the paper reads three vertex indices); the stack
-//! keeps a frustum mask as a u32 and rebuilds the mask register with a
-//! broadcast load, an and and a compare (LRBni moves a GPR to a mask register
-//! in one op); per-triangle per-frustum values are stored once and read back
-//! with broadcast loads; a node is tested with per-lane signs (the paper picks
+//! keeps a frustum mask as a u32 (a scalar load and a `kmov` back to a mask
+//! register); per-triangle per-frustum values are stored once and read back
+//! as broadcast memory operands; a node is tested with per-lane signs (the paper picks
 //! the planes once per frusta set from the first frustum's signs).
 
 #![warn(missing_docs)]
@@ -46,7 +45,7 @@
 
 pub mod shade;
 
-use isa::{At, BinOp, Buf, Cmp, IOp, Int, Machine, MemKind, Program, Region, Shift};
+use isa::{At, BinOp, Buf, Cmp, Int, Machine, MemKind, Program, Region, Shift};
 use rt::layout::{Bvh2Bufs, BLOCK, BLOCK_BYTES};
 use rt::single::Sides;
 use scene::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
@@ -559,13 +558,8 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
         corner,
     };
     fr_regs.zero_axes(m);
-    let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
-    let lane_bits = m.consts_i(&lane_bits);
-    let zero_i = m.splat_i(0);
     let fmax = m.splat(f32::MAX);
     let c = Consts {
-        lane_bits,
-        zero_i,
         zero_v,
         fmax,
         org,
@@ -574,7 +568,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
     // Stack: the root with every active frustum.
     let root = m.int(i64::from(s.root));
     let all = m.s_load(fr, At::off(at_row(row::ACTIVE)), 4, false);
-    let mut alive = bits_mask(m, fr, At::off(at_row(row::ACTIVE)), lane_bits, zero_i);
+    let mut alive = bits_mask(m, fr, At::off(at_row(row::ACTIVE)));
     m.s_store(&mut b.stack, At::off(0), 4, root);
     m.s_store(&mut b.stack, At::off(4), 4, all);
     let mut sp = m.int(1);
@@ -592,7 +586,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
         sp = m.s_addi(sp, -1);
         let mut node = m.s_load(&b.stack, At::idx(sp, 8, 0), 4, false);
         // Mask register from the stored bits.
-        let mut mask = bits_mask(m, &b.stack, At::idx(sp, 8, 4), lane_bits, zero_i);
+        let mut mask = bits_mask(m, &b.stack, At::idx(sp, 8, 4));
         if shadow {
             // Terminated frusta drop out.
             mask = m.kand(mask, alive);
@@ -636,9 +630,6 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
 
 /// Registers a frusta traversal keeps for its whole run.
 struct Consts<M: Machine> {
-    /// Lane n holds 1 << n.
-    lane_bits: M::I,
-    zero_i: M::I,
     zero_v: M::F,
     fmax: M::F,
     /// Each frustum's origin, and the common origin laid out per node row.
@@ -675,7 +666,7 @@ fn packets256_node<M: Machine>(
     c: &Consts<M>,
     sp: &mut M::S,
 ) -> Option<(M::S, M::K)> {
-    let (shadow, zero_v, lane_bits, zero_i) = (b.policy.is_any(), c.zero_v, c.lane_bits, c.zero_i);
+    let (shadow, zero_v) = (b.policy.is_any(), c.zero_v);
     if !shadow {
         // The frusta's node load for primary rays, issued before the packet
         // path and unused by it (kept: the op stream is the measured one;
@@ -728,12 +719,8 @@ fn packets256_node<M: Machine>(
         bits = m.s_and(bits, lm1);
     }
     // The packets' masks back into mask registers.
-    let to_mask = |m: &mut M, buf: &mut Buf, v: M::S| {
-        m.s_store(buf, At::off(64 * 10), 4, v);
-        bits_mask(m, buf, At::off(64 * 10), lane_bits, zero_i)
-    };
-    let hl = to_mask(m, &mut b.scratch, lbits);
-    let hr = to_mask(m, &mut b.scratch, rbits);
+    let hl = m.kmov(lbits);
+    let hr = m.kmov(rbits);
     let (l, r, which) = children(m, &s.nodes, nb, lbits, rbits);
     // Both: left first (no per-frustum entry distances here).
 
@@ -883,31 +870,10 @@ impl<M: Machine> Regs<M> {
 }
 
 /// A mask register from frustum bits stored as a u32 at `at` of `buf`: a
-/// broadcast load, an and with each lane's bit, a compare (LRBni would move
-/// the bits from a GPR in one op; see the module's deviations).
-fn bits_mask<M: Machine>(
-    m: &mut M,
-    buf: &Buf,
-    at: At<M::S>,
-    lane_bits: M::I,
-    zero_i: M::I,
-) -> M::K {
-    lane_bits_where(m, buf, at, (lane_bits, zero_i), Cmp::Ne)
-}
-
-/// Lanes whose bit in the u32 at `at` of `buf` compares with zero by `c`
-/// (`Ne`: set, `Eq`: clear).
-fn lane_bits_where<M: Machine>(
-    m: &mut M,
-    buf: &Buf,
-    at: At<M::S>,
-    (lane_bits, zero_i): (M::I, M::I),
-    c: Cmp,
-) -> M::K {
-    let x = m.load_bcast(buf, at);
-    let x = m.bits_to_i(x);
-    let sel = m.iop(IOp::And, x, lane_bits);
-    m.icmp(c, sel, zero_i)
+/// scalar load and a move to the mask register (`kmov`).
+fn bits_mask<M: Machine>(m: &mut M, buf: &Buf, at: At<M::S>) -> M::K {
+    let x = m.s_load(buf, at, 4, false);
+    m.kmov(x)
 }
 
 /// A BVH2 node's children (at byte `nb` of `nodes`) and which of them the
@@ -980,12 +946,9 @@ fn leaf<M: Machine>(
 ) {
     let shadow = b.policy.is_any();
     m.region(Region::Leaf);
-    let lane_bits: Vec<i32> = (0..FRUSTA as i32).map(|i| 1 << i).collect();
-    let lane_bits = m.consts_i(&lane_bits);
-    let zero_i = m.splat_i(0);
     let mut mask = mask;
     if shadow && b.shrink == Shrink::RayAabb {
-        mask = leaf_box_cull(m, s, b, node, mask, *alive, (lane_bits, zero_i));
+        mask = leaf_box_cull(m, s, b, node, mask, *alive);
         let any = m.any(mask);
         if !m.branch(site::LEAF_BOX, any) {
             return;
@@ -1020,14 +983,13 @@ fn leaf<M: Machine>(
             };
             b.stats.tris_after_culling += 1;
             store_per_frustum(m, b, &t3, &edges);
-            let c = (lane_bits, zero_i, zero_v);
             intersect_rays(
                 m,
                 b,
                 &t3,
                 (tmask, edges.len()),
                 delta,
-                c,
+                zero_v,
                 (&mut updated, alive),
             );
         }
@@ -1041,7 +1003,7 @@ fn leaf<M: Machine>(
     }
     if shadow {
         if matches!(b.shrink, Shrink::CornerRays | Shrink::Intervals) {
-            shrink(m, b, updated, regs, *alive, (lane_bits, zero_i));
+            shrink(m, b, updated, regs, *alive);
         }
         return;
     }
@@ -1214,7 +1176,7 @@ fn intersect_rays<M: Machine>(
     t3: &LeafTri<M>,
     (tmask, nedges): (M::K, usize),
     delta: &[M::F; 3],
-    (lane_bits, zero_i, zero_v): (M::I, M::I, M::F),
+    zero_v: M::F,
     (updated, alive): (&mut M::S, &mut M::K),
 ) {
     let shadow = b.policy.is_any();
@@ -1266,7 +1228,7 @@ fn intersect_rays<M: Machine>(
             // Rays not yet occluded, t below the limit.
             let lim = bc(m, &b.frusta, at_row(row::DIST) + 4 * n);
             let below = m.cmp(Cmp::Lt, t, lim);
-            let live = live_rays(m, b, n, lane_bits, zero_i);
+            let live = live_rays(m, b, n);
             hit = m.kand(hit, below);
             hit = m.kand(hit, live);
             let any = m.any(hit);
@@ -1327,8 +1289,9 @@ fn update_dist<M: Machine>(m: &mut M, b: &MftBufs, updated: M::S, dist: &mut M::
 }
 
 /// The live rays of shadow frustum `n`: lanes whose occlusion bit is clear.
-fn live_rays<M: Machine>(m: &mut M, b: &MftBufs, n: usize, lane_bits: M::I, zero_i: M::I) -> M::K {
-    lane_bits_where(m, &b.occl, At::off(4 * n), (lane_bits, zero_i), Cmp::Eq)
+fn live_rays<M: Machine>(m: &mut M, b: &MftBufs, n: usize) -> M::K {
+    let occluded = bits_mask(m, &b.occl, At::off(4 * n));
+    m.knot(occluded)
 }
 
 /// Ray-AABB (Table 2): the live rays of every non-terminated frustum in
@@ -1341,7 +1304,6 @@ fn leaf_box_cull<M: Machine>(
     node: M::S,
     mask: M::K,
     alive: M::K,
-    (lane_bits, zero_i): (M::I, M::I),
 ) -> M::K {
     let boxes = s
         .leaf_boxes
@@ -1381,7 +1343,7 @@ fn leaf_box_cull<M: Machine>(
             far = m.min(far, mx);
         }
         let hit = m.cmp(Cmp::Le, near, far);
-        let live = live_rays(m, b, n, lane_bits, zero_i);
+        let live = live_rays(m, b, n);
         let hit = m.kand(hit, live);
         let any = m.any(hit);
         let bit = m.s_shift(Shift::Shl, any, n as u32);
@@ -1389,8 +1351,7 @@ fn leaf_box_cull<M: Machine>(
         let lm1 = m.s_addi(bits, -1);
         bits = m.s_and(bits, lm1);
     }
-    m.s_store(&mut b.scratch, At::off(64 * 10), 4, keep);
-    let k = bits_mask(m, &b.scratch, At::off(64 * 10), lane_bits, zero_i);
+    let k = m.kmov(keep);
     m.kand(mask, k)
 }
 
@@ -1398,14 +1359,7 @@ fn leaf_box_cull<M: Machine>(
 /// `updated` (rays newly occluded here) gets corner rays through the 2D
 /// bounds of its live samples on the light (widened by [`CORNER_MARGIN`]);
 /// FS also shrinks its direction interval and reciprocals to its live rays.
-fn shrink<M: Machine>(
-    m: &mut M,
-    b: &mut MftBufs,
-    updated: M::S,
-    regs: &mut Regs<M>,
-    alive: M::K,
-    (lane_bits, zero_i): (M::I, M::I),
-) {
+fn shrink<M: Machine>(m: &mut M, b: &mut MftBufs, updated: M::S, regs: &mut Regs<M>, alive: M::K) {
     let zero = m.int(0);
     let al = m.movemask(alive);
     let mut bits = m.s_and(updated, al);
@@ -1416,7 +1370,7 @@ fn shrink<M: Machine>(
         let lane = m.s_tzcnt(bits);
         let n = lane.get() as usize;
         b.stats.shrinks += 1;
-        let live = live_rays(m, b, n, lane_bits, zero_i);
+        let live = live_rays(m, b, n);
         let fr = &b.frusta;
         let bound = |m: &mut M, v: M::F| {
             let l = m.select(live, v, pinf);

@@ -8,6 +8,8 @@
 //! | traversal ray | 32 | `idir.xyz, t_near, org.xyz * idir.xyz, t_far` | as the DRS paper |
 //! | intersection ray | 32 | `org.xyz, 0, dir.xyz, 0` | |
 //! | hit | 16 | `t` f32, `u` f32, `v` f32, `prim` i32 | prim = -1: no hit |
+//! | vertex ([`IndexedTris`]) | 16 | `x, y, z, 0` f32 | the mesh's vertices |
+//! | indexed triangle | 12 | `v0, v1, v2` u32 | vertex indices, by prim id |
 //!
 //! Deviation: leaves hold at most 8 triangles (one block), so a BVH4 leaf ref
 //! names one block; the paper's Embree leaves are triangle4 lists.
@@ -160,6 +162,33 @@ fn lay_out_bvh2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool)
 #[must_use]
 pub fn is_leaf(r: u32) -> bool {
     r != EMPTY_SLOT && r & LEAF != 0
+}
+
+/// Triangles as a mesh holds them: vertex indices into a vertex array (the
+/// MFT paper's packet baseline reads these at leaves).
+pub struct IndexedTris {
+    /// Vertices, 16 bytes each: `x, y, z, 0` f32.
+    pub verts: Buf,
+    /// Triangles, 12 bytes each: three u32 vertex indices.
+    pub idx: Buf,
+}
+
+/// Bytes of a vertex of [`IndexedTris`].
+pub const VERTEX_BYTES: usize = 16;
+
+/// Lay `mesh`'s vertices and vertex indices into `m`'s memory.
+pub fn lay_out_indexed<M: Machine>(m: &mut M, mesh: &Mesh) -> IndexedTris {
+    let verts: Vec<f32> = mesh
+        .positions
+        .iter()
+        .flat_map(|p| [p[0], p[1], p[2], 0.0])
+        .collect();
+    let idx: Vec<u32> = mesh.tris.iter().flatten().copied().collect();
+    let sp = m.space();
+    IndexedTris {
+        verts: sp.alloc_f32(MemKind::Triangles, "vertices", &verts, 64),
+        idx: sp.alloc_u32(MemKind::Triangles, "tri-indices", &idx, 64),
+    }
 }
 
 /// Traversal and intersection ray records for rays (org, dir, t_far).

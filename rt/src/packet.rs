@@ -120,6 +120,15 @@ pub fn packet_records(
     v
 }
 
+/// Where a packet leaf reads each triangle from.
+pub enum TriForm {
+    /// The leaf's triangle block: v0 and two edges, precomputed.
+    Edges,
+    /// The block's triangle ids, then three vertex indices and three
+    /// vertices each, edges computed at the leaf (the MFT paper's baseline).
+    Indexed(crate::layout::IndexedTris),
+}
+
 /// The packet kernels' buffers.
 pub struct PacketBufs {
     /// Packet records.
@@ -139,6 +148,8 @@ pub struct PacketBufs {
     /// Faces the leaves report ([`Sides::Front`]: back-face culling, for the
     /// MFT comparison's packet baseline).
     pub sides: Sides,
+    /// Where leaves read a triangle's vertices from.
+    pub tri_form: TriForm,
     /// The MFT paper's counters for the packet baseline: box tests (one per
     /// child box per packet), triangles tested per packet (all of them are
     /// 16-wide intersection tests; no culling).
@@ -187,6 +198,7 @@ impl PacketBufs {
             tests: Tests::default(),
             slot_of,
             sides: Sides::Both,
+            tri_form: TriForm::Edges,
             frusta_stats: crate::stats::MftStats::default(),
         }
     }
@@ -366,7 +378,7 @@ fn trace_packet<M: Machine>(
         };
         leaf(
             m,
-            blocks,
+            (blocks, &pb.tri_form),
             cur,
             valid_leaf,
             &mut pk,
@@ -553,7 +565,7 @@ fn box_test<M: Machine>(
 #[allow(clippy::too_many_arguments)]
 fn leaf<M: Machine>(
     m: &mut M,
-    tris: &Buf,
+    (tris, form): (&Buf, &TriForm),
     node: M::S,
     valid: M::K,
     pk: &mut Packet<M>,
@@ -575,9 +587,19 @@ fn leaf<M: Machine>(
         if m.branch_if(site::TRI_SLOT, Cmp::Lt, id, zero) {
             break;
         }
-        let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
-        let (v0, e1, e2) = ([r(0), r(1), r(2)], [r(3), r(4), r(5)], [r(6), r(7), r(8)]);
-        let pf = r(9);
+        let r = |m: &mut M, k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
+        let (v0, e1, e2) = match form {
+            TriForm::Edges => (
+                [r(m, 0), r(m, 1), r(m, 2)],
+                [r(m, 3), r(m, 4), r(m, 5)],
+                [r(m, 6), r(m, 7), r(m, 8)],
+            ),
+            TriForm::Indexed(t) => {
+                let [v0, e1, e2] = indexed_triangle(m, t, id);
+                (v0, e1, e2)
+            }
+        };
+        let pf = r(m, 9);
         let prim = m.bits_to_i(pf);
         let blk = Block::<M> { v0, e1, e2, prim };
         *tri_tests += 1;
@@ -608,4 +630,30 @@ fn leaf<M: Machine>(
         m.store_masked(hit, rays, at(row::V), tv);
         m.store_masked(hit, rays, at(row::PRIM), pf);
     }
+}
+
+/// Triangle `id`'s v0 and edges from its vertex indices: three index loads,
+/// each vertex's coordinates broadcast (v1 and v2 as the subtractions'
+/// memory operands), two edges computed.
+fn indexed_triangle<M: Machine>(
+    m: &mut M,
+    t: &crate::layout::IndexedTris,
+    id: M::S,
+) -> [[M::F; 3]; 3] {
+    // id * 12: id + 2 id, scaled by 4 in the address.
+    let twice = m.s_shift(Shift::Shl, id, 1);
+    let i3 = m.s_add(id, twice);
+    let vert = |m: &mut M, c: usize| {
+        let v = m.s_load(&t.idx, At::idx(i3, 4, 4 * c), 4, false);
+        m.s_shift(Shift::Shl, v, crate::layout::VERTEX_BYTES.trailing_zeros())
+    };
+    let (a, b, c) = (vert(m, 0), vert(m, 1), vert(m, 2));
+    let v0 = [0, 1, 2].map(|k| m.load_bcast(&t.verts, At::idx(a, 1, 4 * k)));
+    let edge = |m: &mut M, at: M::S, k: usize| {
+        let p = m.load_operand(&t.verts, At::idx(at, 1, 4 * k), 1);
+        m.sub(p, v0[k])
+    };
+    let e1 = [0, 1, 2].map(|k| edge(m, b, k));
+    let e2 = [0, 1, 2].map(|k| edge(m, c, k));
+    [v0, e1, e2]
 }

@@ -32,8 +32,9 @@
 //!
 //! Hits: per frustum 2 rows, t then prim (i32, -1: none), 2 KB for 256 rays.
 //!
-//! Deviations from the paper: triangles come from our 8-wide blocks (v0 and
-//! two edges precomputed; the paper reads three vertex indices); the stack
+//! Deviations from the paper: MFT's triangles come from our 8-wide blocks
+//! (v0 and two edges precomputed; the paper reads three vertex indices, as
+//! the 16-ray packet baseline does here, [`PacketLeaves::Indexed`]); the stack
 //! keeps a frustum mask as a u32 (a scalar load and a `kmov` back to a mask
 //! register); per-triangle per-frustum values are stored once and read back
 //! as broadcast memory operands; a node is tested with per-lane signs (the paper picks
@@ -1568,6 +1569,18 @@ pub struct PacketPrimaryRun<'a> {
     pub sets: Vec<Frusta>,
     /// Back-face culling (front faces only).
     pub cull_back: bool,
+    /// Where the packets' leaves read triangles from.
+    pub leaves: PacketLeaves,
+}
+
+/// Where the 16-ray packet baseline's leaves read triangles from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PacketLeaves {
+    /// Three vertex indices per triangle, then the vertices (the paper).
+    #[default]
+    Indexed,
+    /// The triangle block's precomputed v0 and edges (as MFT's leaves).
+    Edges,
 }
 
 impl Program for PacketPrimaryRun<'_> {
@@ -1603,6 +1616,12 @@ impl Program for PacketPrimaryRun<'_> {
                             Sides::Front
                         } else {
                             Sides::Both
+                        };
+                        pb.tri_form = match self.leaves {
+                            PacketLeaves::Indexed => rt::packet::TriForm::Indexed(
+                                rt::layout::lay_out_indexed(m, &self.scene.mesh),
+                            ),
+                            PacketLeaves::Edges => rt::packet::TriForm::Edges,
                         };
                         bufs.insert(pb)
                     }

@@ -103,6 +103,7 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
             bvh: deep,
             sets: sets.to_vec(),
             cull_back,
+            leaves: mft_kernels::PacketLeaves::Indexed,
         };
         let (ptraced, pstats) = isa::record(&pr, FlavourId::Lrb16, "p16").1;
         assert_eq!(
@@ -111,6 +112,16 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
         );
         let n = bad(&format!("packet {label}"), &refi, sets, &ptraced);
         assert_eq!(n, 0, "packet {label}: {n} rays differ");
+        // The precomputed-edge variant: the same hits and counts.
+        let edges = PacketPrimaryRun {
+            leaves: mft_kernels::PacketLeaves::Edges,
+            sets: sets.to_vec(),
+            ..pr
+        };
+        let (etraced, estats) = isa::run_native(&edges, FlavourId::Lrb16);
+        assert_eq!(estats, pstats, "{label}: edge-form packets count the same");
+        let n = bad(&format!("packet edges {label}"), &refi, sets, &etraced);
+        assert_eq!(n, 0, "packet edges {label}: {n} rays differ");
         // 256-ray packets: MFT's leaves behind per-ray box tests of 16 packets.
         let big = FrustaRun {
             packets256: true,

@@ -271,6 +271,7 @@ impl Prepared {
             bvh: &self.deep,
             sets,
             cull_back: true,
+            leaves: mft_kernels::PacketLeaves::Indexed,
         }
     }
 }

@@ -181,6 +181,10 @@ pub trait Machine {
     fn cmp(&mut self, p: Cmp, a: Self::F, b: Self::F) -> Self::K;
     /// `k ? t : f` (vblendvps, or a masked move with mask registers).
     fn select(&mut self, k: Self::K, t: Self::F, f: Self::F) -> Self::F;
+    /// Per lane `b` where `s`'s sign bit is set, else `a` (AVX2 and SSE4
+    /// `blendvps`: one op; flavours with mask registers move the sign bits
+    /// to a mask first).
+    fn blend_sign(&mut self, s: Self::F, a: Self::F, b: Self::F) -> Self::F;
     /// Bitwise op.
     fn logic(&mut self, op: Logic, a: Self::F, b: Self::F) -> Self::F;
     /// Broadcast a scalar to all lanes.

@@ -254,6 +254,16 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
         k.select(t, f)
     }
     #[inline(always)]
+    fn blend_sign(&mut self, s: Vf<N>, a: Vf<N>, b: Vf<N>) -> Vf<N> {
+        Vf(std::array::from_fn(|i| {
+            if s.0[i].is_sign_negative() {
+                b.0[i]
+            } else {
+                a.0[i]
+            }
+        }))
+    }
+    #[inline(always)]
     fn logic(&mut self, op: Logic, a: Vf<N>, b: Vf<N>) -> Vf<N> {
         a.zip(b, |x, y| f32::from_bits(op.eval(x.to_bits(), y.to_bits())))
     }

@@ -545,6 +545,23 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         let id = self.rec_select(k.id, t.id, f.id);
         Self::tf(k.v.select(t.v, f.v), id)
     }
+    fn blend_sign(&mut self, s: TF<N>, a: TF<N>, b: TF<N>) -> TF<N> {
+        let v = Vf(std::array::from_fn(|i| {
+            if s.v.0[i].is_sign_negative() {
+                b.v.0[i]
+            } else {
+                a.v.0[i]
+            }
+        }));
+        let id = if FL::MASK_REGS {
+            // vpmovd2m / a signed integer compare with zero, then a masked move.
+            let k = self.v(OpClass::VICmp, &[s.id]);
+            self.v(OpClass::VMaskMov, &[a.id, b.id, k])
+        } else {
+            self.v(OpClass::VBlend, &[a.id, b.id, s.id])
+        };
+        Self::tf(v, id)
+    }
     fn logic(&mut self, op: Logic, a: TF<N>, b: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VLogic, &[a.id, b.id]);
         Self::tf(

@@ -497,3 +497,36 @@ fn general_register_to_mask_is_one_move_with_mask_registers() {
         assert_eq!(run, [VBcast, VILogic, VICmp]);
     }
 }
+
+#[test]
+fn blend_by_sign_is_blendv_or_a_mask_and_a_masked_move() {
+    assert_eq!(
+        classes_of::<Avx2, 8>(|m| {
+            let s = m.consts(&[-1.0, 1.0, -0.0, 0.0, 2.0, -2.0, 3.0, -3.0]);
+            let (a, b) = (m.splat(10.0), m.splat(20.0));
+            let r = m.blend_sign(s, a, b);
+            let got: Vec<f32> = (0..8).map(|i| m.lane(r, i)).collect();
+            assert_eq!(got, [20.0, 10.0, 20.0, 10.0, 10.0, 20.0, 10.0, 20.0]);
+        }),
+        [VBlend]
+    );
+    assert_eq!(
+        classes_of::<Sse4, 4>(|m| {
+            let (s, a) = (m.splat(-1.0), m.splat(1.0));
+            m.blend_sign(s, a, a);
+        }),
+        [VBlend]
+    );
+    for run in [
+        classes_of::<Lrb16, 16>(|m| {
+            let (s, a) = (m.splat(-1.0), m.splat(1.0));
+            m.blend_sign(s, a, a);
+        }),
+        classes_of::<Avx512, 16>(|m| {
+            let (s, a) = (m.splat(-1.0), m.splat(1.0));
+            m.blend_sign(s, a, a);
+        }),
+    ] {
+        assert_eq!(run, [VICmp, VMaskMov]);
+    }
+}

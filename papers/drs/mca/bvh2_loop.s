@@ -24,38 +24,33 @@ drs_bvh2_loop:
   vmovups ymm5, ymmword ptr [rbp + 0x100000]
   vperm2f128 ymm2, ymm4, ymm5, 0x20
   vperm2f128 ymm3, ymm4, ymm5, 0x31
-  # the box test of the current two rays
-  vpermilps ymm6, ymm0, 0xff
-  vpermilps ymm7, ymm1, 0xff
+  # the box test of the current two rays: far planes negated, one max tree
+  vxorps ymm6, ymm1, ymm14
+  vshufps ymm7, ymm0, ymm6, 0xff
   vpermilps ymm4, ymm0, 0x0
-  vpermilps ymm5, ymm1, 0x0
-  vcmpltps ymm15, ymm4, ymm14
-  vblendvps ymm15, ymm8, ymm11, ymm15
+  vshufps ymm5, ymm1, ymm6, 0x0
+  vblendvps ymm15, ymm8, ymm11, ymm4
   vfmsub213ps ymm15, ymm4, ymm5
-  vmaxps ymm6, ymm6, ymm15
-  vminps ymm7, ymm7, ymm15
+  vmaxps ymm7, ymm7, ymm15
   vpermilps ymm4, ymm0, 0x55
-  vpermilps ymm5, ymm1, 0x55
-  vcmpltps ymm15, ymm4, ymm14
-  vblendvps ymm15, ymm9, ymm12, ymm15
+  vshufps ymm5, ymm1, ymm6, 0x55
+  vblendvps ymm15, ymm9, ymm12, ymm4
   vfmsub213ps ymm15, ymm4, ymm5
-  vmaxps ymm6, ymm6, ymm15
-  vminps ymm7, ymm7, ymm15
   vpermilps ymm4, ymm0, 0xaa
-  vpermilps ymm5, ymm1, 0xaa
-  vcmpltps ymm15, ymm4, ymm14
-  vblendvps ymm15, ymm10, ymm13, ymm15
-  vfmsub213ps ymm15, ymm4, ymm5
-  vmaxps ymm6, ymm6, ymm15
-  vminps ymm7, ymm7, ymm15
-  vpermilps ymm4, ymm7, 0x4e
-  vcmpleps ymm4, ymm6, ymm4
+  vshufps ymm5, ymm1, ymm6, 0xaa
+  vblendvps ymm6, ymm10, ymm13, ymm4
+  vfmsub213ps ymm6, ymm4, ymm5
+  vmaxps ymm15, ymm15, ymm6
+  vmaxps ymm7, ymm7, ymm15
+  # lanes 0-2: left hit, right hit, right nearer; one compare
+  vxorps ymm4, ymm7, ymm14
+  vshufps ymm4, ymm4, ymm7, 0x0e
+  vpermilps ymm5, ymm7, 0x54
+  vcmpleps ymm4, ymm5, ymm4
   vmovmskps ebx, ymm4
-  vpermilps ymm5, ymm6, 0xb1
-  vcmpltps ymm5, ymm5, ymm6
-  vmovmskps ebp, ymm5
   # conditions: left-first, right, left-second
   rorx r13, rbx, 1
+  rorx rbp, rbx, 2
   and rbp, r13
   andn r12, rbp, rbx        # x86: andn is rtsim's xor + and
   and rbp, rbx
@@ -95,38 +90,33 @@ drs_bvh2_loop:
   vmovups ymm5, ymmword ptr [rbp + 0x100000]
   vperm2f128 ymm0, ymm4, ymm5, 0x20
   vperm2f128 ymm1, ymm4, ymm5, 0x31
-  # the box test of the current two rays
-  vpermilps ymm6, ymm2, 0xff
-  vpermilps ymm7, ymm3, 0xff
+  # the box test of the current two rays: far planes negated, one max tree
+  vxorps ymm6, ymm3, ymm14
+  vshufps ymm7, ymm2, ymm6, 0xff
   vpermilps ymm4, ymm2, 0x0
-  vpermilps ymm5, ymm3, 0x0
-  vcmpltps ymm15, ymm4, ymm14
-  vblendvps ymm15, ymm8, ymm11, ymm15
+  vshufps ymm5, ymm3, ymm6, 0x0
+  vblendvps ymm15, ymm8, ymm11, ymm4
   vfmsub213ps ymm15, ymm4, ymm5
-  vmaxps ymm6, ymm6, ymm15
-  vminps ymm7, ymm7, ymm15
+  vmaxps ymm7, ymm7, ymm15
   vpermilps ymm4, ymm2, 0x55
-  vpermilps ymm5, ymm3, 0x55
-  vcmpltps ymm15, ymm4, ymm14
-  vblendvps ymm15, ymm9, ymm12, ymm15
+  vshufps ymm5, ymm3, ymm6, 0x55
+  vblendvps ymm15, ymm9, ymm12, ymm4
   vfmsub213ps ymm15, ymm4, ymm5
-  vmaxps ymm6, ymm6, ymm15
-  vminps ymm7, ymm7, ymm15
   vpermilps ymm4, ymm2, 0xaa
-  vpermilps ymm5, ymm3, 0xaa
-  vcmpltps ymm15, ymm4, ymm14
-  vblendvps ymm15, ymm10, ymm13, ymm15
-  vfmsub213ps ymm15, ymm4, ymm5
-  vmaxps ymm6, ymm6, ymm15
-  vminps ymm7, ymm7, ymm15
-  vpermilps ymm4, ymm7, 0x4e
-  vcmpleps ymm4, ymm6, ymm4
+  vshufps ymm5, ymm3, ymm6, 0xaa
+  vblendvps ymm6, ymm10, ymm13, ymm4
+  vfmsub213ps ymm6, ymm4, ymm5
+  vmaxps ymm15, ymm15, ymm6
+  vmaxps ymm7, ymm7, ymm15
+  # lanes 0-2: left hit, right hit, right nearer; one compare
+  vxorps ymm4, ymm7, ymm14
+  vshufps ymm4, ymm4, ymm7, 0x0e
+  vpermilps ymm5, ymm7, 0x54
+  vcmpleps ymm4, ymm5, ymm4
   vmovmskps ebx, ymm4
-  vpermilps ymm5, ymm6, 0xb1
-  vcmpltps ymm5, ymm5, ymm6
-  vmovmskps ebp, ymm5
   # conditions: left-first, right, left-second
   rorx r13, rbx, 1
+  rorx rbp, rbx, 2
   and rbp, r13
   andn r12, rbp, rbx        # x86: andn is rtsim's xor + and
   and rbp, rbx

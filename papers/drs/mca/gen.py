@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Write bvh2_loop.s: the pipelined DRS BVH2 core loop (closest hit), two
+"""Write bvh2_loop.s: the pipelined DRS BVH2 core loop (closest hit) as the
+paper's Appendix A listing, two
 iterations per loop body so the current and next ray registers alternate
 without moves. Instruction for instruction the op stream rtsim records for
 `drs_kernels::pipeline::core_loop` with the BVH2 test, except where x86
@@ -28,26 +29,29 @@ def it(cur, nxt, prev_b, d_in, d_out):
     e(f"  vmovups ymm5, ymmword ptr [rbp + {TRAV}]")
     e(f"  vperm2f128 {ndn}, ymm4, ymm5, 0x20")
     e(f"  vperm2f128 {nof}, ymm4, ymm5, 0x31")
-    e("  # the box test of the current two rays")
-    e(f"  vpermilps ymm6, {dn}, 0xff")
-    e(f"  vpermilps ymm7, {of}, 0xff")
+    e("  # the box test of the current two rays: far planes negated, one max tree")
+    e(f"  vxorps ymm6, {of}, ymm14")
+    e(f"  vshufps ymm7, {dn}, ymm6, 0xff")
     for a in range(3):
         s = [0x00, 0x55, 0xAA][a]
+        dst = ["ymm15", "ymm15", "ymm6"][a]
         e(f"  vpermilps ymm4, {dn}, {s:#x}")
-        e(f"  vpermilps ymm5, {of}, {s:#x}")
-        e(f"  vcmpltps ymm15, ymm4, ymm14")
-        e(f"  vblendvps ymm15, ymm{8 + a}, ymm{11 + a}, ymm15")
-        e(f"  vfmsub213ps ymm15, ymm4, ymm5")
-        e(f"  vmaxps ymm6, ymm6, ymm15")
-        e(f"  vminps ymm7, ymm7, ymm15")
-    e("  vpermilps ymm4, ymm7, 0x4e")
-    e("  vcmpleps ymm4, ymm6, ymm4")
+        e(f"  vshufps ymm5, {of}, ymm6, {s:#x}")
+        e(f"  vblendvps {dst}, ymm{8 + a}, ymm{11 + a}, ymm4")
+        e(f"  vfmsub213ps {dst}, ymm4, ymm5")
+        if a == 0:
+            e("  vmaxps ymm7, ymm7, ymm15")
+    e("  vmaxps ymm15, ymm15, ymm6")
+    e("  vmaxps ymm7, ymm7, ymm15")
+    e("  # lanes 0-2: left hit, right hit, right nearer; one compare")
+    e("  vxorps ymm4, ymm7, ymm14")
+    e("  vshufps ymm4, ymm4, ymm7, 0x0e")
+    e("  vpermilps ymm5, ymm7, 0x54")
+    e("  vcmpleps ymm4, ymm5, ymm4")
     e("  vmovmskps ebx, ymm4")
-    e("  vpermilps ymm5, ymm6, 0xb1")
-    e("  vcmpltps ymm5, ymm5, ymm6")
-    e("  vmovmskps ebp, ymm5")
     e("  # conditions: left-first, right, left-second")
     e("  rorx r13, rbx, 1")
+    e("  rorx rbp, rbx, 2")
     e("  and rbp, r13")
     e("  andn r12, rbp, rbx        # x86: andn is rtsim's xor + and")
     e("  and rbp, rbx")

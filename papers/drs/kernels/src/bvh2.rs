@@ -9,8 +9,11 @@
 //!   child, list 2 rays that hit the left child farther than the right;
 //! - no direction binning (the paper: it did not pay off for BVH2): the near
 //!   and far planes are chosen per ray in the core loop by a blend on the
-//!   direction's sign, from the node's rows `[min_l, min_r, max_l, max_r]` and
-//!   their half-swapped copies;
+//!   direction's sign (`blendv`), from the node's rows `[min_l, min_r, max_l,
+//!   max_r]` and their half-swapped copies, the far planes negated
+//!   (`posNegMask`) so one max tree gives entry and negated exit distances;
+//!   one compare and one mask move give each ray's left hit, right hit and
+//!   order bits, as the listing's `mask`;
 //! - the core loop tests LANES/4 rays per iteration (2 on AVX2), fmsub on the
 //!   premultiplied origin, scalar appends to all 3 lists advanced by their
 //!   conditions, the last index duplicated as padding; software-pipelined
@@ -19,13 +22,13 @@
 //!   [`FALLBACK2`] rays an item is traced ray by ray;
 //! - shadow rays: one item per hit child, the larger popped first.
 //!
-//! Deviations: the paper folds near and far into one max by negating the far
-//! planes (`posNegMask`); this kernel takes a max for near and a min for far
-//! (one more op per axis); list counters live in memory between nodes.
+//! Deviations: list counters live in memory between nodes; the listing
+//! omits how `mask` is formed: here a negation, a shuffle, a permute, a
+//! compare and a mask move.
 
 use crate::bvh4::{for_each_ray, larger_last, leaf_item, pad_and_push, StreamBufs};
 use crate::pipeline::core_loop;
-use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
+use isa::{At, Buf, Cmp, Int, Logic, Machine, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::Bvh2Bufs;
 use rt::single::trace_ray_bvh2;
@@ -173,21 +176,25 @@ fn core_node<M: Machine, const N: usize>(
     m.region(Region::Traversal);
     let base = m.s_shift(Shift::Shl, node, 6);
     let sp4 = &Pat::<N>::SPLAT;
-    let (swp, swg) = (&Pat::<N>::SWAP_PAIRS, &Pat::<N>::SWAP_GROUPS);
-    // Rows [min_l, min_r, max_l, max_r] and [max_l, max_r, min_l, min_r].
-    let mut rows = Vec::with_capacity(3);
-    let mut swapped = Vec::with_capacity(3);
+    // The paper's bbX = [min_l, min_r, -max_l, -max_r] and bbXneg = [max_l,
+    // max_r, -min_l, -min_r] (the planes for a negative direction): far
+    // planes negated, so one max gives entry and negated exit distances.
+    let pos_neg: Vec<f32> = (0..N).map(|l| if l % 4 < 2 { 0.0 } else { -0.0 }).collect();
+    let pos_neg = m.consts(&pos_neg);
+    let mut bb = Vec::with_capacity(3);
+    let mut bb_neg = Vec::with_capacity(3);
     for a in 0..3 {
         let row = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
-        swapped.push(m.permute(row, swg));
-        rows.push(row);
+        let swapped = m.permute(row, &Pat::<N>::SWAP_GROUPS);
+        bb.push(m.logic(Logic::Xor, row, pos_neg));
+        bb_neg.push(m.logic(Logic::Xor, swapped, pos_neg));
     }
+    let neg = m.splat(-0.0);
     let nlists = if policy.is_any() { 2 } else { 3 };
     let starts: Vec<M::S> = (0..nlists)
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
-    let zero_v = m.splat(0.0);
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
     core_loop::<M, N>(
@@ -199,35 +206,38 @@ fn core_node<M: Machine, const N: usize>(
         &mut cnt,
         sites,
         |m, dir_near, org_far| {
-            // Lanes 0, 1 of each ray's 4: entry of left, right; lanes 2, 3: exit.
-            let mut tmax = m.permute(dir_near, &sp4[3]);
-            let mut tmin = m.permute(org_far, &sp4[3]);
+            // Per axis a, each ray's 4 lanes: [near_l, near_r, -far_l, -far_r].
+            let org_far_neg = m.logic(Logic::Xor, org_far, neg);
+            let mut near_far = Vec::with_capacity(3);
             for a in 0..3 {
                 let d = m.permute(dir_near, &sp4[a]);
-                let o = m.permute(org_far, &sp4[a]);
-                let neg = m.cmp(Cmp::Lt, d, zero_v);
-                let planes = m.select(neg, swapped[a], rows[a]);
-                let t = m.fmsub(planes, d, o);
-                tmax = m.max(tmax, t);
-                tmin = m.min(tmin, t);
+                let a8 = a as u8;
+                let o = m.shuffle2(org_far, org_far_neg, &groups::<N>([a8, a8, 4 + a8, 4 + a8]));
+                let planes = m.blend_sign(d, bb[a], bb_neg[a]);
+                near_far.push(m.fmsub(planes, d, o));
             }
-            let exit = m.permute(tmin, swg);
-            let hit = m.cmp(Cmp::Le, tmax, exit);
-            let hbits = m.movemask(hit);
+            let ray = m.shuffle2(dir_near, org_far_neg, &groups::<N>([3, 3, 7, 7]));
+            let m01 = m.max(ray, near_far[0]);
+            let m23 = m.max(near_far[1], near_far[2]);
+            let x = m.max(m01, m23);
+            // Lanes 0, 1, 2: near_l <= far_l, near_r <= far_r, near_r <= near_l.
+            let xn = m.logic(Logic::Xor, x, neg);
+            let rhs = m.shuffle2(xn, x, &groups::<N>([2, 3, 4, 4]));
+            let lhs = m.permute(x, &groups::<N>([0, 1, 1, 1]));
+            let hit = m.cmp(Cmp::Le, lhs, rhs);
+            let mask = m.movemask(hit);
             let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
+            let right = shr(m, mask, 1);
             if policy.is_any() {
                 // Shadow rays: list 0 left, list 1 right, no order.
-                return vec![hbits, shr(m, hbits, 1)];
+                return vec![mask, right];
             }
-            let other = m.permute(tmax, swp);
-            let right_first = m.cmp(Cmp::Lt, other, tmax);
-            let obits = m.movemask(right_first);
             // Ray q's conditions at bit 4q: left-first, right, left-second.
-            let h1 = shr(m, hbits, 1);
-            let order = m.s_and(obits, h1);
+            let o2 = shr(m, mask, 2);
+            let order = m.s_and(o2, right);
             let all = m.int(0xFFFF);
             let norder = m.s_op(isa::SOp::Xor, order, all);
-            vec![m.s_and(hbits, norder), h1, m.s_and(hbits, order)]
+            vec![m.s_and(mask, norder), right, m.s_and(mask, order)]
         },
     );
     m.region(Region::Traversal);
@@ -257,4 +267,13 @@ fn core_node<M: Machine, const N: usize>(
         );
         pad_and_push(m, st, sp, k, child, starts[k], cnt[k], zero, r);
     }
+}
+
+/// A 4-lane pattern repeated for each 4-lane group of N lanes: indices 0-3
+/// pick the group's lanes of the first source, 4-7 those of the second.
+fn groups<const N: usize>(p: [u8; 4]) -> [u8; N] {
+    std::array::from_fn(|l| {
+        let (g, x) = (l / 4 * 4, p[l % 4] as usize);
+        (if x < 4 { g + x } else { N + g + x - 4 }) as u8
+    })
 }

@@ -468,9 +468,17 @@ fn down<M: Machine>(
         if m.branch(site::LEAF, lf) {
             break;
         }
-        let valid_node = m.cmp(Cmp::Gt, pk.tfar, *cur_d);
-        tests.other += u64::from(m.bits(valid_node).count_ones());
+        // Ray-node tests: lanes still in front of their hit (counted on the
+        // host, as Embree's STAT3 counter, which release builds compile out).
+        tests.other += (0..w)
+            .filter(|&i| m.lane(pk.tfar, i) > m.lane(*cur_d, i))
+            .count() as u64;
         let node = *cur;
+        // The node's address, once per node.
+        let nb = match tree {
+            Tree::Bvh4(_) => m.s_shift(Shift::Shl, node, NODE_BYTES.trailing_zeros()),
+            Tree::Bvh2(_) => m.s_shift(Shift::Shl, node, 6),
+        };
         // Pop the next node now; a hit child may take its place.
         *sp = m.s_addi(*sp, -1);
         let near_off = m.s_shift(Shift::Shl, *sp, (4 * w).trailing_zeros());
@@ -483,7 +491,6 @@ fn down<M: Machine>(
         for &i in children {
             let (child, lnear, lhit) = match tree {
                 Tree::Bvh4(s) => {
-                    let nb = m.s_shift(Shift::Shl, node, NODE_BYTES.trailing_zeros());
                     let child = m.s_load(&s.nodes, At::idx(nb, 1, 96 + 4 * i), 4, false);
                     let empty = m.s_cmp(Cmp::Eq, child, sentinel);
                     if m.branch(site::EMPTY, empty) {
@@ -497,7 +504,6 @@ fn down<M: Machine>(
                     (child, lnear, lhit)
                 }
                 Tree::Bvh2(s) => {
-                    let nb = m.s_shift(Shift::Shl, node, 6);
                     let child = m.s_load(&s.nodes, At::idx(nb, 1, 48 + 4 * i), 4, false);
                     // Per axis [min_l, min_r, max_l, max_r]: min at 4i, max at 8 + 4i.
                     let plane = |m: &mut M, r: usize| {

@@ -1,7 +1,7 @@
 //! # drs-report
 //!
-//! The DRS paper's reports (Fuetterling et al. 2015, "Efficient Ray Tracing
-//! Kernels for Modern CPU Architectures") computed on the Haswell model:
+//! The DRS paper's reports (Barringer and Akenine-Moller 2014, "Dynamic Ray
+//! Stream Traversal") computed on the Haswell model:
 //! Table 1 (all seven methods), Table 2 (CPI and s/Gray of the core loop),
 //! Figure 5 (tile size) and Figure 6 (field of view), and `rtsim run` of one
 //! of its traversal methods over one tile's stream. The paper's own figures

@@ -1,4 +1,4 @@
-//! The DRS paper's figures as data (Fuetterling et al. 2015, i7-4750HQ at
+//! The DRS paper's figures as data (Barringer and Akenine-Moller 2014, i7-4750HQ at
 //! 2.8 GHz), and the rows and scenes its tables are made of.
 
 use drs_kernels::methods::Kernel;
@@ -28,7 +28,7 @@ pub const TABLE1_KERNELS: [Kernel; 7] = [
     Kernel::HybridBvh4,
 ];
 
-/// The paper's Table 1 (Fuetterling et al. 2015, total render speed and
+/// The paper's Table 1 (Barringer and Akenine-Moller 2014, total render speed and
 /// DRAM bytes per ray, i7-4750HQ at 2.8 GHz).
 pub const PAPER_TABLE1: [PaperScene1; 4] = [
     (

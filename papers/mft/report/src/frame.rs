@@ -260,7 +260,7 @@ impl Prepared {
             cull_back: true,
             packets256,
             shrink,
-            plane_noise: mft_kernels::PlaneNoise::Keep,
+            plane_noise: mft_kernels::PlaneNoise::Reject,
         }
     }
 

@@ -26,8 +26,9 @@
 //! omits how `mask` is formed: here a negation, a shuffle, a permute, a
 //! compare and a mask move.
 
-use crate::bvh4::{for_each_ray, larger_last, leaf_item, pad_and_push, StreamBufs};
+use crate::bvh4::{for_each_ray, larger_last, leaf_item, pad_and_push};
 use crate::pipeline::core_loop;
+use crate::stream::StreamBufs;
 use isa::{At, Buf, Cmp, Int, Logic, Machine, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::Bvh2Bufs;

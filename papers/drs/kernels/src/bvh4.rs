@@ -27,7 +27,8 @@
 //! node (the paper keeps list pointers in registers).
 
 use crate::pipeline::core_loop;
-use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
+pub use crate::stream::StreamBufs;
+use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
 use rt::boxtest::Pat;
 use rt::layout::{Bvh4Bufs, BLOCK_BYTES};
 use rt::single::{intersect, load_block, trace_ray_bvh4};
@@ -35,8 +36,7 @@ use scene::HitPolicy;
 
 /// Below this many rays an item is traced ray by ray (the paper's n for BVH4).
 pub const FALLBACK: i64 = 16;
-/// Bytes of a stack item: node u32, list u8, octant u8, pad, start u32, count u32.
-pub const ITEM_BYTES: usize = 16;
+pub use crate::stream::ITEM_BYTES;
 /// Which child each of the 9 items holds: c0-c1-c0-c2-c3-c2-c0-c1-c0.
 pub const CHILD_OF_ITEM: [usize; 9] = [0, 1, 0, 2, 3, 2, 0, 1, 0];
 
@@ -66,50 +66,6 @@ pub mod site {
 
     /// Every site of the module (checked for duplicates by the layout test).
     pub const ALL: [Site; 10] = [BIN, OCTANT, STACK, FEW, LEAF, CORE, PAD, ITEM, RAYS, ORDER];
-}
-
-/// The ray stream's own buffers.
-pub struct StreamBufs {
-    /// 9 ray pointer lists of `cap` u16 entries each.
-    pub lists: Buf,
-    /// Entries per list.
-    pub cap: usize,
-    /// The ray stream stack.
-    pub items: Buf,
-    /// The 9 list counters (u64 each).
-    pub counters: Buf,
-    /// Single-ray fallback stack.
-    pub stack: Buf,
-    /// Ray-node and ray-leaf tests so far.
-    pub tests: rt::stats::Tests,
-}
-
-impl StreamBufs {
-    /// Buffers for `nrays` rays over a BVH4 of depth `depth`.
-    pub fn new<M: Machine>(m: &mut M, nrays: usize, depth: usize) -> StreamBufs {
-        assert!(nrays <= 65536, "16-bit ray indices");
-        let cap = (nrays + 16) * (depth + 2);
-        StreamBufs {
-            lists: m
-                .space()
-                .alloc(MemKind::RayLists, "ray-lists", 9 * cap * 2, 64),
-            cap,
-            items: m.space().alloc(
-                MemKind::Stack,
-                "stream-stack",
-                ITEM_BYTES * (9 * (depth + 2) + 8),
-                64,
-            ),
-            counters: m.space().alloc(MemKind::Stack, "list-counters", 9 * 8, 64),
-            stack: m.space().alloc(
-                MemKind::Stack,
-                "single-stack",
-                rt::single::STACK_ENTRIES * 8,
-                64,
-            ),
-            tests: rt::stats::Tests::default(),
-        }
-    }
 }
 
 /// Trace rays `[0, nrays)` (records as for [`rt::single::trace_bvh4`]).

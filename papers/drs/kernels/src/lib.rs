@@ -14,6 +14,7 @@ pub mod bvh2;
 pub mod bvh4;
 pub mod methods;
 mod pipeline;
+pub mod stream;
 
 /// The BVH the DRS kernels traverse: binned SAH with leaves of up to 8
 /// triangles (one 8-wide triangle block per leaf), traversal cost 1; the

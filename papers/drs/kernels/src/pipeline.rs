@@ -18,7 +18,7 @@
 //! zero, so the rays they name are in bounds; their loads are what the
 //! hardware would issue too, and their results are never used.
 
-use crate::bvh4::StreamBufs;
+use crate::stream::StreamBufs;
 use isa::{At, Buf, Cmp, Machine, Shift, Site};
 use rt::boxtest::Pat;
 

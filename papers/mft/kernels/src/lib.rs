@@ -670,13 +670,6 @@ fn packets256_node<M: Machine>(
     sp: &mut M::S,
 ) -> Option<(M::S, M::K)> {
     let (shadow, zero_v) = (b.policy.is_any(), c.zero_v);
-    if !shadow {
-        // The frusta's node load for primary rays, issued before the packet
-        // path and unused by it (kept: the op stream is the measured one;
-        // 2 ops per node, left for the faithful-kernels issue).
-        let boxes = m.load(&s.nodes, At::idx(nb, 1, 0));
-        let _ = m.sub(boxes, c.org_node);
-    }
     // Each active 16-ray packet against both children, ray by ray.
     b.stats.aabb_tests -= 2;
     let zero = m.int(0);

@@ -10,9 +10,10 @@ pub fn mix(mut z: u64) -> u64 {
 }
 
 /// 95% half-width of the ratio estimator sum(num) / sum(den) over tiles
-/// (delta method, normal approximation); `None` below 2 tiles. A tile's own
-/// ratio is not averaged: tiles whose rays all miss are very fast and would
-/// dominate a mean of per-tile rates.
+/// (delta method, Student's t with n - 1 degrees of freedom: a sample of a
+/// few tiles gets the wide interval it has); `None` below 2 tiles. A tile's
+/// own ratio is not averaged: tiles whose rays all miss are very fast and
+/// would dominate a mean of per-tile rates.
 pub fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
     if v.len() < 2 {
         return None;
@@ -22,12 +23,51 @@ pub fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
     let r = sn / sd;
     let dbar = sd / n;
     let var = v.iter().map(|&(x, y)| (x - r * y).powi(2)).sum::<f64>() / (n - 1.0);
-    Some(1.96 * (var / n).sqrt() / dbar)
+    Some(t95(v.len() - 1) * (var / n).sqrt() / dbar)
+}
+
+/// Two-sided 95% quantile of Student's t with `df` degrees of freedom
+/// (tabulated; between entries the smaller df's, so never narrower).
+#[must_use]
+pub fn t95(df: usize) -> f64 {
+    const T: [(usize, f64); 19] = [
+        (1, 12.706),
+        (2, 4.303),
+        (3, 3.182),
+        (4, 2.776),
+        (5, 2.571),
+        (6, 2.447),
+        (7, 2.365),
+        (8, 2.306),
+        (9, 2.262),
+        (10, 2.228),
+        (12, 2.179),
+        (15, 2.131),
+        (20, 2.086),
+        (25, 2.060),
+        (30, 2.042),
+        (40, 2.021),
+        (60, 2.000),
+        (120, 1.980),
+        (usize::MAX, 1.960),
+    ];
+    T.iter()
+        .rev()
+        .find(|&&(d, _)| d <= df.max(1))
+        .map_or(T[0].1, |&(_, t)| t)
 }
 
 #[cfg(test)]
 mod tests {
-    use super::ratio_ci;
+    use super::{ratio_ci, t95};
+
+    #[test]
+    fn t_quantiles_shrink_towards_the_normal() {
+        assert_eq!(t95(1), 12.706);
+        assert_eq!(t95(11), 2.228, "between entries: the smaller df's");
+        assert_eq!(t95(1000), 1.980);
+        assert!((2..200).all(|d| t95(d) <= t95(d - 1)));
+    }
 
     #[test]
     fn ratio_ci_is_zero_for_proportional_tiles_and_grows_with_spread() {

@@ -39,6 +39,9 @@ pub(crate) struct Sample {
     pub stats: MftStats,
     /// Simulated instructions and cycles per region, summed over batches.
     pub regions: sim::Stats,
+    /// Each batch's cycles scaled to all sets (one estimate per batch; the
+    /// methods of a report draw the same batches, so these pair).
+    pub estimates: Vec<f64>,
 }
 
 impl Sample {
@@ -68,6 +71,7 @@ pub(crate) fn sample<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
         ops: 0,
         stats: MftStats::default(),
         regions: sim::Stats::default(),
+        estimates: Vec::new(),
     };
     if sets.is_empty() {
         return Ok(out);
@@ -98,6 +102,8 @@ pub(crate) fn sample<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
         let s = sim::simulate(m, &refs, &sim::SimOptions::default()).map_err(AppError)?;
         out.ops += traces.iter().map(|t| t.ops.len() as u64).sum::<u64>();
         out.regions.merge(&s);
+        out.estimates
+            .push(s.cycles as f64 / per as f64 * sets.len() as f64);
         pairs.push((s.cycles as f64, per as f64));
     }
     let (c, n) = pairs

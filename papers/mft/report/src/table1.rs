@@ -47,6 +47,8 @@ struct Setup {
 struct Measured {
     stats: [MftStats; 4],
     cycles: [(f64, Option<f64>); 4],
+    /// Per method, each batch's estimate of the image's cycles (paired).
+    estimates: [Vec<f64>; 4],
     frusta_out: [Vec<Hit>; 2],
     rows: Vec<Row>,
     bad: usize,
@@ -70,6 +72,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     };
     let (mut rows, mut notes) = (Vec::new(), Vec::new());
     let (mut ops_total, mut bad_total) = (0u64, 0usize);
+    let mut unseparated: Vec<String> = Vec::new();
     // Per scene: our primary cycles over the paper's, frusta and packets.
     let mut vs_paper: Vec<(f64, f64)> = Vec::new();
     for (scene_name, label, paper) in PAPER {
@@ -85,7 +88,18 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         ms.stats[3].add(p1);
         ms.cycles[2].0 += ms.cycles[0].0;
         ms.cycles[3].0 += ms.cycles[1].0;
+        for (s, p) in [(2, 0), (3, 1)] {
+            let prim = ms.estimates[p].clone();
+            for (e, q) in ms.estimates[s].iter_mut().zip(prim) {
+                *e += q;
+            }
+        }
         let (stats, cycles) = (ms.stats, ms.cycles);
+        for (rays, pk, fr) in [("primary", 0, 1), ("shadow", 2, 3)] {
+            if !separated(&ms.estimates[pk], &ms.estimates[fr]) {
+                unseparated.push(format!("{scene_name} {rays}"));
+            }
+        }
         count_rows(
             &mut rows,
             p256,
@@ -101,7 +115,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
             scene_name,
             &paper,
             &stats,
-            &cycles,
+            (&cycles, &ms.estimates),
             (shade_p, shade_s),
         );
         if !p256 {
@@ -140,6 +154,10 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         };
         notes.push(format!("why soft-shadow frusta can lose here: (1) our primary frusta take {} the paper's cycles, our primary packets {} (the per-scene notes give the counts beside them); measured on a 43-set T-Rex sample trace: our primary-frusta code issues about 140 VPU ops per triangle accessed (259K over 1839), traversal and intersection included, and runs at 1.2-1.5 cycles per VPU op on the 4 threads, while the paper's 19.5M cycles over 173K triangles leave at most 113 issue slots of its one VPU per triangle; so every extra triangle a frustum reaches costs more here; (2) the stand-ins' lights are large against their triangles (T-Rex: a 1 m light 4 m above a 1.5 m, 69K-triangle bunny that fills the frame; Fairy: an 8 m light over 160K random 0.3 m leaves), and a frustum reaches every triangle in its volume where 16 rays reach few: frusta access more triangles than packets here where the paper's accessed 2-4x fewer; `rtsim reproduce mft-fig6` measures the cycle reduction against light size (the paper's Figure 6 adds the counts' linear growth)", span(|p| p.0), span(|p| p.1)));
     }
+    notes.push(format!(
+        "cycle_reduction's ci95 is the paired interval over the sample's batches (both methods ran on the same sets; Student t); the sample does not separate frusta from packets on: {} (more batches, --tiles N, narrow it)",
+        if unseparated.is_empty() { "none".to_string() } else { unseparated.join(", ") }
+    ));
     notes.push("s-packet and s-frusta include the primary rays' counts and cycles, as the paper's soft-shadow rows do; cycles exclude shading; cycles_shaded adds the simulated shading kernel (primary rows: shading from the light's centre; soft-shadow rows: shading and the 4 x 4 discontinuity filter, as the paper's soft-shadow figures include), the same cost for both methods".into());
     notes.push("both kernels cull back faces (the paper's MFT does; the packet baseline uses one-sided Moller-Trumbore to return the same hits), and both are checked against a front-faces-only reference; the packets' deep BVH has leaves of up to 4 triangles (SAH traversal cost 1), MFT's shallow BVH leaves of up to 32 (cost 32, mft_kernels::SHALLOW_BVH; the paper gives neither)".into());
     if p256 {
@@ -182,6 +200,7 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
     let mut ms = Measured {
         stats: [MftStats::default(); 4],
         cycles: [(0.0, None); 4],
+        estimates: Default::default(),
         frusta_out: [Vec::new(), Vec::new()],
         rows: Vec::new(),
         bad: 0,
@@ -217,6 +236,7 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
         };
         ms.ops += smp.ops;
         ms.cycles[mi] = (smp.cycles, smp.ci);
+        ms.estimates[mi] = smp.estimates.clone();
         unit_cost_rows(&mut ms.rows, &smp, (scene_name, mi, p256));
         if !baseline {
             ms.frusta_out[mi / 2] = out;
@@ -290,13 +310,16 @@ fn count_rows(
 }
 
 /// Frusta against packets: AABB test and cycle reductions, primary and shadow.
+/// Each method's cycles and their 95% CI half-width.
+type Cycles4 = [(f64, Option<f64>); 4];
+
 fn reduction_rows(
     rows: &mut Vec<Row>,
     p256: bool,
     scene_name: &str,
     paper: &[PaperRow; 4],
     stats: &[MftStats; 4],
-    cycles: &[(f64, Option<f64>); 4],
+    (cycles, estimates): (&Cycles4, &[Vec<f64>; 4]),
     (shade_p, shade_s): (f64, f64),
 ) {
     for (rays, (pk, fr)) in [("primary", (0, 1)), ("shadow", (2, 3))] {
@@ -315,6 +338,7 @@ fn reduction_rows(
             .key("rays", rays);
         // The paper's shadow figure includes shading and filtering.
         r.paper = Some(paper[pk].4 / paper[fr].4).filter(|_| !p256 && rays == "primary");
+        r.ci95 = paired_ci(&estimates[pk], &estimates[fr]);
         rows.push(r);
         let mut r = Row::new(
             "cycle_reduction_shaded",
@@ -486,4 +510,18 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
             pparts.join("; ")
         ),
     ))
+}
+
+/// 95% half-width of the cycle ratio `a / b` from the batches' paired
+/// estimates (both methods ran on the same batches of sets).
+fn paired_ci(a: &[f64], b: &[f64]) -> Option<f64> {
+    let pairs: Vec<(f64, f64)> = a.iter().copied().zip(b.iter().copied()).collect();
+    repro::sampling::ratio_ci(&pairs)
+}
+
+/// Whether the batches separate two methods: the paired interval of their
+/// cycle ratio excludes 1.
+fn separated(a: &[f64], b: &[f64]) -> bool {
+    let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
+    paired_ci(a, b).is_some_and(|h| (sa / sb.max(1.0) - 1.0).abs() > h)
 }

@@ -3,7 +3,7 @@
 use crate::io::write_atomic;
 use crate::report::{Format, Report, Row};
 use crate::{AppError, AppResult};
-use scene::bvh::{BuildConfig, Bvh2, Bvh4};
+use scene::bvh::{BuildConfig, Bvh4};
 use scene::reference::{Ray, Reference};
 use scene::scene::{Scene, BUILTIN};
 use std::path::PathBuf;
@@ -69,7 +69,8 @@ pub fn render(a: &RenderArgs) -> AppResult<()> {
         return Err(AppError("--width/--height: must be 1 to 16384".into()));
     }
     let cam = scene.config.camera.clone();
-    let bvh = Bvh2::build(&scene.mesh, &BuildConfig::default()).map_err(AppError)?;
+    let (bvh, _) =
+        scene::bvh_cache::build(&scene.mesh, &BuildConfig::default()).map_err(AppError)?;
     let refi = Reference::with_bvh(&scene.mesh, &bvh);
     let (w, h) = (cam.width as usize, cam.height as usize);
     let mut t = vec![f64::NAN; w * h];
@@ -181,7 +182,7 @@ pub fn list_scenes(format: Format) -> AppResult<()> {
             }
         };
         let cfg = BuildConfig::default();
-        let b = Bvh2::build(&scene.mesh, &cfg).map_err(AppError)?;
+        let (b, source) = scene::bvh_cache::build(&scene.mesh, &cfg).map_err(AppError)?;
         b.validate(&scene.mesh)
             .map_err(|e| AppError(format!("{name}: BVH2: {e}")))?;
         let b4 = Bvh4::collapse(&b);
@@ -193,6 +194,8 @@ pub fn list_scenes(format: Format) -> AppResult<()> {
         };
         rows.push(k(Row::new("triangles", scene.mesh.len() as f64)));
         rows.push(k(Row::new("bvh2_build_seconds", b.build_seconds).unit("s")));
+        let cached = f64::from(u8::from(source == scene::bvh_cache::Source::Cache));
+        rows.push(k(Row::new("bvh2_from_cache", cached)));
         rows.push(k(Row::new("bvh2_sah_cost", b.sah_cost(cfg.c_trav))));
         rows.push(k(Row::new("bvh2_depth", b.depth() as f64)));
         rows.push(k(Row::new("bvh4_nodes", b4.nodes.len() as f64)));

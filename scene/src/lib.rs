@@ -11,6 +11,7 @@
 
 pub mod agreement;
 pub mod bvh;
+pub mod bvh_cache;
 pub mod hit;
 pub mod loaded;
 pub mod mesh;

@@ -2,6 +2,7 @@
 //! what a report or a kernel test needs before it traces, made in one place.
 
 use crate::bvh::{BuildConfig, Bvh2, Bvh4};
+
 use crate::reference::Reference;
 use crate::scene::Scene;
 
@@ -20,7 +21,7 @@ impl Loaded {
     /// BVHs with `cfg`; errors name the file.
     pub fn load(name: &str, cfg: &BuildConfig) -> Result<Loaded, String> {
         let scene = Scene::load(name).map_err(|e| e.0)?;
-        let b2 = Bvh2::build(&scene.mesh, cfg)?;
+        let (b2, _) = crate::bvh_cache::build(&scene.mesh, cfg)?;
         let b4 = Bvh4::collapse(&b2);
         Ok(Loaded { scene, b2, b4 })
     }

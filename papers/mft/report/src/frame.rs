@@ -221,8 +221,9 @@ impl Prepared {
         };
         // A shallow BVH for the frusta, a deep one for packets (the paper's
         // setup; it gives no leaf sizes): see `mft_kernels::SHALLOW_BVH`.
-        let shallow = Bvh2::build(&scene.mesh, &mft_kernels::SHALLOW_BVH).map_err(AppError)?;
-        let deep = Bvh2::build(&scene.mesh, &BuildConfig::default()).map_err(AppError)?;
+        let build = |cfg| scene::bvh_cache::build(&scene.mesh, cfg).map(|(b, _)| b);
+        let shallow = build(&mft_kernels::SHALLOW_BVH).map_err(AppError)?;
+        let deep = build(&BuildConfig::default()).map_err(AppError)?;
         let primary: Vec<Frusta> = (0..res / 16)
             .flat_map(|by| (0..res / 16).map(move |bx| (bx, by)))
             .map(|(bx, by)| Frusta::primary(&cam, bx, by))

@@ -26,6 +26,22 @@ pub fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
     Some(t95(v.len() - 1) * (var / n).sqrt() / dbar)
 }
 
+/// The ratio sum(a) / sum(b) of two methods measured on the same samples
+/// (tiles, batches), and its paired 95% half-width: the spread the samples
+/// share cancels.
+#[must_use]
+pub fn paired_ratio(a: &[f64], b: &[f64]) -> (f64, Option<f64>) {
+    let pairs: Vec<(f64, f64)> = a.iter().copied().zip(b.iter().copied()).collect();
+    let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
+    (sa / sb.max(f64::MIN_POSITIVE), ratio_ci(&pairs))
+}
+
+/// Whether a ratio's interval excludes 1: the sample separates the two.
+#[must_use]
+pub fn separates((r, ci): (f64, Option<f64>)) -> bool {
+    ci.is_some_and(|h| (r - 1.0).abs() > h)
+}
+
 /// Two-sided 95% quantile of Student's t with `df` degrees of freedom
 /// (tabulated; between entries the smaller df's, so never narrower).
 #[must_use]

@@ -27,7 +27,7 @@
 //! compare and a mask move.
 
 use crate::bvh4::{for_each_ray, larger_last, leaf_item, pad_and_push};
-use crate::pipeline::core_loop;
+use crate::pipeline::{conds, core_loop};
 use crate::stream::StreamBufs;
 use isa::{At, Buf, Cmp, Int, Logic, Machine, Region, Shift};
 use rt::boxtest::Pat;
@@ -196,6 +196,16 @@ fn core_node<M: Machine, const N: usize>(
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
+    // The listing's shuffle patterns, per 4-lane group (host side, once).
+    let org_axis: [[u8; N]; 3] = std::array::from_fn(|a| {
+        let a = a as u8;
+        groups::<N>([a, a, 4 + a, 4 + a])
+    });
+    let (near_far_ray, rhs_pat, lhs_pat) = (
+        groups::<N>([3, 3, 7, 7]),
+        groups::<N>([2, 3, 4, 4]),
+        groups::<N>([0, 1, 1, 1]),
+    );
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
     core_loop::<M, N>(
@@ -209,36 +219,35 @@ fn core_node<M: Machine, const N: usize>(
         |m, dir_near, org_far| {
             // Per axis a, each ray's 4 lanes: [near_l, near_r, -far_l, -far_r].
             let org_far_neg = m.logic(Logic::Xor, org_far, neg);
-            let mut near_far = Vec::with_capacity(3);
-            for a in 0..3 {
+            let near_far: [M::F; 3] = std::array::from_fn(|a| {
                 let d = m.permute(dir_near, &sp4[a]);
-                let a8 = a as u8;
-                let o = m.shuffle2(org_far, org_far_neg, &groups::<N>([a8, a8, 4 + a8, 4 + a8]));
+                let o = m.shuffle2(org_far, org_far_neg, &org_axis[a]);
                 let planes = m.blend_sign(d, bb[a], bb_neg[a]);
-                near_far.push(m.fmsub(planes, d, o));
-            }
-            let ray = m.shuffle2(dir_near, org_far_neg, &groups::<N>([3, 3, 7, 7]));
+                m.fmsub(planes, d, o)
+            });
+            let ray = m.shuffle2(dir_near, org_far_neg, &near_far_ray);
             let m01 = m.max(ray, near_far[0]);
             let m23 = m.max(near_far[1], near_far[2]);
             let x = m.max(m01, m23);
             // Lanes 0, 1, 2: near_l <= far_l, near_r <= far_r, near_r <= near_l.
             let xn = m.logic(Logic::Xor, x, neg);
-            let rhs = m.shuffle2(xn, x, &groups::<N>([2, 3, 4, 4]));
-            let lhs = m.permute(x, &groups::<N>([0, 1, 1, 1]));
+            let rhs = m.shuffle2(xn, x, &rhs_pat);
+            let lhs = m.permute(x, &lhs_pat);
             let hit = m.cmp(Cmp::Le, lhs, rhs);
             let mask = m.movemask(hit);
             let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
             let right = shr(m, mask, 1);
             if policy.is_any() {
                 // Shadow rays: list 0 left, list 1 right, no order.
-                return vec![mask, right];
+                return conds(m, &[mask, right]);
             }
             // Ray q's conditions at bit 4q: left-first, right, left-second.
             let o2 = shr(m, mask, 2);
             let order = m.s_and(o2, right);
             let all = m.int(0xFFFF);
             let norder = m.s_op(isa::SOp::Xor, order, all);
-            vec![m.s_and(mask, norder), right, m.s_and(mask, order)]
+            let (first, second) = (m.s_and(mask, norder), m.s_and(mask, order));
+            conds(m, &[first, right, second])
         },
     );
     m.region(Region::Traversal);

@@ -26,7 +26,7 @@
 //! list counters live in a small array in memory, loaded and stored once per
 //! node (the paper keeps list pointers in registers).
 
-use crate::pipeline::core_loop;
+use crate::pipeline::{conds, core_loop};
 pub use crate::stream::StreamBufs;
 use isa::{At, Buf, Cmp, Int, Machine, Region, Shift};
 use rt::boxtest::Pat;
@@ -370,9 +370,10 @@ fn core_node<M: Machine, const N: usize>(
             if policy.is_any() {
                 // Shadow rays: one list per child, no order.
                 let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
-                return vec![hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
+                let c = [hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3)];
+                return conds(m, &c);
             }
-            closest_conds::<M, N>(m, (hit, tn, hbits), inf).to_vec()
+            closest_conds::<M, N>(m, (hit, tn, hbits), inf)
         },
     );
     push_items(m, s, st, sp, (base, oct, r), (&starts, &cnt), policy);

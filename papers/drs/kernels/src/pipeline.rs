@@ -22,10 +22,20 @@ use crate::stream::StreamBufs;
 use isa::{At, Buf, Cmp, Machine, Shift, Site};
 use rt::boxtest::Pat;
 
-/// One iteration's rays: their indices and records as `[dir, tnear]` and
-/// `[org * idir, tfar]` per 4 lanes.
+/// One condition per ray pointer list (9 at most; a kernel using fewer
+/// leaves the rest unused), fixed-size so the loop allocates nothing.
+pub(crate) type Conds<M> = [<M as Machine>::S; 9];
+
+/// `v`'s conditions in a [`Conds`], the rest zero.
+pub(crate) fn conds<M: Machine>(m: &mut M, v: &[M::S]) -> Conds<M> {
+    let zero = m.int(0);
+    std::array::from_fn(|k| v.get(k).copied().unwrap_or(zero))
+}
+
+/// One iteration's rays (LANES/4, at most 2): their indices and records as
+/// `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
 pub(crate) struct Rays<M: Machine> {
-    idx: Vec<M::S>,
+    idx: [M::S; 2],
     dir_near: M::F,
     org_far: M::F,
 }
@@ -33,7 +43,7 @@ pub(crate) struct Rays<M: Machine> {
 /// A ray whose appends are deferred to the next iteration.
 struct Deferred<M: Machine> {
     idx: M::S,
-    conds: Vec<M::S>,
+    conds: Conds<M>,
 }
 
 /// The core loop over an item: `count` ray indices at byte `at` of the
@@ -50,7 +60,7 @@ pub(crate) fn core_loop<M: Machine, const N: usize>(
     count: M::S,
     cnt: &mut [M::S],
     (back, pad): (Site, Site),
-    mut test: impl FnMut(&mut M, M::F, M::F) -> Vec<M::S>,
+    mut test: impl FnMut(&mut M, M::F, M::F) -> Conds<M>,
 ) {
     let r = N / 4;
     let bytes = m.s_shift(Shift::Shl, count, 1);
@@ -60,7 +70,7 @@ pub(crate) fn core_loop<M: Machine, const N: usize>(
     let zero = m.int(0);
     let mut deferred = Deferred::<M> {
         idx: zero,
-        conds: vec![zero; cnt.len()],
+        conds: [zero; 9],
     };
     let mut first = true;
     loop {
@@ -72,12 +82,12 @@ pub(crate) fn core_loop<M: Machine, const N: usize>(
         next = fetch::<M, N>(m, &st.lists, trav, p);
         let conds = test(m, cur.dir_near, cur.org_far);
         for q in 0..r - 1 {
-            let c = shifted(m, &conds, q);
+            let c = shifted(m, &conds, q, cnt.len());
             append_ray(m, st, cur.idx[q], &c, cnt, true);
         }
         deferred = Deferred {
             idx: cur.idx[r - 1],
-            conds: shifted(m, &conds, r - 1),
+            conds: shifted(m, &conds, r - 1, cnt.len()),
         };
         if !m.branch_if(back, Cmp::Lt, p, end) {
             // The last ray, unless it is the padding copy of the one before.
@@ -93,15 +103,15 @@ pub(crate) fn core_loop<M: Machine, const N: usize>(
     }
 }
 
-/// The conditions of ray `q` at bit 0.
-fn shifted<M: Machine>(m: &mut M, conds: &[M::S], q: usize) -> Vec<M::S> {
-    if q == 0 {
-        return conds.to_vec();
+/// The conditions of ray `q` at bit 0 (the first `n` lists).
+fn shifted<M: Machine>(m: &mut M, conds: &Conds<M>, q: usize, n: usize) -> Conds<M> {
+    let mut c = *conds;
+    if q > 0 {
+        for x in &mut c[..n] {
+            *x = m.s_shift(Shift::Shr, *x, 4 * q as u32);
+        }
     }
-    conds
-        .iter()
-        .map(|&c| m.s_shift(Shift::Shr, c, 4 * q as u32))
-        .collect()
+    c
 }
 
 /// The LANES/4 ray indices at byte `p` of `lists` and their traversal
@@ -110,9 +120,15 @@ fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S
     let r = N / 4;
     let (dn, of) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR);
     let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
-    let idx: Vec<M::S> = (0..r)
-        .map(|q| m.s_load(lists, At::idx(p, 1, 2 * q), 2, false))
-        .collect();
+    let first = m.s_load(lists, At::idx(p, 1, 0), 2, false);
+    let idx = [
+        first,
+        if r > 1 {
+            m.s_load(lists, At::idx(p, 1, 2), 2, false)
+        } else {
+            first
+        },
+    ];
     let (dir_near, org_far) = if r == 1 {
         let ro = m.s_shift(Shift::Shl, idx[0], 5);
         (
@@ -135,8 +151,8 @@ fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S
     }
 }
 
-/// Append one ray index to every list with a scalar store, advancing list
-/// k by bit 0 of `conds[k]` (branch-free). `counted`: a real ray-node test
+/// Append one ray index to every list (`cnt.len()` of them) with a scalar
+/// store, advancing list k by bit 0 of `conds[k]` (branch-free). `counted`: a real ray-node test
 /// (not the first iteration's empty append).
 fn append_ray<M: Machine>(
     m: &mut M,
@@ -150,7 +166,7 @@ fn append_ray<M: Machine>(
         st.tests.core_loop += 1;
     }
     let one = m.int(1);
-    for k in 0..conds.len() {
+    for k in 0..cnt.len() {
         m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx);
         let inc = m.s_and(conds[k], one);
         cnt[k] = m.s_add(cnt[k], inc);

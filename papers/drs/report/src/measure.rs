@@ -4,7 +4,8 @@
 
 use drs_kernels::methods::{Kernel, Run};
 use isa::Region;
-use repro::sampling::{mix, ratio_ci};
+pub(crate) use repro::sampling::separates;
+use repro::sampling::{mix, paired_ratio, ratio_ci};
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::loaded::Loaded;
 use scene::reference::Reference;
@@ -58,21 +59,10 @@ impl Acc {
 }
 
 /// Speedup of `a` over `b` on the same tiles (their cycles, b over a) and
-/// its 95% CI from the paired per-tile cycles: the methods trace the same
-/// rays, so the tile-to-tile spread they share cancels.
+/// its paired 95% CI: the methods trace the same rays.
 pub(crate) fn paired_speedup(a: &Acc, b: &Acc) -> (f64, Option<f64>) {
-    let pairs: Vec<(f64, f64)> = b
-        .tiles
-        .iter()
-        .zip(&a.tiles)
-        .map(|(&(_, cb), &(_, ca))| (cb as f64, ca as f64))
-        .collect();
-    (b.cycles as f64 / a.cycles.max(1) as f64, ratio_ci(&pairs))
-}
-
-/// Whether a speedup's interval excludes 1 (the sample separates the two).
-pub(crate) fn separates((s, ci): (f64, Option<f64>)) -> bool {
-    ci.is_some_and(|h| (s - 1.0).abs() > h)
+    let cycles = |x: &Acc| x.tiles.iter().map(|&(_, c)| c as f64).collect::<Vec<f64>>();
+    paired_ratio(&cycles(b), &cycles(a))
 }
 
 /// Chip Mray/s of `rays` in `cycles` of one core (the paper ran one

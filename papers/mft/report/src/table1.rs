@@ -12,6 +12,7 @@ use crate::paper::*;
 use mft_kernels::{
     mismatches_of, Frusta, FrustaRun, MftStats, PacketLeaves, PacketPrimaryRun, PlaneNoise, Shrink,
 };
+use repro::sampling::{paired_ratio, separates};
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::F32Test;
 use scene::Hit;
@@ -96,7 +97,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         }
         let (stats, cycles) = (ms.stats, ms.cycles);
         for (rays, pk, fr) in [("primary", 0, 1), ("shadow", 2, 3)] {
-            if !separated(&ms.estimates[pk], &ms.estimates[fr]) {
+            if !separates(paired_ratio(&ms.estimates[pk], &ms.estimates[fr])) {
                 unseparated.push(format!("{scene_name} {rays}"));
             }
         }
@@ -236,8 +237,8 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
         };
         ms.ops += smp.ops;
         ms.cycles[mi] = (smp.cycles, smp.ci);
-        ms.estimates[mi] = smp.estimates.clone();
         unit_cost_rows(&mut ms.rows, &smp, (scene_name, mi, p256));
+        ms.estimates[mi] = smp.estimates;
         if !baseline {
             ms.frusta_out[mi / 2] = out;
         }
@@ -338,7 +339,7 @@ fn reduction_rows(
             .key("rays", rays);
         // The paper's shadow figure includes shading and filtering.
         r.paper = Some(paper[pk].4 / paper[fr].4).filter(|_| !p256 && rays == "primary");
-        r.ci95 = paired_ci(&estimates[pk], &estimates[fr]);
+        r.ci95 = paired_ratio(&estimates[pk], &estimates[fr]).1;
         rows.push(r);
         let mut r = Row::new(
             "cycle_reduction_shaded",
@@ -510,18 +511,4 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
             pparts.join("; ")
         ),
     ))
-}
-
-/// 95% half-width of the cycle ratio `a / b` from the batches' paired
-/// estimates (both methods ran on the same batches of sets).
-fn paired_ci(a: &[f64], b: &[f64]) -> Option<f64> {
-    let pairs: Vec<(f64, f64)> = a.iter().copied().zip(b.iter().copied()).collect();
-    repro::sampling::ratio_ci(&pairs)
-}
-
-/// Whether the batches separate two methods: the paired interval of their
-/// cycle ratio excludes 1.
-fn separated(a: &[f64], b: &[f64]) -> bool {
-    let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
-    paired_ci(a, b).is_some_and(|h| (sa / sb.max(1.0) - 1.0).abs() > h)
 }

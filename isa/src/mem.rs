@@ -119,6 +119,13 @@ impl AddrSpace {
         self.next = mark.next;
     }
 
+    /// Leave `bytes` of address space unused (no region, no host memory): e.g.
+    /// so that units run by different simulated threads get their own
+    /// addresses for buffers they allocate alike.
+    pub fn skip(&mut self, bytes: u64) {
+        self.next += bytes.div_ceil(PAGE) * PAGE;
+    }
+
     /// Register a zero-filled region of `size` bytes at `align` (power of two).
     pub fn alloc(&mut self, kind: MemKind, name: &str, size: usize, align: usize) -> Buf {
         let r = self.place(kind, name, size as u64, align as u64);

@@ -133,6 +133,19 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
     pub fn ops(&self) -> &[Op] {
         &self.trace.ops
     }
+    /// The ops recorded since the last take (or since the start), as a trace
+    /// with the address space's current regions in its header; recording goes
+    /// on with the same values and memory (a frame's next unit).
+    #[must_use]
+    pub fn take(&mut self) -> Trace {
+        let mut t = Trace::new(FL::ID, &self.trace.source);
+        t.params = self.trace.params.clone();
+        t.regions = self.space.regions().to_vec();
+        t.ops = std::mem::take(&mut self.trace.ops);
+        t.lane_addrs = std::mem::take(&mut self.trace.lane_addrs);
+        t
+    }
+
     /// Finish: the trace with the address space's regions in its header.
     #[must_use]
     pub fn finish(mut self) -> Trace {

@@ -16,6 +16,7 @@ pub mod hit;
 pub mod loaded;
 pub mod mesh;
 pub mod reference;
+pub mod refine;
 pub mod scene;
 pub mod workload;
 

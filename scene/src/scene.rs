@@ -63,6 +63,15 @@ pub struct Placed {
     /// Material of its triangles.
     #[serde(default)]
     pub material: Material,
+    /// Triangles of at least this area (after scaling) take the second
+    /// material: the studio (floor, backdrop) merged into a model's file.
+    #[serde(default)]
+    pub large: Option<(f32, Material)>,
+    /// Refine the mesh's other triangles (not the `large` ones) in place to
+    /// this many triangles in all, largest first ([`crate::refine`]): a real
+    /// scan brought to the size of the paper's scene.
+    #[serde(default)]
+    pub refine: Option<u32>,
 }
 
 fn one() -> f32 {
@@ -271,8 +280,8 @@ impl Scene {
         let mut mesh = Mesh::default();
         let mut materials = Vec::new();
         for (i, p) in config.meshes.iter().enumerate() {
-            let m = build_source(&p.source)
-                .map_err(|e| SceneError(format!("{file}: meshes[{i}]: {e}")))?;
+            let (m, mats) =
+                placed_mesh(p).map_err(|e| SceneError(format!("{file}: meshes[{i}]: {e}")))?;
             let (s, ang) = (p.scale, p.rotate_y.to_radians());
             let (sn, cs) = ang.sin_cos();
             let t = p.translate;
@@ -280,7 +289,7 @@ impl Scene {
                 let (x, y, z) = (v[0] * s, v[1] * s, v[2] * s);
                 [cs * x + sn * z + t[0], y + t[1], -sn * x + cs * z + t[2]]
             });
-            materials.extend(std::iter::repeat_n(p.material, m.len()));
+            materials.extend(mats);
         }
         mesh.check(file)?;
         if mesh.is_empty() {
@@ -327,6 +336,8 @@ impl Scene {
                 rotate_y: 0.0,
                 translate: [0.0; 3],
                 material: Material::Diffuse,
+                large: None,
+                refine: None,
             }],
             camera: Camera {
                 eye,
@@ -467,6 +478,37 @@ pub fn icosphere(level: u32) -> Mesh {
 }
 
 /// Build a source's mesh (in its own space).
+/// A placed mesh before its transform, and its triangles' materials: the
+/// `large` triangles split off, the rest refined to `refine` triangles.
+fn placed_mesh(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
+    let mut m = build_source(&p.source)?;
+    let mut mats = vec![p.material; m.len()];
+    if let Some((min_area, mat)) = p.large {
+        if !(min_area.is_finite() && min_area > 0.0) {
+            return Err(format!("large: area {min_area} is not a positive number"));
+        }
+        let s2 = p.scale * p.scale;
+        for (k, &t) in m.tris.iter().enumerate() {
+            if crate::refine::area(&m, t) * s2 >= min_area {
+                mats[k] = mat;
+            }
+        }
+    }
+    if let Some(target) = p.refine {
+        if (target as usize) < m.len() || target > 50_000_000 {
+            return Err(format!(
+                "refine: {target} is not between the mesh's {} triangles and 50000000",
+                m.len()
+            ));
+        }
+        let eligible: Vec<bool> = mats.iter().map(|&x| x == p.material).collect();
+        let origin = crate::refine::refine(&mut m, target as usize, &eligible);
+        mats = origin.iter().map(|&o| mats[o as usize]).collect();
+    }
+    Ok((m, mats))
+}
+
+/// A source's mesh (untransformed).
 pub fn build_source(s: &Source) -> Result<Mesh, String> {
     let mut m = Mesh::default();
     match *s {

@@ -48,6 +48,24 @@ pub fn run(
     count_from: usize,
 ) -> u64 {
     let c = &m.core;
+    let mut preds: Vec<Gshare> = traces
+        .iter()
+        .map(|_| Gshare::new(c.history_bits, c.predictor_bits))
+        .collect();
+    run_from(m, traces, &mut preds, mem, s, (count_from, 0))
+}
+
+/// [`run`] from cycle `start` with thread k's branch predictor `preds[k]`
+/// (kept for the next unit); the cycle the last op completes.
+pub fn run_from(
+    m: &MachineConfig,
+    traces: &[&Trace],
+    preds: &mut [Gshare],
+    mem: &mut Hierarchy,
+    s: &mut Stats,
+    (count_from, start): (usize, u64),
+) -> u64 {
+    let c = &m.core;
     let mut core = Core {
         classes: class_table(m),
         l1: u64::from(m.caches[0].latency),
@@ -59,17 +77,18 @@ pub fn run(
     };
     let mut th: Vec<Thread> = traces
         .iter()
-        .map(|t| Thread {
+        .zip(preds.iter_mut())
+        .map(|(t, p)| Thread {
             t,
             pos: 0,
             values: Values::new(),
-            stall_until: 0,
+            stall_until: start,
             last_issue: None,
-            miss_until: 0,
-            pred: Gshare::new(c.history_bits, c.predictor_bits),
+            miss_until: start,
+            pred: std::mem::replace(p, Gshare::new(1, 1)),
         })
         .collect();
-    let mut cycle = 0u64;
+    let mut cycle = start;
     let mut rr = 0usize;
     let mut last_charge = 0u64;
     let mut max_done = 0u64;
@@ -95,7 +114,30 @@ pub fn run(
             cycle = core.wait(&th, cycle, s);
         }
     }
+    for (t, p) in th.into_iter().zip(preds.iter_mut()) {
+        *p = t.pred;
+    }
     cycle.max(max_done)
+}
+
+/// Functional warming of thread `pred`'s unit `t`: its accesses update the
+/// caches and prefetcher, its branches the thread's predictor; untimed.
+pub fn warm(t: &Trace, pred: &mut Gshare, mem: &mut Hierarchy, now: u64) {
+    for op in &t.ops {
+        if op.class.is_per_lane_mem() {
+            let mut lines: Vec<u64> = t.lanes_of(op).iter().map(|a| mem.line_of(a.0).0).collect();
+            lines.sort_unstable();
+            lines.dedup();
+            for l in lines {
+                mem.access(0, l * mem.line_bytes(), op.class.is_store(), op.mem, now);
+            }
+        } else if op.class.is_mem() {
+            mem.access(0, op.addr.0, op.class.is_store(), op.mem, now);
+        }
+        if op.class == OpClass::Branch {
+            pred.predict_and_update(op.site().0, op.taken());
+        }
+    }
 }
 
 impl Core {

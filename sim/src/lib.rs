@@ -15,10 +15,12 @@ pub mod inorder;
 pub mod memory;
 pub mod ooo;
 pub mod predictor;
+pub mod session;
 pub mod stats;
 
 pub use config::{CoreKind, MachineConfig};
 pub use memory::Hierarchy;
+pub use session::Session;
 pub use stats::{PerRay, Stall, Stats};
 
 use isa::{OpClass, Trace, ValId};

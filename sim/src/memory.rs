@@ -218,6 +218,17 @@ impl Hierarchy {
         }
     }
 
+    /// Zero the counters (hits, misses, DRAM bytes), keeping every cache's
+    /// contents and the prefetchers' state: the start of a measured unit.
+    pub fn reset_counters(&mut self) {
+        for l in &mut self.stats {
+            *l = LevelStats::default();
+        }
+        self.dram_read = 0;
+        self.dram_written = 0;
+        self.dram_read_by_region.clear();
+    }
+
     /// Line size in bytes.
     #[must_use]
     pub fn line_bytes(&self) -> u64 {

@@ -328,6 +328,49 @@ impl OooCore {
         self.classes = classes;
     }
 
+    /// Functional warming: `t`'s ops update the caches, the prefetcher and
+    /// the branch predictor in program order, untimed; the core's clock moves
+    /// on by the ops' dispatch bound (fused uops / width) so the memory
+    /// system's clock keeps going.
+    pub fn warm(&mut self, t: &Trace, mem: &mut Hierarchy) {
+        let width = u64::from(self.width.max(1));
+        let mut fused = 0u64;
+        for op in &t.ops {
+            let ct = &self.classes[op.class as usize];
+            let now = self.now + fused / width;
+            if ct.per_lane {
+                let mut lines: Vec<u64> =
+                    t.lanes_of(op).iter().map(|a| mem.line_of(a.0).0).collect();
+                lines.sort_unstable();
+                lines.dedup();
+                for l in lines {
+                    mem.access(self.core, l * mem.line_bytes(), ct.store, op.mem, now);
+                }
+            } else if ct.load || ct.store {
+                mem.access(self.core, op.addr.0, ct.store, op.mem, now);
+            }
+            if op.class == OpClass::Branch {
+                self.pred.predict_and_update(op.site().0, op.taken());
+            }
+            fused += u64::from(ct.fused);
+        }
+        self.advance_to(self.now + fused / width);
+    }
+
+    /// Move the core's clock on to cycle `t` (nothing in flight after it):
+    /// the start of a unit that begins with the other cores'.
+    pub fn advance_to(&mut self, t: u64) {
+        if t <= self.now {
+            return;
+        }
+        self.d = self.d.max(t);
+        self.dcount = 0;
+        self.cal.advance(t);
+        self.rs_free_until(t);
+        self.last_ret = self.last_ret.max(t);
+        self.now = t;
+    }
+
     /// Free the scheduler entries of uops issuing up to cycle `to`.
     #[inline(always)]
     fn rs_free_until(&mut self, to: u64) {

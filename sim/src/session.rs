@@ -1,0 +1,262 @@
+//! A machine whose state lives from one unit of work to the next, as a
+//! renderer's does over a frame: caches, prefetchers, branch predictors and
+//! the cores' clocks carry on. Each step runs units at once, one per core
+//! (out-of-order machines) or hardware thread (in-order), either timed in
+//! full detail or functionally warmed (SMARTS, Wunderlich et al. 2003: every
+//! op updates the caches, prefetcher and predictor; no timing, no counts).
+
+use crate::config::{CoreKind, MachineConfig};
+use crate::memory::Hierarchy;
+use crate::ooo::OooCore;
+use crate::predictor::Gshare;
+use crate::stats::Stats;
+use crate::{inorder, stats};
+use isa::Trace;
+
+/// A machine's state between steps.
+pub struct Session {
+    m: MachineConfig,
+    mem: Hierarchy,
+    /// Out-of-order machines: one per core.
+    ooo: Vec<OooCore>,
+    /// In-order machines: one predictor per hardware thread.
+    preds: Vec<Gshare>,
+    /// In-order machines: the core's clock.
+    clock: u64,
+}
+
+impl Session {
+    /// Every core (out-of-order) or hardware thread (in-order) of `m`, cold.
+    #[must_use]
+    pub fn new(m: &MachineConfig) -> Session {
+        let (ooo, preds, cores) = match m.core.kind {
+            CoreKind::OutOfOrder => (
+                (0..m.cores as usize).map(|c| OooCore::new(m, c)).collect(),
+                Vec::new(),
+                m.cores as usize,
+            ),
+            CoreKind::InOrder => (
+                Vec::new(),
+                (0..m.core.threads)
+                    .map(|_| Gshare::new(m.core.history_bits, m.core.predictor_bits))
+                    .collect(),
+                1,
+            ),
+        };
+        Session {
+            m: m.clone(),
+            mem: Hierarchy::new(m, cores),
+            ooo,
+            preds,
+            clock: 0,
+        }
+    }
+
+    /// Units per step: the cores (out-of-order) or hardware threads (in-order).
+    #[must_use]
+    pub fn slots(&self) -> usize {
+        self.ooo.len().max(self.preds.len())
+    }
+
+    fn check(&self, units: &[(usize, &Trace)]) -> Result<(), String> {
+        if units.is_empty() {
+            return Err("nothing to simulate: no unit".into());
+        }
+        for (i, &(slot, t)) in units.iter().enumerate() {
+            if slot >= self.slots() {
+                return Err(format!(
+                    "unit on slot {slot}: {} has {} cores/threads",
+                    self.m.name,
+                    self.slots()
+                ));
+            }
+            if units[..i].iter().any(|u| u.0 == slot) {
+                return Err(format!("two units on slot {slot} in one step"));
+            }
+            if t.flavour != self.m.flavour() {
+                return Err(format!(
+                    "the trace is {} code but machine {} runs {} code",
+                    t.flavour, self.m.name, self.m.isa
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Time `units` (slot, trace) started together, in full detail; the
+    /// step's statistics (cycles: from the common start to the last unit's end).
+    pub fn timed(&mut self, units: &[(usize, &Trace)]) -> Result<Stats, String> {
+        self.check(units)?;
+        self.mem.reset_counters();
+        let mut s = Stats::new(self.m.flavour().lanes());
+        if self.ooo.is_empty() {
+            let traces: Vec<&Trace> = units.iter().map(|u| u.1).collect();
+            let mut preds: Vec<Gshare> = units
+                .iter()
+                .map(|u| std::mem::replace(&mut self.preds[u.0], Gshare::new(1, 1)))
+                .collect();
+            let start = self.clock;
+            let end = inorder::run_from(
+                &self.m,
+                &traces,
+                &mut preds,
+                &mut self.mem,
+                &mut s,
+                (0, start),
+            );
+            for (u, p) in units.iter().zip(preds) {
+                self.preds[u.0] = p;
+            }
+            self.clock = end;
+            s.cycles = end - start;
+        } else {
+            s.cycles = self.timed_ooo(units, &mut s);
+        }
+        self.mem_stats(&mut s);
+        Ok(s)
+    }
+
+    fn timed_ooo(&mut self, units: &[(usize, &Trace)], s: &mut Stats) -> u64 {
+        // The units start together: every core's clock at the latest.
+        let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
+        for c in &mut self.ooo {
+            c.advance_to(start);
+        }
+        let mut pos = vec![0usize; units.len()];
+        // Interleave cores in chunks so shared levels and DRAM see them together.
+        const CHUNK: usize = 4096;
+        loop {
+            let mut any = false;
+            for (k, &(slot, t)) in units.iter().enumerate() {
+                if pos[k] >= t.ops.len() {
+                    continue;
+                }
+                any = true;
+                let end = (pos[k] + CHUNK).min(t.ops.len());
+                self.ooo[slot].run(t, pos[k]..end, &mut self.mem, s, 0);
+                pos[k] = end;
+            }
+            if !any {
+                break;
+            }
+        }
+        let end = units
+            .iter()
+            .map(|u| self.ooo[u.0].now)
+            .max()
+            .unwrap_or(start);
+        end - start
+    }
+
+    /// Functional warming of `units` (slot, trace): caches, prefetchers and
+    /// predictors see every op; nothing is timed or counted.
+    pub fn warm(&mut self, units: &[(usize, &Trace)]) -> Result<(), String> {
+        self.check(units)?;
+        for &(slot, t) in units {
+            if self.ooo.is_empty() {
+                inorder::warm(t, &mut self.preds[slot], &mut self.mem, self.clock);
+            } else {
+                self.ooo[slot].warm(t, &mut self.mem);
+            }
+        }
+        Ok(())
+    }
+
+    fn mem_stats(&self, s: &mut Stats) {
+        s.levels = self.mem.stats.clone();
+        s.level_names = self.m.caches.iter().map(|c| c.name.clone()).collect();
+        s.dram_read = self.mem.dram_read;
+        s.dram_written = self.mem.dram_written;
+        s.dram_read_by_region = self.mem.dram_read_by_region.clone();
+    }
+}
+
+/// Ops a step counts as instructions (for CPI), as [`Stats::ops`] does.
+#[must_use]
+pub fn instructions(t: &Trace) -> u64 {
+    t.ops.iter().map(|o| stats::instructions(o.class)).sum()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::MachineConfig;
+    use isa::{Addr, MemId, Op, OpClass, Region, ValId};
+
+    /// `n` loads of distinct lines, each feeding the next (a pointer chase).
+    fn chase(n: u64) -> Trace {
+        let mut t = Trace::new(isa::FlavourId::Avx2, "test");
+        for i in 0..n {
+            let mut op = Op::new(OpClass::Load, Region::Other);
+            op.addr = Addr(0x10_0000 + i * 64);
+            op.bytes = 8;
+            op.mem = MemId(0);
+            if i > 0 {
+                op.push_src(ValId(i as u32));
+            }
+            op.dst = ValId(i as u32 + 1);
+            t.ops.push(op);
+        }
+        t
+    }
+
+    #[test]
+    fn state_carries_from_unit_to_unit_and_warming_is_untimed() {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let t = chase(256);
+        let mut cold = Session::new(&m);
+        let first = cold.timed(&[(0, &t)]).unwrap();
+        let again = cold.timed(&[(0, &t)]).unwrap();
+        let mut warmed = Session::new(&m);
+        warmed.warm(&[(0, &t)]).unwrap();
+        let after = warmed.timed(&[(0, &t)]).unwrap();
+        assert_eq!(
+            after.levels, again.levels,
+            "warming leaves the caches as timing does"
+        );
+        // 256 dependent L1 hits of 4 cycles, nothing in flight before them.
+        assert_eq!(after.cycles, 256 * 4 + 1);
+        // Another core's private L1 is cold; the shared L3 is warm.
+        let other = warmed.timed(&[(1, &t)]).unwrap();
+        assert!(other.levels[0].total_misses() >= 256);
+        let l3 = other.level_names.iter().position(|n| n == "l3").unwrap();
+        assert_eq!(other.levels[l3].total_misses(), 0);
+    }
+
+    #[test]
+    fn steps_are_checked() {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let t = chase(4);
+        let mut s = Session::new(&m);
+        assert!(s.timed(&[]).is_err());
+        assert!(s.timed(&[(9, &t)]).unwrap_err().contains("slot 9"));
+        assert!(s
+            .timed(&[(1, &t), (1, &t)])
+            .unwrap_err()
+            .contains("two units"));
+    }
+
+    #[test]
+    fn in_order_threads_keep_their_predictors() {
+        let m = MachineConfig::load("larrabee").unwrap();
+        let mut t = Trace::new(isa::FlavourId::Lrb16, "test");
+        let mut r = isa::rng::Rng::new(7);
+        for i in 0..2000u32 {
+            let mut op = Op::new(OpClass::Branch, Region::Other);
+            op.aux = i % 8;
+            if r.next_u64() & 1 == 1 {
+                op.flags |= isa::trace::FLAG_TAKEN;
+            }
+            t.ops.push(op);
+        }
+        let mut s = Session::new(&m);
+        let first = s.timed(&[(0, &t)]).unwrap();
+        let again = s.timed(&[(0, &t)]).unwrap();
+        let other = s.timed(&[(1, &t)]).unwrap();
+        assert!(again.mispredicts < first.mispredicts / 2, "{again:?}");
+        assert!(
+            other.mispredicts > first.mispredicts / 2,
+            "thread 1 is cold"
+        );
+    }
+}

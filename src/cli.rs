@@ -44,6 +44,8 @@ pub enum Cmd {
         /// What to list.
         #[arg(value_enum)]
         what: ListWhat,
+        /// Scenes only: list just these (default: every built-in scene).
+        names: Vec<String>,
         /// Output format: text, json or csv.
         #[arg(long, value_parser = Format::from_name, default_value = "text")]
         format: Format,

@@ -20,7 +20,13 @@ fn reports() -> Vec<&'static ReportDef> {
         .collect()
 }
 
-fn list(what: ListWhat, format: Format) -> AppResult<()> {
+fn list(what: ListWhat, names: &[String], format: Format) -> AppResult<()> {
+    if !names.is_empty() && !matches!(what, ListWhat::Scenes) {
+        return Err(AppError(format!(
+            "list {}: takes no names (only `list scenes NAME...` does)",
+            what.name()
+        )));
+    }
     let rows: Vec<Row> = match what {
         ListWhat::Micro => repro::machine::micro_rows(),
         ListWhat::Isa => FlavourId::ALL
@@ -37,7 +43,7 @@ fn list(what: ListWhat, format: Format) -> AppResult<()> {
             })
             .collect(),
         ListWhat::Machines => repro::machine::machine_rows(),
-        ListWhat::Scenes => return repro::scenes::list_scenes(format),
+        ListWhat::Scenes => return repro::scenes::list_scenes(names, format),
     };
     let rep = Report {
         report: format!("list-{}", what.name()),
@@ -101,7 +107,11 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             show(r, a.format)
         }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),
-        Cmd::List { what, format } => list(what, format),
+        Cmd::List {
+            what,
+            names,
+            format,
+        } => list(what, &names, format),
     }
 }
 

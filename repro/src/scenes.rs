@@ -166,10 +166,20 @@ pub fn render(a: &RenderArgs) -> AppResult<()> {
 }
 
 /// `rtsim list scenes`: load each, build and validate its BVHs, report them.
-pub fn list_scenes(format: Format) -> AppResult<()> {
+pub fn list_scenes(names: &[String], format: Format) -> AppResult<()> {
     let start = Instant::now();
     let mut rows = Vec::new();
-    for (name, _) in BUILTIN {
+    if let Some(n) = names.iter().find(|n| !BUILTIN.iter().any(|(b, _)| b == n)) {
+        let all: Vec<&str> = BUILTIN.iter().map(|(b, _)| *b).collect();
+        return Err(AppError(format!(
+            "list scenes: no built-in scene '{n}' (one of: {})",
+            all.join(", ")
+        )));
+    }
+    let chosen = BUILTIN
+        .iter()
+        .filter(|(b, _)| names.is_empty() || names.iter().any(|n| n == b));
+    for (name, _) in chosen {
         let scene = match Scene::load(name) {
             Ok(s) => s,
             Err(e) => {
@@ -193,6 +203,11 @@ pub fn list_scenes(format: Format) -> AppResult<()> {
                 .key("stands_for", &scene.config.stands_for)
         };
         rows.push(k(Row::new("triangles", scene.mesh.len() as f64)));
+        if let Some(p) = scene.config.paper_triangles {
+            rows.push(k(Row::new("paper_triangles", p as f64)));
+            let ratio = scene.mesh.len() as f64 / p as f64;
+            rows.push(k(Row::new("triangles_vs_paper", ratio)));
+        }
         rows.push(k(Row::new("bvh2_build_seconds", b.build_seconds).unit("s")));
         let cached = f64::from(u8::from(source == scene::bvh_cache::Source::Cache));
         rows.push(k(Row::new("bvh2_from_cache", cached)));

@@ -159,6 +159,9 @@ pub struct SceneConfig {
     pub stands_for: String,
     /// What property it matches, and how it differs.
     pub about: String,
+    /// Triangles of the paper's scene it stands for, where the paper gives them.
+    #[serde(default)]
+    pub paper_triangles: Option<u64>,
     /// Meshes.
     pub meshes: Vec<Placed>,
     /// Camera.
@@ -330,6 +333,7 @@ impl Scene {
             name: name.clone(),
             stands_for: "-".into(),
             about: format!("mesh file {}", path.display()),
+            paper_triangles: None,
             meshes: vec![Placed {
                 source: Source::File(path.display().to_string()),
                 scale: 1.0,

@@ -185,6 +185,9 @@ pub struct Hierarchy {
     pub dram_read_by_region: Vec<u64>,
     /// Per core: (last missed line, stream head: last line prefetched) of the stream prefetcher.
     streams: Vec<(u64, u64)>,
+    /// Functional warming: accesses change cache contents only, not the
+    /// DRAM queue's timeline (untimed accesses would pile up in it).
+    pub functional: bool,
 }
 
 impl Hierarchy {
@@ -215,6 +218,7 @@ impl Hierarchy {
             dram_written: 0,
             dram_read_by_region: Vec::new(),
             streams: vec![(u64::MAX - 1, 0); cores],
+            functional: false,
         }
     }
 
@@ -254,6 +258,9 @@ impl Hierarchy {
             self.dram_read_by_region.resize(i + 1, 0);
         }
         self.dram_read_by_region[i] += bytes;
+        if self.functional {
+            return self.dram_latency;
+        }
         let start = self.dram_free.max(now as f64);
         self.dram_free = start + self.dram_xfer;
         (start - now as f64) as u64 + self.dram_latency

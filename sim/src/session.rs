@@ -86,6 +86,15 @@ impl Session {
     /// Time `units` (slot, trace) started together, in full detail; the
     /// step's statistics (cycles: from the common start to the last unit's end).
     pub fn timed(&mut self, units: &[(usize, &Trace)]) -> Result<Stats, String> {
+        self.timed_each(units).map(|(s, _)| s)
+    }
+
+    /// [`Session::timed`], and each unit's own cycles: on an out-of-order
+    /// machine from the common start to its core's end (a core that ends
+    /// early waits, uncounted, for the next step); on an in-order machine,
+    /// whose threads share the core, the step's cycles pro rata to the units'
+    /// instructions (they sum to the step's).
+    pub fn timed_each(&mut self, units: &[(usize, &Trace)]) -> Result<(Stats, Vec<u64>), String> {
         self.check(units)?;
         self.mem.reset_counters();
         let mut s = Stats::new(self.m.flavour().lanes());
@@ -109,49 +118,48 @@ impl Session {
             }
             self.clock = end;
             s.cycles = end - start;
+            let ins: Vec<u64> = units.iter().map(|u| instructions(u.1)).collect();
+            let all = ins.iter().sum::<u64>().max(1);
+            let mut own: Vec<u64> = ins.iter().map(|&i| s.cycles * i / all).collect();
+            own[0] += s.cycles - own.iter().sum::<u64>();
+            self.mem_stats(&mut s);
+            Ok((s, own))
         } else {
-            s.cycles = self.timed_ooo(units, &mut s);
+            let own = self.timed_ooo(units, &mut s);
+            s.cycles = own.iter().copied().max().unwrap_or(0);
+            self.mem_stats(&mut s);
+            Ok((s, own))
         }
-        self.mem_stats(&mut s);
-        Ok(s)
     }
 
-    fn timed_ooo(&mut self, units: &[(usize, &Trace)], s: &mut Stats) -> u64 {
+    fn timed_ooo(&mut self, units: &[(usize, &Trace)], s: &mut Stats) -> Vec<u64> {
         // The units start together: every core's clock at the latest.
         let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
         for c in &mut self.ooo {
             c.advance_to(start);
         }
+        // The core furthest behind in simulated time runs next, a chunk at a
+        // time, so the shared levels and the DRAM queue see the cores' accesses
+        // in about the order of their times.
+        const CHUNK: usize = 256;
         let mut pos = vec![0usize; units.len()];
-        // Interleave cores in chunks so shared levels and DRAM see them together.
-        const CHUNK: usize = 4096;
-        loop {
-            let mut any = false;
-            for (k, &(slot, t)) in units.iter().enumerate() {
-                if pos[k] >= t.ops.len() {
-                    continue;
-                }
-                any = true;
-                let end = (pos[k] + CHUNK).min(t.ops.len());
-                self.ooo[slot].run(t, pos[k]..end, &mut self.mem, s, 0);
-                pos[k] = end;
-            }
-            if !any {
-                break;
-            }
+        while let Some(k) = (0..units.len())
+            .filter(|&k| pos[k] < units[k].1.ops.len())
+            .min_by_key(|&k| (self.ooo[units[k].0].now, k))
+        {
+            let (slot, t) = units[k];
+            let end = (pos[k] + CHUNK).min(t.ops.len());
+            self.ooo[slot].run(t, pos[k]..end, &mut self.mem, s, 0);
+            pos[k] = end;
         }
-        let end = units
-            .iter()
-            .map(|u| self.ooo[u.0].now)
-            .max()
-            .unwrap_or(start);
-        end - start
+        units.iter().map(|u| self.ooo[u.0].now - start).collect()
     }
 
     /// Functional warming of `units` (slot, trace): caches, prefetchers and
     /// predictors see every op; nothing is timed or counted.
     pub fn warm(&mut self, units: &[(usize, &Trace)]) -> Result<(), String> {
         self.check(units)?;
+        self.mem.functional = true;
         for &(slot, t) in units {
             if self.ooo.is_empty() {
                 inorder::warm(t, &mut self.preds[slot], &mut self.mem, self.clock);
@@ -159,6 +167,7 @@ impl Session {
                 self.ooo[slot].warm(t, &mut self.mem);
             }
         }
+        self.mem.functional = false;
         Ok(())
     }
 
@@ -207,6 +216,16 @@ mod tests {
         let mut cold = Session::new(&m);
         let first = cold.timed(&[(0, &t)]).unwrap();
         let again = cold.timed(&[(0, &t)]).unwrap();
+        assert!(first.levels[0].total_misses() >= 256);
+        assert_eq!(again.levels[0].total_misses(), 0, "the lines stay in L1");
+        // A unit's cycles are its own: from the previous unit's end to its
+        // end (its first ops may run under the previous unit's tail).
+        assert!(
+            again.cycles * 5 < first.cycles,
+            "{} vs {}",
+            again.cycles,
+            first.cycles
+        );
         let mut warmed = Session::new(&m);
         warmed.warm(&[(0, &t)]).unwrap();
         let after = warmed.timed(&[(0, &t)]).unwrap();

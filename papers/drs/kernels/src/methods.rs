@@ -128,6 +128,22 @@ impl Program for Run<'_> {
     }
 }
 
+/// A kernel over a frame's streams, as a renderer runs it: the scene laid
+/// out once, each unit one ray stream (the `rays` of `self` are not used).
+impl isa::UnitProgram for Run<'_> {
+    type Laid = Laid;
+    type Unit = RayStream;
+    type Out = (Vec<Hit>, rt::stats::Tests);
+    fn lay_out<M: Machine>(&self, m: &mut M) -> Laid {
+        Run::lay_out(self, m)
+    }
+    fn unit<M: Machine>(&self, m: &mut M, laid: &Laid, rays: &RayStream) -> Self::Out {
+        let mut run = Run::new(self.kernel, self.scene, self.b2, self.b4, rays.clone());
+        run.packet_tile = self.packet_tile;
+        run.trace(m, laid)
+    }
+}
+
 /// A scene laid out in a machine's memory for one kernel: the BVH4 or BVH2
 /// records it reads.
 pub struct Laid {
@@ -135,6 +151,9 @@ pub struct Laid {
     pub bvh4: Option<rt::layout::Bvh4Bufs>,
     /// BVH2 layout (BVH2 kernels).
     pub bvh2: Option<rt::layout::Bvh2Bufs>,
+    /// The BVH2's depth (sizes the stream kernels' stacks; a walk of the
+    /// whole tree, so taken once here).
+    pub depth: usize,
 }
 
 impl Run<'_> {
@@ -147,11 +166,13 @@ impl Run<'_> {
             Laid {
                 bvh4: None,
                 bvh2: Some(rt::layout::lay_out_bvh2(m, &self.scene.mesh, self.b2)),
+                depth: self.b2.depth(),
             }
         } else {
             Laid {
                 bvh4: Some(lay_out_bvh4(m, &self.scene.mesh, self.b2, self.b4)),
                 bvh2: None,
+                depth: self.b2.depth(),
             }
         }
     }
@@ -222,12 +243,12 @@ impl Run<'_> {
                 );
             }
             Kernel::DrsBvh4 => {
-                let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
+                let mut st = crate::bvh4::StreamBufs::new(m, n, laid.depth);
                 crate::bvh4::trace(m, s4(), &mut st, &mut trav, &isect, &mut hits, n, policy);
                 tests = st.tests;
             }
             Kernel::DrsBvh2 => {
-                let mut st = crate::bvh4::StreamBufs::new(m, n, self.b2.depth());
+                let mut st = crate::bvh4::StreamBufs::new(m, n, laid.depth);
                 crate::bvh2::trace(m, s2(), &mut st, &mut trav, &isect, &mut hits, n, policy);
                 tests = st.tests;
             }

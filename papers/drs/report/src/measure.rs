@@ -4,6 +4,7 @@
 
 use drs_kernels::methods::{Kernel, Run};
 use isa::Region;
+use rayon::prelude::*;
 pub(crate) use repro::sampling::separates;
 use repro::sampling::{mix, paired_ratio, ratio_ci};
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
@@ -82,6 +83,8 @@ pub(crate) struct Sample {
     pub(crate) m: sim::MachineConfig,
     pub(crate) fl: isa::FlavourId,
     pub(crate) ntiles: u32,
+    /// Rounds of tiles (one per core) functionally warmed before each sampled round.
+    pub(crate) warm: u32,
     pub(crate) bounces: u32,
     pub(crate) size: u32,
     pub(crate) spp: u32,
@@ -105,7 +108,7 @@ pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
     let (mut ntiles, bounces, size, mut spp) = if a.quick {
         (2, 1, 16, 16)
     } else {
-        (6, 2, 16, 16)
+        (4, 2, 16, 16)
     };
     if let Some(t) = a.tiles {
         if t == 0 || t > 1024 {
@@ -125,6 +128,7 @@ pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
         m,
         fl,
         ntiles,
+        warm: 1,
         bounces,
         size,
         spp,
@@ -148,7 +152,9 @@ pub(crate) fn measure(
     measure_loaded(a, smp, &load(scene_name)?, scene_name, kernels, ops_total)
 }
 
-/// [`measure`] on a loaded scene.
+/// [`measure`] on a loaded scene: each method renders the sampled parts of
+/// one frame in render order on all the machine's cores ([`frame_plan`]), its
+/// scene laid out once and the machine's state carried from unit to unit.
 pub(crate) fn measure_loaded(
     a: &ReproduceArgs,
     smp: &Sample,
@@ -157,103 +163,249 @@ pub(crate) fn measure_loaded(
     kernels: &[Kernel],
     ops_total: &mut u64,
 ) -> AppResult<Vec<Acc>> {
-    let (m, fl, ntiles, bounces, size, spp) =
-        (&smp.m, smp.fl, smp.ntiles, smp.bounces, smp.size, smp.spp);
-    let (scene, b2, b4) = (&ld.scene, &ld.b2, &ld.b4);
+    let (scene, b2) = (&ld.scene, &ld.b2);
     let refi = Reference::with_bvh(&scene.mesh, b2);
-    let cam = &scene.config.camera;
-    let (tw, th) = (cam.width / size, cam.height / size);
-    let mut acc: Vec<Acc> = kernels.iter().map(|_| Acc::default()).collect();
-    for i in 0..ntiles {
-        let r = mix(a.seed ^ mix(i as u64 + 1));
-        let tiles: Vec<Tile> = if smp.block == 0 {
-            vec![Tile {
-                x: (r % u64::from(tw)) as u32,
-                y: ((r >> 32) % u64::from(th)) as u32,
-                size,
-            }]
-        } else {
-            let k = smp.block;
-            // An anchor pixel on the geometry: the first of up to 64 seeded
-            // candidates whose centre ray hits (where the render time goes).
-            let pixel = |r: u64| {
-                (
-                    (r % u64::from(cam.width)) as u32,
-                    ((r >> 32) % u64::from(cam.height)) as u32,
-                )
-            };
-            let hits = |&(x, y): &(u32, u32)| {
-                let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                refi.closest(&scene::reference::Ray::new(o, d)).is_some()
-            };
-            let (ax, ay) = (0..64u64)
-                .map(|j| pixel(mix(r ^ mix(j + 1))))
-                .find(hits)
-                .unwrap_or_else(|| pixel(r));
-            let first = |p: u32, n: u32| {
-                (p / size)
-                    .saturating_sub((k - 1) / 2)
-                    .min(n.saturating_sub(k))
-            };
-            let (x0, y0) = (first(ax, tw), first(ay, th));
-            (0..k * k)
-                .map(|j| Tile {
-                    x: x0 + j % k,
-                    y: y0 + j / k,
-                    size,
+    let plan = frame_plan(a, smp, ld, &refi);
+    // The streams of every tile the plan touches, traced once for all methods.
+    let streams: Vec<Vec<Vec<scene::workload::RayStream>>> = plan
+        .par_iter()
+        .map(|round| {
+            round
+                .tiles
+                .iter()
+                .map(|&tile| {
+                    path_trace_tile(scene, b2, tile, smp.spp, smp.bounces, a.seed)
+                        .into_iter()
+                        .filter(|s| !s.is_empty())
+                        .collect()
                 })
-                .filter(|t| t.x < tw && t.y < th)
+                .collect()
+        })
+        .collect();
+    // Methods are independent runs: one host thread each, results in order.
+    let runs = kernels
+        .par_iter()
+        .map(|&k| measure_kernel(smp, ld, &refi, (&plan, &streams), k, scene_name))
+        .collect::<AppResult<Vec<(Acc, u64)>>>()?;
+    *ops_total += runs.iter().map(|r| r.1).sum::<u64>();
+    Ok(runs.into_iter().map(|r| r.0).collect())
+}
+
+/// One round of a frame plan: up to one tile per core, started together.
+pub(crate) struct Round {
+    /// The tiles, core k taking `tiles[k]`.
+    pub(crate) tiles: Vec<Tile>,
+    /// Timed (a sampled unit) or functionally warmed (the tiles before it).
+    pub(crate) timed: bool,
+    /// Sampled group (for the confidence interval): the index of the tile
+    /// sample each timed tile belongs to.
+    pub(crate) group: usize,
+}
+
+/// The frame's tiles in render order (rows of tiles, left to right), the
+/// machine's cores taking them in turn as the paper's threads did; the
+/// sample: `ntiles` groups (seeded), each timed in full detail after
+/// functional warming of the `warm` rounds of tiles rendered just before it.
+pub(crate) fn frame_plan(
+    a: &ReproduceArgs,
+    smp: &Sample,
+    ld: &Loaded,
+    refi: &Reference,
+) -> Vec<Round> {
+    let cam = &ld.scene.config.camera;
+    let size = smp.size;
+    let (tw, th) = (cam.width / size, cam.height / size);
+    let cores = smp.m.cores.max(1) as usize;
+    let n_tiles = (tw * th) as usize;
+    let tile_at = |i: usize| Tile {
+        x: (i % tw as usize) as u32,
+        y: (i / tw as usize) as u32,
+        size,
+    };
+    let mut plan = Vec::new();
+    for g in 0..smp.ntiles as usize {
+        let r = mix(a.seed ^ mix(g as u64 + 1));
+        let timed: Vec<usize> = if smp.block == 0 {
+            // A round of `cores` consecutive tiles at a seeded place.
+            let first = (r % n_tiles as u64) as usize / cores * cores;
+            (first..(first + cores).min(n_tiles)).collect()
+        } else {
+            block_tiles(smp, cam, refi, r, (tw, th))
+                .into_iter()
+                .map(|t| (t.y * tw + t.x) as usize)
                 .collect()
         };
-        let mut tile_sums = vec![(0u64, 0u64); kernels.len()];
-        for tile in tiles {
-            let streams = path_trace_tile(scene, b2, tile, spp, bounces, a.seed);
-            for st in streams.iter().filter(|s| !s.is_empty()) {
-                for (ki, &k) in kernels.iter().enumerate() {
-                    let mut run = Run::new(k, scene, b2, b4, st.clone());
-                    run.packet_tile = Some((size, spp));
-                    let (t, (hits, tests)) = isa::record(&run, fl, k.name());
-                    let label = format!(
-                        "{scene_name} tile ({}, {}) {:?} {}",
-                        tile.x,
-                        tile.y,
-                        st.kind,
-                        k.name()
-                    );
-                    let bad = run.mismatches(&label, &refi, &hits);
-                    let s =
-                        sim::simulate(m, &[&t], &sim::SimOptions::default()).map_err(AppError)?;
-                    let ac = &mut acc[ki];
-                    ac.rays += st.len() as u64;
-                    ac.cycles += s.cycles;
-                    ac.ops += s.ops;
-                    ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
-                    ac.core_ops += s.region_ops[Region::CoreLoop as usize];
-                    ac.dram += s.dram_read + s.dram_written;
-                    ac.core_tests += tests.core_loop;
-                    ac.node_tests += tests.node_tests();
-                    ac.bad += bad as u64;
-                    *ops_total += t.ops.len() as u64;
-                    tile_sums[ki].0 += st.len() as u64;
-                    tile_sums[ki].1 += s.cycles;
-                    let kind = match st.kind {
-                        StreamKind::Primary => "primary",
-                        StreamKind::Bounce(_) => "bounce",
-                        StreamKind::Shadow(_) => "shadow",
-                    };
-                    let e = ac.kinds.entry(kind).or_default();
-                    e.0 += st.len() as u64;
-                    e.1 += s.cycles;
-                }
-            }
+        let first = timed[0];
+        let warm_from = first.saturating_sub(smp.warm as usize * cores);
+        for chunk in (warm_from..first).collect::<Vec<_>>().chunks(cores) {
+            plan.push(Round {
+                tiles: chunk.iter().map(|&i| tile_at(i)).collect(),
+                timed: false,
+                group: g,
+            });
         }
-        for (ki, ts) in tile_sums.into_iter().enumerate() {
-            if ts.0 > 0 {
-                acc[ki].tiles.push(ts);
+        for chunk in timed.chunks(cores) {
+            plan.push(Round {
+                tiles: chunk.iter().map(|&i| tile_at(i)).collect(),
+                timed: true,
+                group: g,
+            });
+        }
+    }
+    plan
+}
+
+/// The k x k aligned tiles around an anchor pixel on the geometry: the
+/// first of up to 64 seeded candidates whose centre ray hits (so sweeps over
+/// the tile size look at the same parts of the image).
+fn block_tiles(
+    smp: &Sample,
+    cam: &scene::scene::Camera,
+    refi: &Reference,
+    r: u64,
+    (tw, th): (u32, u32),
+) -> Vec<Tile> {
+    let (k, size) = (smp.block, smp.size);
+    let pixel = |r: u64| {
+        (
+            (r % u64::from(cam.width)) as u32,
+            ((r >> 32) % u64::from(cam.height)) as u32,
+        )
+    };
+    let hits = |&(x, y): &(u32, u32)| {
+        let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+        refi.closest(&scene::reference::Ray::new(o, d)).is_some()
+    };
+    let (ax, ay) = (0..64u64)
+        .map(|j| pixel(mix(r ^ mix(j + 1))))
+        .find(hits)
+        .unwrap_or_else(|| pixel(r));
+    let first = |p: u32, n: u32| {
+        (p / size)
+            .saturating_sub((k - 1) / 2)
+            .min(n.saturating_sub(k))
+    };
+    let (x0, y0) = (first(ax, tw), first(ay, th));
+    (0..k * k)
+        .map(|j| Tile {
+            x: x0 + j % k,
+            y: y0 + j / k,
+            size,
+        })
+        .filter(|t| t.x < tw && t.y < th)
+        .collect()
+}
+
+/// Where a recorded stream belongs: its round, the core, whether it closes
+/// its step (the streams of one index across the round's cores).
+struct Slot {
+    round: usize,
+    core: usize,
+    tile: Tile,
+    last: bool,
+}
+
+/// One method over a frame plan on a session of the machine.
+#[allow(clippy::too_many_arguments)]
+fn measure_kernel(
+    smp: &Sample,
+    ld: &Loaded,
+    refi: &Reference,
+    (plan, streams): (&[Round], &[Vec<Vec<scene::workload::RayStream>>]),
+    k: Kernel,
+    scene_name: &str,
+) -> AppResult<(Acc, u64)> {
+    let mut ops_total = 0u64;
+    let (scene, b2, b4) = (&ld.scene, &ld.b2, &ld.b4);
+    // Units in order: per round, per stream index, the cores that have one.
+    let mut slots = Vec::new();
+    let mut units = Vec::new();
+    for (ri, round) in plan.iter().enumerate() {
+        let most = streams[ri].iter().map(Vec::len).max().unwrap_or(0);
+        for j in 0..most {
+            let cores: Vec<usize> = (0..round.tiles.len())
+                .filter(|&c| j < streams[ri][c].len())
+                .collect();
+            for (n, &c) in cores.iter().enumerate() {
+                slots.push(Slot {
+                    round: ri,
+                    core: c,
+                    tile: round.tiles[c],
+                    last: n + 1 == cores.len(),
+                });
+                units.push(isa::Placed {
+                    thread: c,
+                    unit: streams[ri][c][j].clone(),
+                });
             }
         }
     }
-    Ok(acc)
+    let mut prog = Run::new(
+        k,
+        scene,
+        b2,
+        b4,
+        scene::workload::RayStream::from_rays(StreamKind::Primary, vec![], vec![], vec![]),
+    );
+    prog.packet_tile = Some((smp.size, smp.spp));
+    let mut session = sim::Session::new(&smp.m);
+    let mut ac = Acc::default();
+    let mut group_sums: BTreeMap<usize, (u64, u64)> = BTreeMap::new();
+    let mut pending: Vec<(usize, isa::Trace, u64, &'static str)> = Vec::new();
+    let mut next = 0usize;
+    isa::record_units(&prog, smp.fl, k.name(), units, |u, t, (hits, tests)| {
+        let slot = &slots[next];
+        next += 1;
+        let label = format!(
+            "{scene_name} tile ({}, {}) {:?} {}",
+            slot.tile.x,
+            slot.tile.y,
+            u.unit.kind,
+            k.name()
+        );
+        let mut run = Run::new(k, scene, b2, b4, u.unit.clone());
+        run.packet_tile = prog.packet_tile;
+        ac.bad += run.mismatches(&label, refi, &hits) as u64;
+        ops_total += t.ops.len() as u64;
+        let round = &plan[slot.round];
+        if round.timed {
+            ac.core_tests += tests.core_loop;
+            ac.node_tests += tests.node_tests();
+        }
+        let kind = match u.unit.kind {
+            StreamKind::Primary => "primary",
+            StreamKind::Bounce(_) => "bounce",
+            StreamKind::Shadow(_) => "shadow",
+        };
+        pending.push((slot.core, t, u.unit.len() as u64, kind));
+        if !slot.last {
+            return Ok(());
+        }
+        let step: Vec<(usize, &isa::Trace)> = pending.iter().map(|p| (p.0, &p.1)).collect();
+        if round.timed {
+            let (s, own) = session.timed_each(&step).map_err(AppError)?;
+            ac.ops += s.ops;
+            ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
+            ac.core_ops += s.region_ops[Region::CoreLoop as usize];
+            ac.dram += s.dram_read + s.dram_written;
+            for (p, &c) in pending.iter().zip(&own) {
+                ac.rays += p.2;
+                ac.cycles += c;
+                let e = ac.kinds.entry(p.3).or_default();
+                e.0 += p.2;
+                e.1 += c;
+                let g = group_sums.entry(round.group * 64 + p.0).or_default();
+                g.0 += p.2;
+                g.1 += c;
+            }
+        } else {
+            session.warm(&step).map_err(AppError)?;
+        }
+        pending.clear();
+        Ok::<(), AppError>(())
+    })?;
+    ac.tiles = group_sums.into_values().collect();
+    Ok((ac, ops_total))
 }
 
 /// Print (and with `--out`, write) a reproduce report; an error if any ray
@@ -276,7 +428,15 @@ pub(crate) fn finish(
         .map(|r| r.value)
         .sum();
     let mut sample = BTreeMap::new();
-    sample.insert("tiles_per_scene".into(), serde_json::json!(smp.ntiles));
+    sample.insert("rounds_per_scene".into(), serde_json::json!(smp.ntiles));
+    sample.insert(
+        "design".into(),
+        serde_json::json!(format!(
+            "each scene camera's whole frame in render order, one {}x{} tile per core on {} cores; {} seeded round(s) of tiles timed in full detail, each after functional warming (caches, prefetchers, predictors) of the {} round(s) rendered before it; state carried from unit to unit, scene laid out once per method",
+            smp.size, smp.size, smp.m.cores, smp.ntiles, smp.warm
+        )),
+    );
+    sample.insert("warm_rounds".into(), serde_json::json!(smp.warm));
     sample.insert(
         "tile".into(),
         serde_json::json!(format!("{0}x{0} px x {1} spp", smp.size, smp.spp)),
@@ -292,7 +452,7 @@ pub(crate) fn finish(
     sample.insert(
         "ci95".into(),
         serde_json::json!(format!(
-            "{ci_of}, paired where methods are compared, Student t"
+            "{ci_of} (each timed tile one observation), paired where methods are compared, Student t"
         )),
     );
     let rep = Report {

@@ -104,7 +104,7 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
         if unseparated.is_empty() { "none".to_string() } else { unseparated.join(", ") }
     ));
     notes.push("packets are formed as the paper's ISPC packet renderer forms them: 8 lanes = 4 x 2 pixels at one sample index, a path keeps its lane through its bounces and shadow rays, dead paths leave lanes empty; the paper's packet rows also pay for a vectorized ISPC renderer that we do not model, and ours time ray queries only".into());
-    notes.push("each stream is simulated alone on one core from cold caches and the scenes are stand-ins (rtsim list scenes): B/ray counts ray-query DRAM traffic only (no shading, textures or frame buffer)".into());
+    notes.push("conditions: the stand-ins have the paper's triangle counts (rtsim list scenes); each method renders sampled rounds of the 1280x1024 frame in render order on the 4 simulated cores (one tile per core, shared L3 and eDRAM), its scene laid out once and caches, prefetchers and predictors carried from tile to tile, each sampled round after functional warming of the round rendered before it; B/ray counts ray-query DRAM traffic only (no shading, textures or frame buffer)".into());
     let input = format!(
         "Our BVH2/BVH4, Single BVH2/BVH4, Packet BVH2/BVH4, Hybrid BVH4 on crown, bentley, dragon, sanmiguel stand-ins; Mray/s for {} cores at {} GHz, ray queries only (closest-hit and shadow rays)",
         m.cores, m.clock_ghz

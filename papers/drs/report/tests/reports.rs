@@ -27,7 +27,8 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
         },
     );
     assert_eq!(j["machine"], "haswell-i7-4750hq");
-    assert_eq!(j["sample"]["tiles_per_scene"], 1);
+    assert_eq!(j["sample"]["rounds_per_scene"], 1);
+    assert_eq!(j["sample"]["warm_rounds"], 1);
     let rows = j["rows"].as_array().unwrap();
     let get = |scene: &str, method: &str, metric: &str| -> f64 {
         let r: Vec<&serde_json::Value> = rows
@@ -50,9 +51,11 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
                 "{scene} {method}"
             );
             assert!(get(scene, method, "s_per_gray") > 0.0);
+            // At most 4 fused uops a cycle; a macro-fused compare and branch
+            // is one uop but two instructions.
             assert!(
-                get(scene, method, "cpi") > 0.25,
-                "{scene} {method}: CPI >= 1/width"
+                get(scene, method, "cpi") > 0.125,
+                "{scene} {method}: CPI >= 1/(2 x width)"
             );
         }
         let share = get(scene, "drs-bvh4", "core_loop_share");
@@ -113,7 +116,8 @@ fn reproduce_drs_table1_computes_all_seven_rows() {
                 m[0]["paper"].as_f64().is_some(),
                 "{scene} {method}: paper beside"
             );
-            assert!(of("bytes_per_ray")[0]["value"].as_f64().unwrap() > 0.0);
+            // Warm caches may serve a sampled round whole (0 B/ray).
+            assert!(of("bytes_per_ray")[0]["value"].as_f64().unwrap() >= 0.0);
         }
         assert!(
             rows.iter()

@@ -41,6 +41,9 @@ pub enum Source {
     Room(u64, u32),
     /// A forest of instanced leaves on trunks (Fern, Fairy Forest): seed, trees, leaves per tree.
     Forest(u64, u32, u32),
+    /// A forest of finer leaves (dense plants, SANMIGUEL): seed, trees, leaves
+    /// per tree, a leaf's half-size in metres (`Forest`'s is 0.15).
+    Foliage(u64, u32, u32, f32),
     /// Parallel layers for depth complexity (multi-hit): layers, cells per side.
     Layers(u32, u32),
 }
@@ -482,6 +485,35 @@ pub fn icosphere(level: u32) -> Mesh {
 }
 
 /// Build a source's mesh (in its own space).
+/// Trees of `leaves` single-triangle leaves (corners within `half` of a
+/// random spot of the crown) on box trunks, on a 40 x 40 ground quad.
+fn forest(m: &mut Mesh, seed: u64, trees: u32, leaves: u32, half: f32) {
+    let mut r = Rng::new(seed);
+    quad(m, [-20.0, 0.0, -20.0], [0.0, 0.0, 40.0], [40.0, 0.0, 0.0]);
+    for _ in 0..trees {
+        let (x, z) = (r.range(-15.0, 15.0), r.range(-15.0, 15.0));
+        let h = r.range(2.0, 5.0);
+        cuboid(m, [x - 0.1, 0.0, z - 0.1], [x + 0.1, h, z + 0.1]);
+        for _ in 0..leaves {
+            // A leaf: one small triangle at a random spot of the crown, random orientation.
+            let c = [
+                x + r.range(-1.5, 1.5),
+                h + r.range(-1.0, 1.5),
+                z + r.range(-1.5, 1.5),
+            ];
+            let b = m.positions.len() as u32;
+            for _ in 0..3 {
+                m.positions.push([
+                    c[0] + r.range(-half, half),
+                    c[1] + r.range(-half, half),
+                    c[2] + r.range(-half, half),
+                ]);
+            }
+            m.tris.push([b, b + 1, b + 2]);
+        }
+    }
+}
+
 /// A placed mesh before its transform, and its triangles' materials: the
 /// `large` triangles split off, the rest refined to `refine` triangles.
 fn placed_mesh(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
@@ -572,36 +604,12 @@ pub fn build_source(s: &Source) -> Result<Mesh, String> {
                 }
             }
         }
-        Source::Forest(seed, trees, leaves) => {
-            let mut r = Rng::new(seed);
-            quad(
-                &mut m,
-                [-20.0, 0.0, -20.0],
-                [0.0, 0.0, 40.0],
-                [40.0, 0.0, 0.0],
-            );
-            for _ in 0..trees {
-                let (x, z) = (r.range(-15.0, 15.0), r.range(-15.0, 15.0));
-                let h = r.range(2.0, 5.0);
-                cuboid(&mut m, [x - 0.1, 0.0, z - 0.1], [x + 0.1, h, z + 0.1]);
-                for _ in 0..leaves {
-                    // A leaf: one small triangle at a random spot of the crown, random orientation.
-                    let c = [
-                        x + r.range(-1.5, 1.5),
-                        h + r.range(-1.0, 1.5),
-                        z + r.range(-1.5, 1.5),
-                    ];
-                    let b = m.positions.len() as u32;
-                    for _ in 0..3 {
-                        m.positions.push([
-                            c[0] + r.range(-0.15, 0.15),
-                            c[1] + r.range(-0.15, 0.15),
-                            c[2] + r.range(-0.15, 0.15),
-                        ]);
-                    }
-                    m.tris.push([b, b + 1, b + 2]);
-                }
+        Source::Forest(seed, trees, leaves) => forest(&mut m, seed, trees, leaves, 0.15),
+        Source::Foliage(seed, trees, leaves, half) => {
+            if !(half.is_finite() && half > 0.0 && half <= 1.0) {
+                return Err(format!("Foliage: leaf half-size {half} is not in (0, 1]"));
             }
+            forest(&mut m, seed, trees, leaves, half);
         }
         Source::Layers(layers, cells) => {
             if cells == 0 {
@@ -638,6 +646,7 @@ mod tests {
             Source::Sphere(2),
             Source::Room(1, 20),
             Source::Forest(2, 10, 50),
+            Source::Foliage(2, 10, 50, 0.05),
             Source::Layers(8, 4),
         ] {
             let m = build_source(&s).unwrap();

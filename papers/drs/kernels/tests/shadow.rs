@@ -11,20 +11,31 @@ use scene::workload::{path_trace_tile, StreamKind, Tile};
 
 #[test]
 fn every_kernel_answers_shadow_rays_as_the_reference() {
-    let fx = fixture("sanmiguel");
+    let fx = fixture("fern");
     let (scene, b2, b4) = (&fx.scene, &fx.b2, &fx.b4);
     let refi = fx.reference();
     let (size, spp) = (16, 4);
-    let tile = Tile { x: 20, y: 24, size };
-    let shadows: Vec<_> = path_trace_tile(scene, b2, tile, spp, 1, 9)
-        .into_iter()
-        .filter(|s| matches!(s.kind, StreamKind::Shadow(_)))
-        .collect();
-    assert_eq!(
-        shadows.len(),
-        2,
-        "shadow rays of the primary and first bounce hits"
-    );
+    let cam = &scene.config.camera;
+    let mixed = |st: &scene::workload::RayStream| {
+        let occluded = (0..st.len()).filter(|&i| refi.any(&st.ray(i))).count();
+        occluded > st.len() / 20 && occluded < st.len() * 19 / 20
+    };
+    // The first tile along the middle row whose two shadow streams (of the
+    // primary and the first bounce hits) each mix lit and occluded rays.
+    let shadows: Vec<_> = (0..cam.width / size)
+        .map(|x| Tile {
+            x,
+            y: cam.height / size / 2,
+            size,
+        })
+        .map(|tile| {
+            path_trace_tile(scene, b2, tile, spp, 1, 9)
+                .into_iter()
+                .filter(|s| matches!(s.kind, StreamKind::Shadow(_)))
+                .collect::<Vec<_>>()
+        })
+        .find(|sh| sh.len() == 2 && sh.iter().all(mixed))
+        .expect("a tile whose shadow rays mix lit and occluded");
     for st in &shadows {
         let occluded = (0..st.len()).filter(|&i| refi.any(&st.ray(i))).count();
         assert!(

@@ -124,16 +124,7 @@ pub fn run_from(
 /// caches and prefetcher, its branches the thread's predictor; untimed.
 pub fn warm(t: &Trace, pred: &mut Gshare, mem: &mut Hierarchy, now: u64) {
     for op in &t.ops {
-        if op.class.is_per_lane_mem() {
-            let mut lines: Vec<u64> = t.lanes_of(op).iter().map(|a| mem.line_of(a.0).0).collect();
-            lines.sort_unstable();
-            lines.dedup();
-            for l in lines {
-                mem.access(0, l * mem.line_bytes(), op.class.is_store(), op.mem, now);
-            }
-        } else if op.class.is_mem() {
-            mem.access(0, op.addr.0, op.class.is_store(), op.mem, now);
-        }
+        mem.warm_op(0, t, op, now);
         if op.class == OpClass::Branch {
             pred.predict_and_update(op.site().0, op.taken());
         }
@@ -257,9 +248,7 @@ impl Core {
         let mut done = cycle + ct.lat;
         let mut missed = false;
         if op.class.is_per_lane_mem() {
-            let mut lines: Vec<u64> = tr.lanes_of(op).iter().map(|a| mem.line_of(a.0).0).collect();
-            lines.sort_unstable();
-            lines.dedup();
+            let lines = mem.lines_of(tr, op);
             occ += ct.per_line * (lines.len() as u64).saturating_sub(1);
             let mut extra = 0;
             for l in lines {

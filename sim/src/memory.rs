@@ -4,7 +4,7 @@
 //! and per memory region, and DRAM bytes read and written.
 
 use crate::config::{CacheConfig, MachineConfig, Prefetch};
-use isa::{LineAddr, MemId};
+use isa::{LineAddr, MemId, Op, Trace};
 
 /// One set-associative cache with LRU replacement.
 #[derive(Clone, Debug)]
@@ -219,6 +219,28 @@ impl Hierarchy {
             dram_read_by_region: Vec::new(),
             streams: vec![(u64::MAX - 1, 0); cores],
             functional: false,
+        }
+    }
+
+    /// The distinct lines (line numbers, ascending) a per-lane access touches.
+    #[must_use]
+    pub fn lines_of(&self, t: &Trace, op: &Op) -> Vec<u64> {
+        let mut lines: Vec<u64> = t.lanes_of(op).iter().map(|a| self.line_of(a.0).0).collect();
+        lines.sort_unstable();
+        lines.dedup();
+        lines
+    }
+
+    /// Functional warming of `op`'s accesses by `core` (each distinct line of
+    /// a per-lane access once, as the timed cores do), at cycle `now`.
+    pub fn warm_op(&mut self, core: usize, t: &Trace, op: &Op, now: u64) {
+        let store = op.class.is_store();
+        if op.class.is_per_lane_mem() {
+            for l in self.lines_of(t, op) {
+                self.access(core, l * self.line_bytes(), store, op.mem, now);
+            }
+        } else if op.class.is_mem() {
+            self.access(core, op.addr.0, store, op.mem, now);
         }
     }
 

@@ -337,18 +337,7 @@ impl OooCore {
         let mut fused = 0u64;
         for op in &t.ops {
             let ct = &self.classes[op.class as usize];
-            let now = self.now + fused / width;
-            if ct.per_lane {
-                let mut lines: Vec<u64> =
-                    t.lanes_of(op).iter().map(|a| mem.line_of(a.0).0).collect();
-                lines.sort_unstable();
-                lines.dedup();
-                for l in lines {
-                    mem.access(self.core, l * mem.line_bytes(), ct.store, op.mem, now);
-                }
-            } else if ct.load || ct.store {
-                mem.access(self.core, op.addr.0, ct.store, op.mem, now);
-            }
+            mem.warm_op(self.core, t, op, self.now + fused / width);
             if op.class == OpClass::Branch {
                 self.pred.predict_and_update(op.site().0, op.taken());
             }
@@ -463,10 +452,7 @@ impl OooCore {
         let mut gather_lat = 0u64;
         if ct.per_lane {
             // Distinct lines cost port cycles (per_line) and their latency.
-            let lanes = t.lanes_of(op);
-            let mut lines: Vec<u64> = lanes.iter().map(|a| mem.line_of(a.0).0).collect();
-            lines.sort_unstable();
-            lines.dedup();
+            let lines = mem.lines_of(t, op);
             extra_occ = ct.per_line * (lines.len() as u64).saturating_sub(1);
             for l in lines {
                 let sv = mem.access(

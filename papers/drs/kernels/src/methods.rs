@@ -73,11 +73,18 @@ impl<'a> Run<'a> {
     /// closest hits, [`shadow_mismatches`] for shadow rays).
     #[must_use]
     pub fn mismatches(&self, label: &str, refi: &Reference, out: &[Hit]) -> usize {
-        if self.rays.is_shadow() {
-            shadow_mismatches(label, refi, &self.rays, out)
-        } else {
-            mismatches(label, refi, &self.rays.org, &self.rays.dir, out)
-        }
+        stream_mismatches(label, refi, &self.rays, out)
+    }
+}
+
+/// Rays of `rays` whose result in `out` differs from the reference's
+/// ([`mismatches`] for closest hits, [`shadow_mismatches`] for shadow rays).
+#[must_use]
+pub fn stream_mismatches(label: &str, refi: &Reference, rays: &RayStream, out: &[Hit]) -> usize {
+    if rays.is_shadow() {
+        shadow_mismatches(label, refi, rays, out)
+    } else {
+        mismatches(label, refi, &rays.org, &rays.dir, out)
     }
 }
 
@@ -138,9 +145,7 @@ impl isa::UnitProgram for Run<'_> {
         Run::lay_out(self, m)
     }
     fn unit<M: Machine>(&self, m: &mut M, laid: &Laid, rays: &RayStream) -> Self::Out {
-        let mut run = Run::new(self.kernel, self.scene, self.b2, self.b4, rays.clone());
-        run.packet_tile = self.packet_tile;
-        run.trace(m, laid)
+        self.trace_rays(m, laid, rays)
     }
 }
 
@@ -179,10 +184,20 @@ impl Run<'_> {
 
     /// Trace the rays over a layout from [`Run::lay_out`] on the same machine.
     pub fn trace<M: Machine>(&self, m: &mut M, laid: &Laid) -> (Vec<Hit>, rt::stats::Tests) {
-        let (org, dir, tmax) = (&self.rays.org, &self.rays.dir, &self.rays.tmax);
+        self.trace_rays(m, laid, &self.rays)
+    }
+
+    /// [`Run::trace`] over `rays` instead of the run's own.
+    fn trace_rays<M: Machine>(
+        &self,
+        m: &mut M,
+        laid: &Laid,
+        rays: &RayStream,
+    ) -> (Vec<Hit>, rt::stats::Tests) {
+        let (org, dir, tmax) = (&rays.org, &rays.dir, &rays.tmax);
         let s4 = || laid.bvh4.as_ref().expect("a BVH4 layout");
         let s2 = || laid.bvh2.as_ref().expect("a BVH2 layout");
-        let policy = self.rays.policy();
+        let policy = rays.policy();
         let n = org.len();
         let mut tests = rt::stats::Tests::default();
         if matches!(
@@ -191,7 +206,7 @@ impl Run<'_> {
         ) {
             let slots = self
                 .packet_tile
-                .map(|(size, spp)| scene::workload::packet_slots(&self.rays, size, spp, M::LANES));
+                .map(|(size, spp)| scene::workload::packet_slots(rays, size, spp, M::LANES));
             let mut pb = rt::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
             if self.kernel == Kernel::PacketBvh2 {
                 rt::packet::trace_bvh2(m, s2(), &mut pb, policy);

@@ -2,7 +2,7 @@
 //! stand-in, every method traced over the same streams, each stream
 //! checked against the reference and timed on the machine.
 
-use drs_kernels::methods::{Kernel, Run};
+use drs_kernels::methods::{stream_mismatches, Kernel, Run};
 use isa::Region;
 use rayon::prelude::*;
 pub(crate) use repro::sampling::separates;
@@ -166,22 +166,7 @@ pub(crate) fn measure_loaded(
     let (scene, b2) = (&ld.scene, &ld.b2);
     let refi = Reference::with_bvh(&scene.mesh, b2);
     let plan = frame_plan(a, smp, ld, &refi);
-    // The streams of every tile the plan touches, traced once for all methods.
-    let streams: Vec<Vec<Vec<scene::workload::RayStream>>> = plan
-        .par_iter()
-        .map(|round| {
-            round
-                .tiles
-                .iter()
-                .map(|&tile| {
-                    path_trace_tile(scene, b2, tile, smp.spp, smp.bounces, a.seed)
-                        .into_iter()
-                        .filter(|s| !s.is_empty())
-                        .collect()
-                })
-                .collect()
-        })
-        .collect();
+    let streams = trace_streams(ld, &plan, smp, a.seed);
     // Methods are independent runs: one host thread each, results in order.
     let runs = kernels
         .par_iter()
@@ -189,6 +174,26 @@ pub(crate) fn measure_loaded(
         .collect::<AppResult<Vec<(Acc, u64)>>>()?;
     *ops_total += runs.iter().map(|r| r.1).sum::<u64>();
     Ok(runs.into_iter().map(|r| r.0).collect())
+}
+
+/// The ray streams of each tile (by column, row), in the order they are traced.
+pub(crate) type Streams = BTreeMap<(u32, u32), Vec<scene::workload::RayStream>>;
+
+/// The streams of every tile `plan` touches, path-traced once for all methods.
+pub(crate) fn trace_streams(ld: &Loaded, plan: &[Round], smp: &Sample, seed: u64) -> Streams {
+    let mut tiles: Vec<Tile> = plan.iter().flat_map(|r| r.tiles.iter().copied()).collect();
+    tiles.sort_by_key(|t| (t.y, t.x));
+    tiles.dedup_by_key(|t| (t.x, t.y));
+    tiles
+        .par_iter()
+        .map(|&tile| {
+            let st = path_trace_tile(&ld.scene, &ld.b2, tile, smp.spp, smp.bounces, seed)
+                .into_iter()
+                .filter(|s| !s.is_empty())
+                .collect();
+            ((tile.x, tile.y), st)
+        })
+        .collect()
 }
 
 /// One round of a frame plan: up to one tile per core, started together.
@@ -307,11 +312,11 @@ struct Slot {
 
 /// One method over a frame plan on a session of the machine.
 #[allow(clippy::too_many_arguments)]
-fn measure_kernel(
+pub(crate) fn measure_kernel(
     smp: &Sample,
     ld: &Loaded,
     refi: &Reference,
-    (plan, streams): (&[Round], &[Vec<Vec<scene::workload::RayStream>>]),
+    (plan, streams): (&[Round], &Streams),
     k: Kernel,
     scene_name: &str,
 ) -> AppResult<(Acc, u64)> {
@@ -321,10 +326,14 @@ fn measure_kernel(
     let mut slots = Vec::new();
     let mut units = Vec::new();
     for (ri, round) in plan.iter().enumerate() {
-        let most = streams[ri].iter().map(Vec::len).max().unwrap_or(0);
+        let of = |c: usize| &streams[&(round.tiles[c].x, round.tiles[c].y)];
+        let most = (0..round.tiles.len())
+            .map(|c| of(c).len())
+            .max()
+            .unwrap_or(0);
         for j in 0..most {
             let cores: Vec<usize> = (0..round.tiles.len())
-                .filter(|&c| j < streams[ri][c].len())
+                .filter(|&c| j < of(c).len())
                 .collect();
             for (n, &c) in cores.iter().enumerate() {
                 slots.push(Slot {
@@ -335,7 +344,7 @@ fn measure_kernel(
                 });
                 units.push(isa::Placed {
                     thread: c,
-                    unit: streams[ri][c][j].clone(),
+                    unit: of(c)[j].clone(),
                 });
             }
         }
@@ -363,9 +372,7 @@ fn measure_kernel(
             u.unit.kind,
             k.name()
         );
-        let mut run = Run::new(k, scene, b2, b4, u.unit.clone());
-        run.packet_tile = prog.packet_tile;
-        ac.bad += run.mismatches(&label, refi, &hits) as u64;
+        ac.bad += stream_mismatches(&label, refi, &u.unit, &hits) as u64;
         ops_total += t.ops.len() as u64;
         let round = &plan[slot.round];
         if round.timed {

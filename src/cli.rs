@@ -274,6 +274,26 @@ pub struct FidelityCli {
     /// Rays of the default workload.
     #[arg(long, default_value_t = 16384)]
     pub rays: usize,
+    /// Instead: a window of SCENE's frame rendered by Our BVH4 in full detail
+    /// and with each sampling design (SMARTS warming, the reports' warming
+    /// window, none): host time and error against full.
+    #[arg(long, value_name = "SCENE")]
+    pub frame: Option<String>,
+    /// --frame: the window, in 16x16 tiles (default 8x8).
+    #[arg(long, value_name = "COLSxROWS")]
+    pub window: Option<String>,
+    /// --frame: samples per pixel (default 4).
+    #[arg(long)]
+    pub spp: Option<u32>,
+    /// --frame: time every N-th round of tiles (default 4).
+    #[arg(long)]
+    pub every: Option<u32>,
+    /// --frame: rounds warmed before each timed round in window mode (default 1).
+    #[arg(long)]
+    pub warm: Option<u32>,
+    /// --frame: path-tracing seed (default 7).
+    #[arg(long)]
+    pub seed: Option<u64>,
     /// Output format: text, json or csv.
     #[arg(long, value_parser = Format::from_name, default_value = "text")]
     pub format: Format,

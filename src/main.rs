@@ -20,6 +20,51 @@ fn reports() -> Vec<&'static ReportDef> {
         .collect()
 }
 
+/// `rtsim fidelity --frame` options, checked: None without `--frame`; an
+/// error for a frame option without it, or for `--frame` with `--trace`.
+fn frame_fidelity(a: &cli::FidelityCli) -> AppResult<Option<drs_report::FrameFidelity>> {
+    let frame_only = [
+        ("--window", a.window.is_some()),
+        ("--spp", a.spp.is_some()),
+        ("--every", a.every.is_some()),
+        ("--warm", a.warm.is_some()),
+        ("--seed", a.seed.is_some()),
+    ];
+    let Some(scene) = a.frame.clone() else {
+        if let Some((o, _)) = frame_only.iter().find(|o| o.1) {
+            return Err(AppError(format!(
+                "fidelity: {o} is only read with --frame SCENE"
+            )));
+        }
+        return Ok(None);
+    };
+    if a.trace.is_some() {
+        return Err(AppError(
+            "fidelity: --frame and --trace exclude each other".into(),
+        ));
+    }
+    let window = match a.window.as_deref() {
+        None => (8, 8),
+        Some(w) => w
+            .split_once('x')
+            .and_then(|(c, r)| Some((c.parse().ok()?, r.parse().ok()?)))
+            .filter(|&(c, r): &(u32, u32)| c > 0 && r > 0 && c <= 256 && r <= 256)
+            .ok_or_else(|| {
+                AppError(format!(
+                    "--window: '{w}' is not COLSxROWS of 1 to 256 tiles"
+                ))
+            })?,
+    };
+    Ok(Some(drs_report::FrameFidelity {
+        scene,
+        window,
+        spp: a.spp.unwrap_or(4),
+        every: a.every.unwrap_or(4),
+        warm: a.warm.unwrap_or(1),
+        seed: a.seed.unwrap_or(repro::options::DEFAULT_SEED),
+    }))
+}
+
 fn list(what: ListWhat, names: &[String], format: Format) -> AppResult<()> {
     if !names.is_empty() && !matches!(what, ListWhat::Scenes) {
         return Err(AppError(format!(
@@ -103,7 +148,10 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
         }
         Cmd::Fidelity(a) => {
             let m = a.machine.load()?;
-            let r = repro::machine::fidelity_report(&m, a.trace.as_deref(), a.rays)?;
+            let r = match frame_fidelity(&a)? {
+                Some(f) => drs_report::fidelity_frame(&m, &f)?,
+                None => repro::machine::fidelity_report(&m, a.trace.as_deref(), a.rays)?,
+            };
             show(r, a.format)
         }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),

@@ -9,6 +9,7 @@
 
 #![warn(missing_docs)]
 
+mod fidelity;
 mod figures;
 mod measure;
 pub mod paper;
@@ -16,6 +17,7 @@ pub mod run;
 mod table1;
 mod table2;
 
+pub use fidelity::{fidelity_frame, FrameFidelity};
 use repro::{Opt, ReportDef};
 
 /// The machine the paper measured on.

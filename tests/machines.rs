@@ -152,6 +152,93 @@ fn fidelity_reports_each_mode_against_full() {
     assert_eq!(full_err["value"], 0.0);
 }
 
+/// `fidelity --frame` rows of `mode` and `metric`.
+fn frame_row(j: &serde_json::Value, mode: &str, metric: &str) -> f64 {
+    j["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["mode"] == mode && r["metric"] == metric)
+        .unwrap_or_else(|| panic!("{mode} {metric}"))["value"]
+        .as_f64()
+        .unwrap()
+}
+
+#[test]
+fn fidelity_frame_measures_each_sampling_design_against_full() {
+    // Timing every round with no warming window: SMARTS is full detail, and
+    // the reports' window design is no warming at all.
+    let args = [
+        "fidelity",
+        "--frame",
+        "conference",
+        "--window",
+        "4x2",
+        "--spp",
+        "1",
+        "--every",
+        "1",
+        "--warm",
+        "0",
+        "--format",
+        "json",
+    ];
+    let j = json(&rtsim(&args));
+    assert_eq!(j["report"], "fidelity-frame");
+    for metric in ["cycles_per_ray", "cpi", "bytes_per_ray", "rays_timed"] {
+        assert_eq!(
+            frame_row(&j, "smarts", metric),
+            frame_row(&j, "full", metric),
+            "{metric}"
+        );
+        assert_eq!(
+            frame_row(&j, "window", metric),
+            frame_row(&j, "none", metric),
+            "{metric}"
+        );
+    }
+    assert_eq!(frame_row(&j, "full", "cycles_per_ray_error"), 0.0);
+    assert!(frame_row(&j, "full", "rays_timed") >= 8.0 * 256.0);
+    // Without the previous frame the caches start cold: more DRAM traffic.
+    assert!(frame_row(&j, "none", "bytes_per_ray") > frame_row(&j, "full", "bytes_per_ray"));
+    for mode in ["full", "smarts", "window", "none"] {
+        assert_eq!(frame_row(&j, mode, "hit_mismatches"), 0.0, "{mode}");
+    }
+    // Every 2nd round timed: about half the rays.
+    let mut half = args;
+    half[8] = "2";
+    let h = json(&rtsim(&half));
+    let (timed, all) = (
+        frame_row(&h, "smarts", "rays_timed"),
+        frame_row(&h, "full", "rays_timed"),
+    );
+    assert!(timed > 0.3 * all && timed < 0.7 * all, "{timed} of {all}");
+}
+
+#[test]
+fn fidelity_frame_options_are_checked() {
+    let e = err(&rtsim(&["fidelity", "--spp", "2"]));
+    assert!(e.contains("--spp is only read with --frame"), "{e}");
+    let e = err(&rtsim(&[
+        "fidelity",
+        "--frame",
+        "conference",
+        "--window",
+        "0x3",
+    ]));
+    assert!(e.contains("--window: '0x3'"), "{e}");
+    let e = err(&rtsim(&[
+        "fidelity",
+        "--frame",
+        "conference",
+        "--trace",
+        "t.rtt",
+    ]));
+    assert!(e.contains("exclude each other"), "{e}");
+    let e = err(&rtsim(&["fidelity", "--frame", "atlantis"]));
+    assert!(e.contains("atlantis"), "{e}");
+}
+
 #[test]
 fn list_machines_shows_all_six() {
     let j = json(&rtsim(&["list", "machines", "--format", "json"]));

@@ -7,8 +7,11 @@
 //! - `full`: every round timed (the truth);
 //! - `smarts`: every `every`-th round timed, every other round functionally
 //!   warmed (SMARTS, Wunderlich et al. 2003);
-//! - `window`: the reports' design: no previous frame, only the `warm`
-//!   rounds before each timed round warmed, the rest skipped;
+//! - `recall`: the reports' design: each timed round's own tiles warmed
+//!   first (as the previous frame left them), then the `warm` rounds before
+//!   it, the rest skipped;
+//! - `window`: (the reports' design before `recall`) no previous frame, only the `warm` rounds before each timed
+//!   round warmed, the rest skipped;
 //! - `none`: no warming at all (state left by the previous timed round).
 
 use crate::measure::{measure_kernel, trace_streams, Acc, Round, Sample};
@@ -44,16 +47,24 @@ pub struct FrameFidelity {
 enum Mode {
     Full,
     Smarts,
+    Recall,
     Window,
     None,
 }
 
 impl Mode {
-    const ALL: [Mode; 4] = [Mode::Full, Mode::Smarts, Mode::Window, Mode::None];
+    const ALL: [Mode; 5] = [
+        Mode::Full,
+        Mode::Smarts,
+        Mode::Recall,
+        Mode::Window,
+        Mode::None,
+    ];
     fn name(self) -> &'static str {
         match self {
             Mode::Full => "full",
             Mode::Smarts => "smarts",
+            Mode::Recall => "recall",
             Mode::Window => "window",
             Mode::None => "none",
         }
@@ -93,6 +104,14 @@ fn plan(mode: Mode, rounds: &[Vec<Tile>], f: &FrameFidelity) -> Vec<Round> {
             .collect(),
         Mode::Smarts => previous_frame()
             .chain((0..rounds.len()).map(|i| round(i, sampled(i))))
+            .collect(),
+        Mode::Recall => (0..rounds.len())
+            .filter(|&i| sampled(i))
+            .flat_map(|i| {
+                std::iter::once(round(i, false))
+                    .chain((i.saturating_sub(warm)..i).map(|w| round(w, false)))
+                    .chain(std::iter::once(round(i, true)))
+            })
             .collect(),
         Mode::Window => (0..rounds.len())
             .filter(|&i| sampled(i) || (i + 1..=i + warm).any(sampled))

@@ -210,7 +210,9 @@ pub(crate) struct Round {
 /// The frame's tiles in render order (rows of tiles, left to right), the
 /// machine's cores taking them in turn as the paper's threads did; the
 /// sample: `ntiles` groups (seeded), each timed in full detail after
-/// functional warming of the `warm` rounds of tiles rendered just before it.
+/// functional warming of its own tiles (the previous frame's pass over them:
+/// the `recall` design of `rtsim fidelity --frame`) and then of the `warm`
+/// rounds of tiles rendered just before it.
 pub(crate) fn frame_plan(
     a: &ReproduceArgs,
     smp: &Sample,
@@ -240,6 +242,15 @@ pub(crate) fn frame_plan(
                 .map(|t| (t.y * tw + t.x) as usize)
                 .collect()
         };
+        // The timed tiles as the previous frame left them (their own rays,
+        // functionally), then the rounds rendered just before them.
+        for chunk in timed.chunks(cores) {
+            plan.push(Round {
+                tiles: chunk.iter().map(|&i| tile_at(i)).collect(),
+                timed: false,
+                group: g,
+            });
+        }
         let first = timed[0];
         let warm_from = first.saturating_sub(smp.warm as usize * cores);
         for chunk in (warm_from..first).collect::<Vec<_>>().chunks(cores) {
@@ -439,7 +450,7 @@ pub(crate) fn finish(
     sample.insert(
         "design".into(),
         serde_json::json!(format!(
-            "each scene camera's whole frame in render order, one {}x{} tile per core on {} cores; {} seeded round(s) of tiles timed in full detail, each after functional warming (caches, prefetchers, predictors) of the {} round(s) rendered before it; state carried from unit to unit, scene laid out once per method",
+            "each scene camera's whole frame in render order, one {}x{} tile per core on {} cores; {} seeded round(s) of tiles timed in full detail, each after functional warming (caches, prefetchers, predictors) of its own tiles (as the previous frame left them) and then of the {} round(s) rendered before it; state carried from unit to unit, scene laid out once per method (rtsim fidelity --frame measures this design, 'recall', against full detail)",
             smp.size, smp.size, smp.m.cores, smp.ntiles, smp.warm
         )),
     );

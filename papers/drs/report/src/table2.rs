@@ -92,7 +92,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             acc[0].node_tests
         ));
     }
-    notes.push("why absolute figures differ: the scenes are stand-ins at the paper's triangle counts (rtsim list scenes); sampled rounds of the frame run on the 4 simulated cores sharing L3 and eDRAM, warmed by the round before, without the shading code the paper's threads ran between ray queries; s/Gray is the cores' summed simulated time over the 4 cores, as the paper ran 4 threads".into());
+    notes.push("why absolute figures differ: the scenes are stand-ins at the paper's triangle counts (rtsim list scenes); sampled rounds of the frame run on the 4 simulated cores sharing L3 and eDRAM, warmed by their own tiles' previous pass and the round before (rtsim fidelity --frame: within about 2% of full detail on a dragon window), without the shading code the paper's threads ran between ray queries; s/Gray is the cores' summed simulated time over the 4 cores, as the paper ran 4 threads".into());
     notes.push("Single BVH4 culls popped stack entries farther than its hit (no test), Our BVH4 re-tests those rays in the core loop, which can make its ray-node test count the larger (per-scene counts above, Our BVH4 first); it wins by testing them at lower CPI and fetching each node once per stream. Per stream kind, `rtsim run --kernel single-bvh4|drs-bvh4 --scene S --stream primary|bounce|shadow` times one tile of one kind".into());
     let input = format!(
         "Single BVH4 vs Our BVH4 (DRS) on crown, bentley, dragon, sanmiguel stand-ins; s/Gray is chip time over {} cores at {} GHz, ray queries only (the paper's Table 2 likewise times only the ray query kernels)",

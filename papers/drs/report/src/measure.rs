@@ -322,7 +322,6 @@ struct Slot {
 }
 
 /// One method over a frame plan on a session of the machine.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn measure_kernel(
     smp: &Sample,
     ld: &Loaded,
@@ -370,7 +369,8 @@ pub(crate) fn measure_kernel(
     prog.packet_tile = Some((smp.size, smp.spp));
     let mut session = sim::Session::new(&smp.m);
     let mut ac = Acc::default();
-    let mut group_sums: BTreeMap<usize, (u64, u64)> = BTreeMap::new();
+    // Per (sampled group, core): the observations of the confidence interval.
+    let mut group_sums: BTreeMap<(usize, usize), (u64, u64)> = BTreeMap::new();
     let mut pending: Vec<(usize, isa::Trace, u64, &'static str)> = Vec::new();
     let mut next = 0usize;
     isa::record_units(&prog, smp.fl, k.name(), units, |u, t, (hits, tests)| {
@@ -412,7 +412,7 @@ pub(crate) fn measure_kernel(
                 let e = ac.kinds.entry(p.3).or_default();
                 e.0 += p.2;
                 e.1 += c;
-                let g = group_sums.entry(round.group * 64 + p.0).or_default();
+                let g = group_sums.entry((round.group, p.0)).or_default();
                 g.0 += p.2;
                 g.1 += c;
             }

@@ -59,6 +59,17 @@ impl Default for AddrSpace {
     }
 }
 
+/// Words as little-endian bytes, written into one allocation of the right
+/// size (collecting a `flat_map` grows the vector step by step: slow for the
+/// scenes' hundreds of megabytes).
+fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> Vec<u8> {
+    let mut bytes = Vec::with_capacity(4 * n);
+    for w in words {
+        bytes.extend_from_slice(&w);
+    }
+    bytes
+}
+
 impl AddrSpace {
     /// A new space holding only the ISA lookup-table region (id 0).
     #[must_use]
@@ -148,13 +159,13 @@ impl AddrSpace {
 
     /// Register a region holding these f32 values (little-endian).
     pub fn alloc_f32(&mut self, kind: MemKind, name: &str, v: &[f32], align: usize) -> Buf {
-        let bytes = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let bytes = le_bytes(v.iter().map(|x| x.to_le_bytes()), v.len());
         self.alloc_bytes(kind, name, bytes, align)
     }
 
     /// Register a region holding these u32 values (little-endian).
     pub fn alloc_u32(&mut self, kind: MemKind, name: &str, v: &[u32], align: usize) -> Buf {
-        let bytes = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+        let bytes = le_bytes(v.iter().map(|x| x.to_le_bytes()), v.len());
         self.alloc_bytes(kind, name, bytes, align)
     }
 

@@ -65,6 +65,24 @@ pub fn run_from(
     s: &mut Stats,
     (count_from, start): (usize, u64),
 ) -> u64 {
+    run_queue(m, traces, &[], preds, mem, s, (count_from, start))
+}
+
+/// [`run_from`] where the threads, each done with its trace in `first`, take
+/// the traces of `queue` in order (a thread that finishes takes the next
+/// one, as a renderer's threads take work units); each thread keeps its
+/// predictor across its units.
+pub fn run_queue(
+    m: &MachineConfig,
+    first: &[&Trace],
+    queue: &[&Trace],
+    preds: &mut [Gshare],
+    mem: &mut Hierarchy,
+    s: &mut Stats,
+    (count_from, start): (usize, u64),
+) -> u64 {
+    let traces = first;
+    let mut next = 0usize;
     let c = &m.core;
     let mut core = Core {
         classes: class_table(m),
@@ -104,6 +122,13 @@ pub fn run_from(
                 (count_from, &mut last_charge, &mut max_done),
             );
             rr = i + 1;
+        }
+        for t in th.iter_mut().filter(|t| t.pos >= t.t.ops.len()) {
+            let Some(&q) = queue.get(next) else { break };
+            next += 1;
+            t.t = q;
+            t.pos = 0;
+            t.values = Values::new();
         }
         if th.iter().all(|t| t.pos >= t.t.ops.len()) {
             break;

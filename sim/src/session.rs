@@ -98,41 +98,76 @@ impl Session {
         self.check(units)?;
         self.mem.reset_counters();
         let mut s = Stats::new(self.m.flavour().lanes());
-        if self.ooo.is_empty() {
-            let traces: Vec<&Trace> = units.iter().map(|u| u.1).collect();
-            let mut preds: Vec<Gshare> = units
-                .iter()
-                .map(|u| std::mem::replace(&mut self.preds[u.0], Gshare::new(1, 1)))
-                .collect();
-            let start = self.clock;
-            let end = inorder::run_from(
-                &self.m,
-                &traces,
-                &mut preds,
-                &mut self.mem,
-                &mut s,
-                (0, start),
-            );
-            for (u, p) in units.iter().zip(preds) {
-                self.preds[u.0] = p;
-            }
-            self.clock = end;
-            s.cycles = end - start;
+        let own = if self.ooo.is_empty() {
+            s.cycles = self.timed_inorder(units, &[], &mut s);
             let ins: Vec<u64> = units.iter().map(|u| instructions(u.1)).collect();
             let all = ins.iter().sum::<u64>().max(1);
             let mut own: Vec<u64> = ins.iter().map(|&i| s.cycles * i / all).collect();
             own[0] += s.cycles - own.iter().sum::<u64>();
-            self.mem_stats(&mut s);
-            Ok((s, own))
+            own
         } else {
-            let own = self.timed_ooo(units, &mut s);
+            let own = self.timed_ooo(units, &[], &mut s);
             s.cycles = own.iter().copied().max().unwrap_or(0);
-            self.mem_stats(&mut s);
-            Ok((s, own))
-        }
+            own
+        };
+        self.mem_stats(&mut s);
+        Ok((s, own))
     }
 
-    fn timed_ooo(&mut self, units: &[(usize, &Trace)], s: &mut Stats) -> Vec<u64> {
+    /// Time the units of `queue` in order on all slots, started together:
+    /// slot k takes `queue[k]`, and a slot that finishes its unit takes the
+    /// next one left (as a renderer's threads take work units). The step's
+    /// statistics (cycles: from the common start to the last unit's end).
+    pub fn timed_queue(&mut self, queue: &[&Trace]) -> Result<Stats, String> {
+        let n = queue.len().min(self.slots());
+        let first: Vec<(usize, &Trace)> = queue[..n].iter().copied().enumerate().collect();
+        self.check(&first)?;
+        if let Some(t) = queue.iter().find(|t| t.flavour != self.m.flavour()) {
+            return Err(format!(
+                "the trace is {} code but machine {} runs {} code",
+                t.flavour, self.m.name, self.m.isa
+            ));
+        }
+        self.mem.reset_counters();
+        let mut s = Stats::new(self.m.flavour().lanes());
+        s.cycles = if self.ooo.is_empty() {
+            self.timed_inorder(&first, &queue[n..], &mut s)
+        } else {
+            let own = self.timed_ooo(&first, &queue[n..], &mut s);
+            own.iter().copied().max().unwrap_or(0)
+        };
+        self.mem_stats(&mut s);
+        Ok(s)
+    }
+
+    /// The in-order core runs `units`, then the threads take `rest` in
+    /// turn; the cycles from the core's clock to the last op's end.
+    fn timed_inorder(&mut self, units: &[(usize, &Trace)], rest: &[&Trace], s: &mut Stats) -> u64 {
+        let traces: Vec<&Trace> = units.iter().map(|u| u.1).collect();
+        let mut preds: Vec<Gshare> = units
+            .iter()
+            .map(|u| std::mem::replace(&mut self.preds[u.0], Gshare::new(1, 1)))
+            .collect();
+        let start = self.clock;
+        let end = inorder::run_queue(
+            &self.m,
+            &traces,
+            rest,
+            &mut preds,
+            &mut self.mem,
+            s,
+            (0, start),
+        );
+        for (u, p) in units.iter().zip(preds) {
+            self.preds[u.0] = p;
+        }
+        self.clock = end;
+        end - start
+    }
+
+    /// The out-of-order cores run `units`, a core that finishes taking the
+    /// next of `rest`; each slot's cycles from the common start to its end.
+    fn timed_ooo(&mut self, units: &[(usize, &Trace)], rest: &[&Trace], s: &mut Stats) -> Vec<u64> {
         // The units start together: every core's clock at the latest.
         let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
         for c in &mut self.ooo {
@@ -142,15 +177,24 @@ impl Session {
         // time, so the shared levels and the DRAM queue see the cores' accesses
         // in about the order of their times.
         const CHUNK: usize = 256;
-        let mut pos = vec![0usize; units.len()];
-        while let Some(k) = (0..units.len())
-            .filter(|&k| pos[k] < units[k].1.ops.len())
-            .min_by_key(|&k| (self.ooo[units[k].0].now, k))
-        {
-            let (slot, t) = units[k];
-            let end = (pos[k] + CHUNK).min(t.ops.len());
-            self.ooo[slot].run(t, pos[k]..end, &mut self.mem, s, 0);
-            pos[k] = end;
+        let mut cur: Vec<(usize, &Trace, usize)> = units.iter().map(|&(c, t)| (c, t, 0)).collect();
+        let mut next = 0usize;
+        loop {
+            for u in cur.iter_mut().filter(|u| u.2 >= u.1.ops.len()) {
+                let Some(&q) = rest.get(next) else { break };
+                next += 1;
+                *u = (u.0, q, 0);
+            }
+            let Some(k) = (0..cur.len())
+                .filter(|&k| cur[k].2 < cur[k].1.ops.len())
+                .min_by_key(|&k| (self.ooo[cur[k].0].now, k))
+            else {
+                break;
+            };
+            let (slot, t, pos) = cur[k];
+            let end = (pos + CHUNK).min(t.ops.len());
+            self.ooo[slot].run(t, pos..end, &mut self.mem, s, 0);
+            cur[k].2 = end;
         }
         units.iter().map(|u| self.ooo[u.0].now - start).collect()
     }
@@ -253,6 +297,71 @@ mod tests {
             .timed(&[(1, &t), (1, &t)])
             .unwrap_err()
             .contains("two units"));
+    }
+
+    #[test]
+    fn a_queue_of_one_unit_per_slot_is_a_step() {
+        for (name, fl) in [
+            ("haswell-i7-4750hq", isa::FlavourId::Avx2),
+            ("larrabee", isa::FlavourId::Lrb16),
+        ] {
+            let m = MachineConfig::load(name).unwrap();
+            let mut t = chase(300);
+            t.flavour = fl;
+            let mut a = Session::new(&m);
+            let mut b = Session::new(&m);
+            let step = a.timed(&[(0, &t), (1, &t)]).unwrap();
+            let queued = b.timed_queue(&[&t, &t]).unwrap();
+            assert_eq!(step.cycles, queued.cycles, "{name}");
+            assert_eq!(step.levels, queued.levels, "{name}");
+        }
+    }
+
+    #[test]
+    fn a_thread_that_finishes_takes_the_next_unit() {
+        let m = MachineConfig::load("larrabee").unwrap();
+        let (mut long, mut short) = (chase(800), chase(100));
+        long.flavour = isa::FlavourId::Lrb16;
+        short.flavour = isa::FlavourId::Lrb16;
+        let threads = m.core.threads as usize;
+        let mut queue = vec![&long];
+        queue.extend(std::iter::repeat_n(&short, 2 * threads - 1));
+        // Warm first, so every unit's loads hit and the times are the chains'.
+        let mut q = Session::new(&m);
+        q.warm(&[(0, &long)]).unwrap();
+        let queued = q.timed_queue(&queue).unwrap();
+        let mut r = Session::new(&m);
+        r.warm(&[(0, &long)]).unwrap();
+        let rounds = r.timed(
+            &queue[..threads]
+                .iter()
+                .copied()
+                .enumerate()
+                .collect::<Vec<_>>(),
+        );
+        let rounds2 = r.timed(
+            &queue[threads..]
+                .iter()
+                .copied()
+                .enumerate()
+                .collect::<Vec<_>>(),
+        );
+        let in_rounds = rounds.unwrap().cycles + rounds2.unwrap().cycles;
+        assert_eq!(queued.ops, 800 + (2 * threads as u64 - 1) * 100);
+        // The other threads run every short unit while the long one runs.
+        assert!(
+            queued.cycles < in_rounds,
+            "{} vs {in_rounds}",
+            queued.cycles
+        );
+        let mut alone = Session::new(&m);
+        alone.warm(&[(0, &long)]).unwrap();
+        let alone = alone.timed(&[(0, &long)]).unwrap().cycles;
+        assert!(
+            queued.cycles * 100 <= alone * 105,
+            "{} vs the long unit alone {alone}",
+            queued.cycles
+        );
     }
 
     #[test]

@@ -125,8 +125,9 @@ pub enum TriForm {
     /// The leaf's triangle block: v0 and two edges, precomputed.
     Edges,
     /// The block's triangle ids, then three vertex indices and three
-    /// vertices each, edges computed at the leaf (the MFT paper's baseline).
-    Indexed(crate::layout::IndexedTris),
+    /// vertices each, edges computed at the leaf (the MFT paper's baseline);
+    /// shared by the work units of one layout.
+    Indexed(std::sync::Arc<crate::layout::IndexedTris>),
 }
 
 /// The packet kernels' buffers.

@@ -46,7 +46,7 @@
 
 pub mod shade;
 
-use isa::{At, BinOp, Buf, Cmp, Int, Machine, MemKind, Program, Region, Shift};
+use isa::{At, BinOp, Buf, Cmp, Int, Machine, MemKind, Program, Region, Shift, UnitProgram};
 use rt::layout::{Bvh2Bufs, BLOCK, BLOCK_BYTES};
 use rt::single::Sides;
 use scene::bvh::{LEAF, LEAF_BLOCKS_SHIFT, LEAF_FIRST_MASK};
@@ -1460,32 +1460,50 @@ pub struct FrustaRun<'a> {
 impl Program for FrustaRun<'_> {
     type Out = (Vec<Hit>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let s = rt::layout::lay_out_bvh2_multi(m, &self.scene.mesh, self.bvh);
-        let mut out = Vec::with_capacity(self.sets.len() * 256);
-        let mut stats = MftStats::default();
-        let mut bufs: Option<MftBufs> = None;
-        for f in &self.sets {
-            let b = match &mut bufs {
-                Some(b) => {
-                    b.reload(f);
-                    b
-                }
-                None => bufs.insert(MftBufs::new(m, f)),
-            };
-            b.packets256 = self.packets256;
-            b.shrink = self.shrink;
-            b.plane_noise = self.plane_noise;
-            trace(m, &s, b, self.cull_back);
-            for n in 0..FRUSTA {
-                for k in 0..FRUSTA {
-                    out.push(b.hit(n, k));
-                }
-            }
-        }
-        if let Some(b) = bufs {
-            stats = b.stats;
-        }
-        (out, stats)
+        run_units(self, m, &self.sets)
+    }
+}
+
+/// A [`UnitProgram`]'s units in order on one machine, buffers released
+/// after each: the hits in order and the counters summed.
+fn run_units<P, M>(p: &P, m: &mut M, sets: &[Frusta]) -> (Vec<Hit>, MftStats)
+where
+    P: UnitProgram<Unit = Frusta, Out = (Vec<Hit>, MftStats)>,
+    M: Machine,
+{
+    let laid = p.lay_out(m);
+    let mut out = Vec::with_capacity(sets.len() * FRUSTA * FRUSTA);
+    let mut stats = MftStats::default();
+    for f in sets {
+        let mark = m.space().mark();
+        let (hits, st) = p.unit(m, &laid, f);
+        m.space().release(mark);
+        out.extend(hits);
+        stats.add(st);
+    }
+    (out, stats)
+}
+
+/// One frusta set per unit (the MFT renderer's work unit), the scene laid
+/// out once ([`FrustaRun::sets`] is not used).
+impl UnitProgram for FrustaRun<'_> {
+    type Laid = Bvh2Bufs;
+    type Unit = Frusta;
+    type Out = (Vec<Hit>, MftStats);
+    fn lay_out<M: Machine>(&self, m: &mut M) -> Bvh2Bufs {
+        rt::layout::lay_out_bvh2_multi(m, &self.scene.mesh, self.bvh)
+    }
+    fn unit<M: Machine>(&self, m: &mut M, s: &Bvh2Bufs, f: &Frusta) -> Self::Out {
+        let mut b = MftBufs::new(m, f);
+        b.packets256 = self.packets256;
+        b.shrink = self.shrink;
+        b.plane_noise = self.plane_noise;
+        trace(m, s, &mut b, self.cull_back);
+        let hits = (0..FRUSTA)
+            .flat_map(|n| (0..FRUSTA).map(move |k| (n, k)))
+            .map(|(n, k)| b.hit(n, k))
+            .collect();
+        (hits, b.stats)
     }
 }
 
@@ -1581,58 +1599,59 @@ pub enum PacketLeaves {
 impl Program for PacketPrimaryRun<'_> {
     type Out = (Vec<Hit>, MftStats);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        run_units(self, m, &self.sets)
+    }
+}
+
+/// One frusta set's rays per unit, as 16-ray packets (one per active
+/// frustum); the BVH and triangles laid out once.
+impl UnitProgram for PacketPrimaryRun<'_> {
+    type Laid = (Bvh2Bufs, rt::packet::TriForm);
+    type Unit = Frusta;
+    type Out = (Vec<Hit>, MftStats);
+    fn lay_out<M: Machine>(&self, m: &mut M) -> Self::Laid {
         assert_eq!(M::LANES, FRUSTA, "16-ray packets on 16 lanes");
         let s = rt::layout::lay_out_bvh2(m, &self.scene.mesh, self.bvh);
-        let mut out = Vec::with_capacity(self.sets.len() * 256);
-        let mut stats = MftStats::default();
-        let mut bufs: Option<rt::packet::PacketBufs> = None;
-        for f in &self.sets {
-            // One packet per active frustum.
-            let live: Vec<usize> = (0..FRUSTA).filter(|&n| f.active & (1 << n) != 0).collect();
-            let (org, dir): (Vec<_>, Vec<_>) = live
-                .iter()
-                .flat_map(|&n| (0..FRUSTA).map(move |k| f.ray(n, k)))
-                .unzip();
-            let mut hits = vec![Hit::miss(f32::INFINITY); FRUSTA * FRUSTA];
-            if !org.is_empty() {
-                let tfar = vec![f.tmax; org.len()];
-                let pb = match &mut bufs {
-                    Some(pb) => {
-                        pb.reload(FRUSTA, &org, &dir, &tfar, None);
-                        pb
-                    }
-                    None => {
-                        // Room for 16 packets, then filled with this set's rays.
-                        let full = vec![[0.0f32; 3]; FRUSTA * FRUSTA];
-                        let tf = vec![0.0f32; FRUSTA * FRUSTA];
-                        let mut pb = rt::packet::PacketBufs::new(m, &full, &full, &tf, None);
-                        pb.reload(FRUSTA, &org, &dir, &tfar, None);
-                        pb.sides = if self.cull_back {
-                            Sides::Front
-                        } else {
-                            Sides::Both
-                        };
-                        pb.tri_form = match self.leaves {
-                            PacketLeaves::Indexed => rt::packet::TriForm::Indexed(
-                                rt::layout::lay_out_indexed(m, &self.scene.mesh),
-                            ),
-                            PacketLeaves::Edges => rt::packet::TriForm::Edges,
-                        };
-                        bufs.insert(pb)
-                    }
-                };
-                rt::packet::trace_bvh2(m, &s, pb, f.policy);
-                for (j, &n) in live.iter().enumerate() {
-                    for k in 0..FRUSTA {
-                        hits[n * FRUSTA + k] = pb.hit(FRUSTA, j * FRUSTA + k);
-                    }
-                }
+        let form = match self.leaves {
+            PacketLeaves::Indexed => rt::packet::TriForm::Indexed(std::sync::Arc::new(
+                rt::layout::lay_out_indexed(m, &self.scene.mesh),
+            )),
+            PacketLeaves::Edges => rt::packet::TriForm::Edges,
+        };
+        (s, form)
+    }
+    fn unit<M: Machine>(&self, m: &mut M, (s, form): &Self::Laid, f: &Frusta) -> Self::Out {
+        let mut hits = vec![Hit::miss(f32::INFINITY); FRUSTA * FRUSTA];
+        // One packet per active frustum.
+        let live: Vec<usize> = (0..FRUSTA).filter(|&n| f.active & (1 << n) != 0).collect();
+        if live.is_empty() {
+            return (hits, MftStats::default());
+        }
+        let (org, dir): (Vec<_>, Vec<_>) = live
+            .iter()
+            .flat_map(|&n| (0..FRUSTA).map(move |k| f.ray(n, k)))
+            .unzip();
+        let tfar = vec![f.tmax; org.len()];
+        // Room for 16 packets, then filled with this set's rays.
+        let full = vec![[0.0f32; 3]; FRUSTA * FRUSTA];
+        let tf = vec![0.0f32; FRUSTA * FRUSTA];
+        let mut pb = rt::packet::PacketBufs::new(m, &full, &full, &tf, None);
+        pb.reload(FRUSTA, &org, &dir, &tfar, None);
+        pb.sides = if self.cull_back {
+            Sides::Front
+        } else {
+            Sides::Both
+        };
+        pb.tri_form = match form {
+            rt::packet::TriForm::Indexed(ix) => rt::packet::TriForm::Indexed(ix.clone()),
+            rt::packet::TriForm::Edges => rt::packet::TriForm::Edges,
+        };
+        rt::packet::trace_bvh2(m, s, &mut pb, f.policy);
+        for (j, &n) in live.iter().enumerate() {
+            for k in 0..FRUSTA {
+                hits[n * FRUSTA + k] = pb.hit(FRUSTA, j * FRUSTA + k);
             }
-            out.extend(hits);
         }
-        if let Some(pb) = bufs {
-            stats = pb.frusta_stats;
-        }
-        (out, stats)
+        (hits, pb.frusta_stats)
     }
 }

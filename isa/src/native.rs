@@ -396,9 +396,15 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     fn load_repeat(&mut self, buf: &Buf, at: At<NS>, n: usize) -> Vf<N> {
         assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
         let off = ea(at);
+        if n == N {
+            return Vf(buf.f32s::<N>(off));
+        }
         let mut r = [0f32; N];
-        for (i, x) in r.iter_mut().enumerate() {
-            *x = buf.f32_at(off + 4 * (i % n));
+        for (i, x) in r.iter_mut().take(n).enumerate() {
+            *x = buf.f32_at(off + 4 * i);
+        }
+        for i in n..N {
+            r[i] = r[i - n];
         }
         Vf(r)
     }

@@ -6,6 +6,7 @@ use crate::mesh::Mesh;
 use crate::reference::{Ray, RefHit, Reference, TriGeom};
 use crate::workload::RayStream;
 use glam::DVec3;
+use rayon::prelude::*;
 
 /// Least barycentric distance to an edge within which an f32 kernel may
 /// miss a triangle the f64 watertight reference hits (or hit one it misses).
@@ -140,47 +141,65 @@ pub fn mismatches_for(
     dir: &[[f32; 3]],
     out: &[Hit],
 ) -> usize {
-    let mut bad = 0;
-    for i in 0..org.len() {
+    // Rays are checked in parallel; the first few mismatches are printed in order.
+    let ok: Vec<bool> = (0..org.len())
+        .into_par_iter()
+        .map(|i| closest_agrees(test, refi, org[i], dir[i], out[i]))
+        .collect();
+    report_bad(&ok, |i| {
         let ray = Ray::new(org[i].map(f64::from), dir[i].map(f64::from));
-        let want = refi.closest(&ray);
         let Hit { t, prim } = out[i];
-        let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1.0);
-        let kt = prim.map_or(f64::INFINITY, |_| f64::from(t));
-        let near = |p: u32| near_hit(test, refi, &ray, p, Some(kt));
-        // The kernel's hit is real: the reference hits that triangle there,
-        // or misses it by less than the f32 tolerance.
-        let real = |all: &[RefHit]| {
-            prim.is_none_or(|p| all.iter().any(|a| a.prim == p && close(a.t, kt)) || near(p))
-        };
-        let ok = match want {
-            None => prim.is_none_or(near),
-            Some(h) => {
-                let all = refi.all(&ray);
-                let exact = prim.is_some() && close(kt, h.t) && real(&all);
-                // f32 Moller-Trumbore is not watertight: a hit near an edge
-                // may fall into the crack between two triangles; then the
-                // kernel sees the next surface behind it.
-                let skipped_graze = all
-                    .iter()
-                    .filter(|a| prim.is_none() || (a.t < kt && !close(a.t, kt)))
-                    .all(|a| may_skip(test, refi, &ray, a));
-                // The mirror case: the kernel hits, in front of the reference's
-                // hit, a triangle the reference misses by less than the tolerance.
-                let near_front = prim.is_some_and(|p| kt < h.t && near(p));
-                exact
-                    || near_front
-                    || (may_skip(test, refi, &ray, &h) && skipped_graze && real(&all))
-            }
-        };
-        if !ok {
-            bad += 1;
-            if bad <= 3 {
-                eprintln!("{label} ray {i}: kernel ({t}, {prim:?}) reference {want:?}");
-            }
+        eprintln!(
+            "{label} ray {i}: kernel ({t}, {prim:?}) reference {:?}",
+            refi.closest(&ray)
+        );
+    })
+}
+
+/// How many of `ok` are false; `say` prints the first three, in order.
+fn report_bad(ok: &[bool], say: impl Fn(usize)) -> usize {
+    let bad: Vec<usize> = (0..ok.len()).filter(|&i| !ok[i]).collect();
+    for &i in bad.iter().take(3) {
+        say(i);
+    }
+    bad.len()
+}
+
+/// Whether a kernel's closest hit `out` of a ray agrees with the reference's.
+fn closest_agrees(test: F32Test, refi: &Reference, org: [f32; 3], dir: [f32; 3], out: Hit) -> bool {
+    let ray = Ray::new(org.map(f64::from), dir.map(f64::from));
+    let want = refi.closest(&ray);
+    let Hit { t, prim } = out;
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1.0);
+    let kt = prim.map_or(f64::INFINITY, |_| f64::from(t));
+    // The common case: the reference's own hit (what `exact` accepts).
+    if want.is_some_and(|h| prim == Some(h.prim) && close(kt, h.t)) {
+        return true;
+    }
+    let near = |p: u32| near_hit(test, refi, &ray, p, Some(kt));
+    // The kernel's hit is real: the reference hits that triangle there,
+    // or misses it by less than the f32 tolerance.
+    let real = |all: &[RefHit]| {
+        prim.is_none_or(|p| all.iter().any(|a| a.prim == p && close(a.t, kt)) || near(p))
+    };
+    match want {
+        None => prim.is_none_or(near),
+        Some(h) => {
+            let all = refi.all(&ray);
+            let exact = prim.is_some() && close(kt, h.t) && real(&all);
+            // f32 Moller-Trumbore is not watertight: a hit near an edge
+            // may fall into the crack between two triangles; then the
+            // kernel sees the next surface behind it.
+            let skipped_graze = all
+                .iter()
+                .filter(|a| prim.is_none() || (a.t < kt && !close(a.t, kt)))
+                .all(|a| may_skip(test, refi, &ray, a));
+            // The mirror case: the kernel hits, in front of the reference's
+            // hit, a triangle the reference misses by less than the tolerance.
+            let near_front = prim.is_some_and(|p| kt < h.t && near(p));
+            exact || near_front || (may_skip(test, refi, &ray, &h) && skipped_graze && real(&all))
         }
     }
-    bad
 }
 
 /// Shadow rays whose occlusion (kernel: prim >= 0) differs from the
@@ -201,26 +220,30 @@ pub fn shadow_mismatches_for(
     rays: &RayStream,
     out: &[Hit],
 ) -> usize {
-    let mut bad = 0;
-    for (i, h) in out.iter().enumerate() {
+    let ok: Vec<bool> = out
+        .par_iter()
+        .enumerate()
+        .map(|(i, h)| {
+            let ray = rays.ray(i);
+            let want = refi.any(&ray);
+            let got = h.is_hit();
+            want == got
+                || (want && refi.all(&ray).iter().all(|h| may_skip(test, refi, &ray, h)))
+                || (got && {
+                    let mut longer = ray;
+                    longer.tmax *= 1.0 + 1e-4;
+                    refi.any(&longer) || h.prim.is_some_and(|p| near_hit(test, refi, &ray, p, None))
+                })
+        })
+        .collect();
+    report_bad(&ok, |i| {
         let ray = rays.ray(i);
-        let want = refi.any(&ray);
-        let got = h.is_hit();
-        let ok = want == got
-            || (want && refi.all(&ray).iter().all(|h| may_skip(test, refi, &ray, h)))
-            || (got && {
-                let mut longer = ray;
-                longer.tmax *= 1.0 + 1e-4;
-                refi.any(&longer) || h.prim.is_some_and(|p| near_hit(test, refi, &ray, p, None))
-            });
-        if !ok {
-            bad += 1;
-            if bad <= 3 {
-                eprintln!("{label} shadow ray {i}: kernel occluded {got}, reference {want}");
-            }
-        }
-    }
-    bad
+        eprintln!(
+            "{label} shadow ray {i}: kernel occluded {}, reference {}",
+            out[i].is_hit(),
+            refi.any(&ray)
+        );
+    })
 }
 
 #[cfg(test)]

@@ -340,10 +340,11 @@ impl<'a> Reference<'a> {
         let mut best: Option<RefHit> = None;
         self.visit(r, |p| {
             let tmax = best.map_or(r.tmax, |b| b.t);
+            // The facing test after the hit test: most candidates miss.
+            let (t, u, v) = w.hit(self.mesh.tri(p as usize), r.tmin, tmax)?;
             if !self.faces(p, r.dir) {
                 return None;
             }
-            let (t, u, v) = w.hit(self.mesh.tri(p as usize), r.tmin, tmax)?;
             let better = best.is_none_or(|b| t < b.t || (t == b.t && p < b.prim));
             if better {
                 best = Some(RefHit { t, u, v, prim: p });
@@ -356,7 +357,20 @@ impl<'a> Reference<'a> {
     /// Whether anything is hit in (tmin, tmax].
     #[must_use]
     pub fn any(&self, r: &Ray) -> bool {
-        self.closest(r).is_some()
+        if r.dir == [0.0; 3] || r.org.iter().chain(&r.dir).any(|x| !x.is_finite()) {
+            return false;
+        }
+        let w = Watertight::new(r);
+        let mut found = false;
+        self.visit(r, |p| {
+            if found || w.hit(self.mesh.tri(p as usize), r.tmin, r.tmax).is_none() {
+                return None;
+            }
+            found = self.faces(p, r.dir);
+            // The first hit ends the search: no box overlaps (tmin, -inf).
+            found.then_some(f64::NEG_INFINITY)
+        });
+        found
     }
 
     /// Every hit, sorted by t then triangle.
@@ -368,11 +382,10 @@ impl<'a> Reference<'a> {
         let w = Watertight::new(r);
         let mut hits = Vec::new();
         self.visit(r, |p| {
-            if !self.faces(p, r.dir) {
-                return None;
-            }
             if let Some((t, u, v)) = w.hit(self.mesh.tri(p as usize), r.tmin, r.tmax) {
-                hits.push(RefHit { t, u, v, prim: p });
+                if self.faces(p, r.dir) {
+                    hits.push(RefHit { t, u, v, prim: p });
+                }
             }
             None
         });

@@ -23,6 +23,7 @@ use crate::mesh::Mesh;
 use crate::reference::{Ray, Reference};
 use crate::scene::{Camera, Light, Material, Scene};
 use isa::rng::Rng;
+use rayon::prelude::*;
 
 /// What a stream's rays are for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -480,13 +481,11 @@ pub struct FrustumInput {
 pub fn soft_shadow_frusta(scene: &Scene, bvh: &Bvh2) -> Vec<FrustumInput> {
     let refi = Reference::with_bvh(&scene.mesh, bvh);
     let cam = &scene.config.camera;
-    let mut out = Vec::new();
-    for gy in (0..cam.height).step_by(4) {
-        for gx in (0..cam.width).step_by(4) {
-            out.push(soft_shadow_group(scene, &refi, gx, gy));
-        }
-    }
-    out
+    let groups: Vec<(u32, u32)> = (0..cam.height)
+        .step_by(4)
+        .flat_map(|gy| (0..cam.width).step_by(4).map(move |gx| (gx, gy)))
+        .collect();
+    soft_shadow_groups(scene, &refi, &groups)
 }
 
 /// The MFT soft-shadow input of the 4 x 4 pixel group whose top-left pixel
@@ -500,6 +499,26 @@ pub fn soft_shadow_group(scene: &Scene, refi: &Reference, gx: u32, gy: u32) -> F
         refi.closest(&Ray::new(o, d)).map(|h| (h.t, h.prim))
     };
     shadow_group_with(scene, scene_size(scene), &hit, gx, gy, 0)
+}
+
+/// [`soft_shadow_group`] of each top-left pixel in `groups`, in order (the
+/// scene's extent computed once: it walks the whole mesh).
+#[must_use]
+pub fn soft_shadow_groups(
+    scene: &Scene,
+    refi: &Reference,
+    groups: &[(u32, u32)],
+) -> Vec<FrustumInput> {
+    let cam = &scene.config.camera;
+    let size = scene_size(scene);
+    let hit = |x: u32, y: u32| {
+        let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+        refi.closest(&Ray::new(o, d)).map(|h| (h.t, h.prim))
+    };
+    groups
+        .par_iter()
+        .map(|&(gx, gy)| shadow_group_with(scene, size, &hit, gx, gy, 0))
+        .collect()
 }
 
 /// The shadow-ray origin of a primary hit (`t`, `prim`) of pixel (`x`, `y`)

@@ -271,6 +271,17 @@ fn bvh_and_brute_force_agree_closest_and_all() {
         let ray = Ray::new(org, dir);
         assert_eq!(fast.closest(&ray), slow.closest(&ray));
         assert_eq!(fast.all(&ray), slow.all(&ray));
+        // Any-hit stops at its first hit and agrees with the closest hit,
+        // two-sided and front faces only, over the whole ray and a segment.
+        for refi in [&fast, &slow] {
+            let front = Reference::with_bvh(&m, &b).front_faces_only();
+            let mut seg = ray;
+            seg.tmax = f64::from(r.range(0.5, 4.0));
+            for q in [&ray, &seg] {
+                assert_eq!(refi.any(q), refi.closest(q).is_some());
+                assert_eq!(front.any(q), front.closest(q).is_some());
+            }
+        }
         let all = slow.all(&ray);
         assert!(
             all.len() % 2 == 0 || all.windows(2).any(|w| w[0].t == w[1].t),

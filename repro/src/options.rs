@@ -17,7 +17,7 @@ pub enum Opt {
     Machine,
     /// `--set field=value`: config overrides.
     Set,
-    /// `--tiles N`: the sample size (tiles, or batches of frusta sets).
+    /// `--tiles N`: the sample size (rounds of tiles, or runs of frusta sets).
     Tiles,
     /// `--spp N`: samples per pixel.
     Spp,

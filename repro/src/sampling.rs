@@ -26,6 +26,32 @@ pub fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
     Some(t95(v.len() - 1) * (var / n).sqrt() / dbar)
 }
 
+/// [`ratio_ci`] for a systematic sample (observations at evenly spaced
+/// places in a fixed order, e.g. bands of an image top to bottom): the
+/// variance from successive differences of the residuals (Wolter's v2
+/// estimator), which does not count a smooth trend over the order as
+/// noise, as the independent-draw formula does; `None` below 3 observations.
+#[must_use]
+pub fn systematic_ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
+    if v.len() < 3 {
+        return None;
+    }
+    let n = v.len() as f64;
+    let (sn, sd) = v.iter().fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
+    let r = sn / sd;
+    let d: Vec<f64> = v.iter().map(|&(x, y)| x - r * y).collect();
+    let var = d.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (2.0 * (n - 1.0));
+    Some(t95(v.len() - 1) * (var / n).sqrt() / (sd / n))
+}
+
+/// [`paired_ratio`] over a systematic sample ([`systematic_ratio_ci`]).
+#[must_use]
+pub fn paired_ratio_systematic(a: &[f64], b: &[f64]) -> (f64, Option<f64>) {
+    let pairs: Vec<(f64, f64)> = a.iter().copied().zip(b.iter().copied()).collect();
+    let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
+    (sa / sb.max(f64::MIN_POSITIVE), systematic_ratio_ci(&pairs))
+}
+
 /// The ratio sum(a) / sum(b) of two methods measured on the same samples
 /// (tiles, batches), and its paired 95% half-width: the spread the samples
 /// share cancels.
@@ -75,7 +101,7 @@ pub fn t95(df: usize) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{ratio_ci, t95};
+    use super::{ratio_ci, systematic_ratio_ci, t95};
 
     #[test]
     fn t_quantiles_shrink_towards_the_normal() {
@@ -92,5 +118,21 @@ mod tests {
         let wide = ratio_ci(&[(1.0, 2.0), (4.0, 2.0)]).unwrap();
         let narrow = ratio_ci(&[(1.0, 2.0), (1.5, 2.0)]).unwrap();
         assert!(wide > narrow && narrow > 0.0);
+    }
+
+    #[test]
+    fn a_systematic_sample_does_not_count_a_smooth_trend_as_noise() {
+        assert_eq!(systematic_ratio_ci(&[(1.0, 2.0), (2.0, 2.0)]), None);
+        // Costs rising steadily down the image: independent draws would
+        // call the spread noise; successive differences see a small step.
+        let trend: Vec<(f64, f64)> = (0..16).map(|i| (f64::from(i), 1.0)).collect();
+        let sys = systematic_ratio_ci(&trend).unwrap();
+        let srs = ratio_ci(&trend).unwrap();
+        assert!(sys * 3.0 < srs, "{sys} vs {srs}");
+        // Alternating costs have no trend: the differences are large.
+        let zigzag: Vec<(f64, f64)> = (0..16).map(|i| (f64::from(i % 2) * 15.0, 1.0)).collect();
+        assert!(systematic_ratio_ci(&zigzag).unwrap() > ratio_ci(&zigzag).unwrap());
+        let flat: Vec<(f64, f64)> = (0..8).map(|_| (3.0, 1.5)).collect();
+        assert!(systematic_ratio_ci(&flat).unwrap() < 1e-12);
     }
 }

@@ -1,29 +1,31 @@
 //! What every MFT report shares: the machine, a scene made ready (light,
 //! BVHs, frusta sets), cycles sampled over batches of sets, the report frame.
 
-use isa::Program;
+use isa::UnitProgram;
 use mft_kernels::{Frusta, FrustaRun, MftStats, PacketPrimaryRun, Shrink};
-use repro::sampling::{mix, ratio_ci};
+use repro::sampling::{mix, systematic_ratio_ci};
 use repro::{AppError, AppResult, Report, ReproduceArgs, Row};
 use scene::bvh::{BuildConfig, Bvh2};
 use scene::reference::Reference;
 use scene::scene::{Light, Scene};
-use scene::workload::soft_shadow_group;
+use scene::workload::soft_shadow_groups;
+use rayon::prelude::*;
+use scene::Hit;
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-/// Simulated cycles of `sets` on one core: `batches` seeded systematic
-/// samples of `per` sets spread over the image, each split round-robin over
-/// the core's hardware threads; (cycles scaled to all sets, 95% CI half-width, ops simulated).
-pub(crate) fn sampled_cycles<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
+/// Simulated cycles of `sets` on one core: the frame's sets in render
+/// order, `groups` seeded runs of `per` consecutive sets timed (see
+/// [`sample`]); (cycles scaled to all sets, 95% CI half-width, ops simulated).
+pub(crate) fn sampled_cycles<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftStats)>>(
     m: &sim::MachineConfig,
     sets: &[Frusta],
-    batches: usize,
+    groups: usize,
     per: usize,
     seed: u64,
     prog: impl Fn(Vec<Frusta>) -> P,
 ) -> AppResult<(f64, Option<f64>, u64)> {
-    let s = sample(m, sets, batches, per, seed, prog)?;
+    let s = sample(m, sets, groups, per, seed, prog)?;
     Ok((s.cycles, s.ci, s.ops))
 }
 
@@ -33,14 +35,14 @@ pub(crate) struct Sample {
     pub cycles: f64,
     /// Their 95% CI half-width.
     pub ci: Option<f64>,
-    /// Ops simulated.
+    /// Ops recorded (timed and warmed).
     pub ops: u64,
-    /// The sampled sets' counts.
+    /// The timed sets' counts.
     pub stats: MftStats,
-    /// Simulated instructions and cycles per region, summed over batches.
+    /// Simulated instructions and cycles per region, summed over the timed groups.
     pub regions: sim::Stats,
-    /// Each batch's cycles scaled to all sets (one estimate per batch; the
-    /// methods of a report draw the same batches, so these pair).
+    /// Each group's cycles scaled to all sets (one estimate per group; the
+    /// methods of a report draw the same groups, so these pair).
     pub estimates: Vec<f64>,
 }
 
@@ -56,11 +58,37 @@ impl Sample {
     }
 }
 
+/// Sets functionally warmed before each timed group besides its own: one
+/// per hardware thread (the round rendered just before it).
+const WARM_ROUNDS: usize = 1;
+
+/// The sample design the MFT reports state (see [`sample`]).
+pub(crate) fn design(m: &sim::MachineConfig, groups: usize, per_p: usize, per_s: usize) -> String {
+    format!(
+        "the frame's frusta sets in render order (primary: rows of 16x16-pixel sets; soft shadows: rows of 4x4-pixel sets with a hit) taken by the {} hardware threads of one {} core as they free up, its caches, prefetcher and predictors carried from set to set; {groups} runs of {per_p} primary / {per_s} shadow consecutive sets per scene, evenly spaced through the frame from a seeded offset (a systematic sample), timed in full detail, each after functional warming of its own sets (as the previous frame left them) and of the {} set(s) rendered just before it; the same runs for every method; 95% CI over the runs (ratio estimator, variance from successive differences as for a systematic sample, Student t), paired where methods are compared",
+        m.core.threads, m.name, WARM_ROUNDS * m.core.threads as usize
+    )
+}
+
+/// What a recorded unit of [`sample`] is for.
+#[derive(Clone, Copy, PartialEq)]
+enum Phase {
+    /// A timed set, first warmed (the previous frame's pass over it).
+    Recall,
+    /// A set rendered before the group, warmed.
+    Before,
+}
+
 /// [`sampled_cycles`], with the sample's counts and per-region statistics.
-pub(crate) fn sample<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
+/// The design ([`design`]): group g times the `per` consecutive sets from
+/// g / `groups` of the way through the frame (plus a seeded offset) on a session of the machine (the hardware
+/// threads take them as they free up: [`sim::Session::timed_queue`]), after
+/// warming them and the round of sets before them; state carries over from
+/// group to group.
+pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftStats)>>(
     m: &sim::MachineConfig,
     sets: &[Frusta],
-    batches: usize,
+    groups: usize,
     per: usize,
     seed: u64,
     prog: impl Fn(Vec<Frusta>) -> P,
@@ -77,42 +105,145 @@ pub(crate) fn sample<P: Program<Out = (Vec<scene::Hit>, MftStats)>>(
         return Ok(out);
     }
     let threads = m.core.threads.max(1) as usize;
-    let per = per.min(sets.len());
-    let mut pairs = Vec::new();
-    // Each batch: a systematic sample over the image (every stride-th set
-    // from a seeded offset), so a batch is not one patch of sky or wall.
-    let stride = sets.len() / per;
-    for b in 0..batches {
-        let first = (mix(seed ^ mix(b as u64 + 1)) % stride as u64) as usize;
-        let batch: Vec<&Frusta> = (0..per).map(|j| &sets[first + j * stride]).collect();
-        let traces: Vec<isa::Trace> = (0..threads)
-            .map(|t| {
-                let mine: Vec<Frusta> = batch
-                    .iter()
-                    .skip(t)
-                    .step_by(threads)
-                    .map(|f| (*f).clone())
-                    .collect();
-                let (trace, (_, st)) = isa::record(&prog(mine), m.flavour(), "mft");
-                out.stats.add(st);
-                trace
-            })
-            .collect();
-        let refs: Vec<&isa::Trace> = traces.iter().collect();
-        let s = sim::simulate(m, &refs, &sim::SimOptions::default()).map_err(AppError)?;
-        out.ops += traces.iter().map(|t| t.ops.len() as u64).sum::<u64>();
-        out.regions.merge(&s);
-        out.estimates
-            .push(s.cycles as f64 / per as f64 * sets.len() as f64);
-        pairs.push((s.cycles as f64, per as f64));
+    let per = per.clamp(1, sets.len());
+    // Units in order: per group its sets (recalled), then the sets before it.
+    let mut plan: Vec<(Phase, bool)> = Vec::new();
+    let mut units = Vec::new();
+    // Systematic: group g at g / groups of the way through the frame, all
+    // shifted by one seeded offset.
+    let stride = sets.len() / groups.max(1);
+    let offset = (mix(seed ^ mix(1)) % (stride.saturating_sub(per) + 1) as u64) as usize;
+    for g in 0..groups {
+        let first = (offset + g * stride).min(sets.len() - per);
+        let before = first.saturating_sub(WARM_ROUNDS * threads)..first;
+        let n = per + before.len();
+        for (j, i) in (first..first + per).chain(before).enumerate() {
+            let phase = if j < per {
+                Phase::Recall
+            } else {
+                Phase::Before
+            };
+            plan.push((phase, j + 1 == n));
+            units.push(isa::Placed {
+                thread: j % threads,
+                unit: sets[i].clone(),
+            });
+        }
     }
+    let mut session = sim::Session::new(m);
+    let mut timed: Vec<isa::Trace> = Vec::new();
+    let mut pairs = Vec::new();
+    let mut next = 0usize;
+    let p = prog(Vec::new());
+    isa::record_units(&p, m.flavour(), "mft", units, |u, t, (_, st)| {
+        let (phase, last) = plan[next];
+        next += 1;
+        out.ops += t.ops.len() as u64;
+        session.warm(&[(u.thread, &t)]).map_err(AppError)?;
+        if phase == Phase::Recall {
+            out.stats.add(st);
+            timed.push(t);
+        }
+        if last {
+            let queue: Vec<&isa::Trace> = timed.iter().collect();
+            let s = session.timed_queue(&queue).map_err(AppError)?;
+            out.regions.merge(&s);
+            out.estimates
+                .push(s.cycles as f64 / per as f64 * sets.len() as f64);
+            pairs.push((s.cycles as f64, per as f64));
+            timed.clear();
+        }
+        Ok::<(), AppError>(())
+    })?;
     let (c, n) = pairs
         .iter()
         .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
     let scale = sets.len() as f64;
     out.cycles = c / n * scale;
-    out.ci = ratio_ci(&pairs).map(|h| h * scale);
+    out.ci = systematic_ratio_ci(&pairs).map(|h| h * scale);
     Ok(out)
+}
+
+/// The sets counted of a frame's sets in render order, by band (runs of
+/// sets whose first pixel row falls in the same 16 rows): every
+/// `every`-th set (1: all), so every part of the image is in the sample.
+pub(crate) fn bands(sets: &[Frusta], every: u32) -> Vec<Vec<usize>> {
+    let band = |i: usize| sets[i].pixel.1 / 16;
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for i in (0..sets.len()).step_by(every.max(1) as usize) {
+        match out.last_mut() {
+            Some(b) if band(b[0]) == band(i) => b.push(i),
+            _ => out.push(vec![i]),
+        }
+    }
+    out
+}
+
+/// A method's counts over the counted bands of a frame (natively, band by
+/// band in parallel): the counted sets' hits in order, the counted sets,
+/// and the counts scaled to all `total` sets with their 95% CI half-widths
+/// over the bands (tris accessed, after culling, AABB tests, isec tests;
+/// none when every band was counted: the counts are exact).
+pub(crate) struct Counted {
+    pub(crate) out: Vec<Hit>,
+    pub(crate) sets: Vec<Frusta>,
+    pub(crate) stats: MftStats,
+    pub(crate) ci: Option<[f64; 4]>,
+}
+
+/// [`Counted`] of `prog` over the sets of `bands` ([`bands`]).
+pub(crate) fn count_native<P: isa::Program<Out = (Vec<Hit>, MftStats)>>(
+    fl: isa::FlavourId,
+    sets: &[Frusta],
+    bands: &[Vec<usize>],
+    prog: impl Fn(Vec<Frusta>) -> P + Sync,
+) -> Counted {
+    let of = |b: &Vec<usize>| b.iter().map(|&i| sets[i].clone()).collect::<Vec<Frusta>>();
+    let per: Vec<(Vec<Hit>, MftStats)> = bands
+        .par_iter()
+        .map(|b| isa::run_native(&prog(of(b)), fl))
+        .collect();
+    let counted: Vec<Frusta> = bands.iter().flat_map(of).collect();
+    let n = counted.len();
+    let mut c = Counted {
+        out: Vec::with_capacity(n * 256),
+        sets: counted,
+        stats: MftStats::default(),
+        ci: None,
+    };
+    for (o, st) in &per {
+        c.out.extend_from_slice(o);
+        c.stats.add(*st);
+    }
+    if n == sets.len() {
+        return c;
+    }
+    let scale = sets.len() as f64 / n.max(1) as f64;
+    let of = |f: fn(&MftStats) -> u64| -> (u64, Option<f64>) {
+        let pairs: Vec<(f64, f64)> = per
+            .iter()
+            .zip(bands)
+            .map(|((_, st), b)| (f(st) as f64, b.len() as f64))
+            .collect();
+        let ci = systematic_ratio_ci(&pairs).map(|h| h * sets.len() as f64);
+        ((f(&c.stats) as f64 * scale).round() as u64, ci)
+    };
+    let (tris, ct) = of(|s| s.tris_accessed);
+    let (after, ca) = of(|s| s.tris_after_culling);
+    let (aabb, cb) = of(|s| s.aabb_tests);
+    let (isec, ci) = of(|s| s.isec_tests);
+    let (leaf, _) = of(|s| s.leaf_box_tests);
+    let (shrinks, _) = of(|s| s.shrinks);
+    c.stats = MftStats {
+        aabb_tests: aabb,
+        tris_accessed: tris,
+        tris_after_culling: after,
+        isec_tests: isec,
+        shrinks,
+        leaf_box_tests: leaf,
+    };
+    c.ci = Some([ct, ca, cb, ci].map(|x| x.unwrap_or(0.0)));
+    c
 }
 
 /// The machine of a 16-lane MFT report (the report's own, Larrabee, unless
@@ -232,9 +363,12 @@ impl Prepared {
             Vec::new()
         } else {
             let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
-            (0..res / 4)
+            let groups: Vec<(u32, u32)> = (0..res / 4)
                 .flat_map(|gy| (0..res / 4).map(move |gx| (4 * gx, 4 * gy)))
-                .map(|(x, y)| Frusta::shadow(&soft_shadow_group(&scene, &refi, x, y), [c, e1, e2]))
+                .collect();
+            soft_shadow_groups(&scene, &refi, &groups)
+                .iter()
+                .map(|g| Frusta::shadow(g, [c, e1, e2]))
                 .filter(|f| f.active != 0)
                 .collect()
         };

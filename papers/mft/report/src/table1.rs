@@ -12,7 +12,8 @@ use crate::paper::*;
 use mft_kernels::{
     mismatches_of, Frusta, FrustaRun, MftStats, PacketLeaves, PacketPrimaryRun, PlaneNoise, Shrink,
 };
-use repro::sampling::{paired_ratio, separates};
+use rayon::prelude::*;
+use repro::sampling::{paired_ratio_systematic as paired_ratio, separates};
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::F32Test;
 use scene::Hit;
@@ -40,6 +41,8 @@ struct Setup {
     per_p: usize,
     per_s: usize,
     bands: u32,
+    /// Soft-shadow counts from every n-th set (1: exact).
+    count_every: u32,
     seed: u64,
 }
 
@@ -47,6 +50,11 @@ struct Setup {
 /// frusta's hits (primary, shadow) for shading, rows, mismatches, ops.
 struct Measured {
     stats: [MftStats; 4],
+    /// Per method: the counts' 95% CI half-widths (tris accessed, after
+    /// culling, AABB tests, isec tests) when they are sampled.
+    count_ci: [Option<[f64; 4]>; 4],
+    /// The soft-shadow sets counted (their hits are `frusta_out[1]`).
+    shadow_counted: Vec<Frusta>,
     cycles: [(f64, Option<f64>); 4],
     /// Per method, each batch's estimate of the image's cycles (paired).
     estimates: [Vec<f64>; 4],
@@ -60,15 +68,17 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let name = if p256 { "mft-packet256" } else { "mft-table1" };
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
-    let (batches, per_p, per_s) = if a.quick { (2, 4, 16) } else { (4, 32, 32) };
+    // --quick: fewer sampled runs of the same frame, not a smaller image.
+    let (batches, per_p, per_s) = if a.quick { (6, 8, 16) } else { (16, 8, 16) };
     let su = Setup {
         m,
         p256,
-        res: if a.quick { 256 } else { 1024 },
+        res: 1024,
         batches: a.tiles.map_or(batches, |t| t as usize),
         per_p,
         per_s,
         bands: if a.quick { 2 } else { 4 },
+        count_every: if a.quick { 4 } else { 1 },
         seed: a.seed,
     };
     let (mut rows, mut notes) = (Vec::new(), Vec::new());
@@ -79,7 +89,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     for (scene_name, label, paper) in PAPER {
         let pr = Prepared::new(scene_name, su.res, name, true)?;
         let mut ms = measure_methods(&su, &pr, scene_name)?;
-        let (shade_p, shade_s, o) = shading(&su, &pr, &ms.frusta_out)?;
+        let (shade_p, shade_s, o) = shading(&su, &pr, &ms)?;
         ops_total += ms.ops + o;
         bad_total += ms.bad;
         rows.append(&mut ms.rows);
@@ -106,7 +116,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
             p256,
             scene_name,
             &paper,
-            &stats,
+            (&stats, &ms.count_ci),
             &cycles,
             (shade_p, shade_s),
         );
@@ -156,7 +166,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         notes.push(format!("why soft-shadow frusta can lose here: (1) our primary frusta take {} the paper's cycles, our primary packets {} (the per-scene notes give the counts beside them); measured on a 43-set T-Rex sample trace: our primary-frusta code issues about 140 VPU ops per triangle accessed (259K over 1839), traversal and intersection included, and runs at 1.2-1.5 cycles per VPU op on the 4 threads, while the paper's 19.5M cycles over 173K triangles leave at most 113 issue slots of its one VPU per triangle; so every extra triangle a frustum reaches costs more here; (2) the stand-ins' lights are large against their triangles (T-Rex: a 1 m light 4 m above a 1.5 m, 69K-triangle bunny that fills the frame; Fairy: an 8 m light over 160K random 0.3 m leaves), and a frustum reaches every triangle in its volume where 16 rays reach few: frusta access more triangles than packets here where the paper's accessed 2-4x fewer; `rtsim reproduce mft-fig6` measures the cycle reduction against light size (the paper's Figure 6 adds the counts' linear growth)", span(|p| p.0), span(|p| p.1)));
     }
     notes.push(format!(
-        "cycle_reduction's ci95 is the paired interval over the sample's batches (both methods ran on the same sets; Student t); the sample does not separate frusta from packets on: {} (more batches, --tiles N, narrow it)",
+        "cycle_reduction's ci95 is the paired interval over the sample's runs (both methods ran on the same sets; Student t); the sample does not separate frusta from packets on: {} (more runs, --tiles N, narrow it)",
         if unseparated.is_empty() { "none".to_string() } else { unseparated.join(", ") }
     ));
     notes.push("s-packet and s-frusta include the primary rays' counts and cycles, as the paper's soft-shadow rows do; cycles exclude shading; cycles_shaded adds the simulated shading kernel (primary rows: shading from the light's centre; soft-shadow rows: shading and the 4 x 4 discontinuity filter, as the paper's soft-shadow figures include), the same cost for both methods".into());
@@ -166,13 +176,16 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     }
     let rep = Frame::new(name, m, res, a.seed, start).report(
         &[
-            ("counts", "exact over the image".into()),
             (
-                "cycles",
-                format!(
-                    "{batches} seeded systematic batches of {per_p} primary / {per_s} shadow sets per method, scaled to the image"
-                ),
+                "counts",
+                if su.count_every == 1 {
+                    "exact over the image".into()
+                } else {
+                    format!("primary exact over the image; soft shadows from every {}th set in render order (a systematic sample), scaled to the image, 95% CI over bands of 16 pixel rows (successive differences); every ray traced is checked against the reference", su.count_every)
+                },
             ),
+            ("design", design(m, batches, su.per_p, su.per_s)),
+            ("runs_per_scene", batches.to_string()),
         ],
         format!(
             "P-Packet, P-Frusta, S-Packet, S-Frusta on the T-Rex, Fern, Saloon, Fairy Forest stand-ins at {res}x{res}, one {} core at {} GHz with its hardware threads",
@@ -198,8 +211,41 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
     let frusta = |sets: Vec<Frusta>| pr.frusta(sets, false, Shrink::None);
     let big = |sets: Vec<Frusta>| pr.frusta(sets, true, Shrink::None);
     let packets = |sets: Vec<Frusta>| pr.packets(sets);
+    // The methods are independent: one host thread each, results in order.
+    let runs = (0..4usize)
+        .into_par_iter()
+        .map(|mi| {
+            let sets = if mi < 2 { primary } else { shadow };
+            let baseline = mi % 2 == 0;
+            // Primary counts are exact; soft-shadow counts from every
+            // count_every-th set (all in the full run).
+            let ranges = bands(sets, if mi < 2 { 1 } else { su.count_every });
+            let counted = match (baseline, p256) {
+                (false, _) => count_native(fl, sets, &ranges, frusta),
+                (true, false) => count_native(fl, sets, &ranges, packets),
+                (true, true) => count_native(fl, sets, &ranges, big),
+            };
+            let test = if baseline && !p256 {
+                F32Test::MollerTrumbore
+            } else {
+                F32Test::Pluecker
+            };
+            let method = method_name(mi, p256);
+            let label = format!("{scene_name} {method}");
+            let bad = mismatches_of(test, &label, &refi, &counted.sets, &counted.out);
+            let per = if mi < 2 { per_p } else { per_s };
+            let smp = match (baseline, p256) {
+                (false, _) => sample(m, sets, batches, per, su.seed, frusta)?,
+                (true, false) => sample(m, sets, batches, per, su.seed, packets)?,
+                (true, true) => sample(m, sets, batches, per, su.seed, big)?,
+            };
+            Ok((counted, bad, smp))
+        })
+        .collect::<AppResult<Vec<_>>>()?;
     let mut ms = Measured {
         stats: [MftStats::default(); 4],
+        count_ci: [None; 4],
+        shadow_counted: Vec::new(),
         cycles: [(0.0, None); 4],
         estimates: Default::default(),
         frusta_out: [Vec::new(), Vec::new()],
@@ -207,20 +253,7 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
         bad: 0,
         ops: 0,
     };
-    for (mi, sets) in [(0usize, primary), (1, primary), (2, shadow), (3, shadow)] {
-        let baseline = mi % 2 == 0;
-        let (out, st) = match (baseline, p256) {
-            (false, _) => isa::run_native(&frusta(sets.clone()), fl),
-            (true, false) => isa::run_native(&packets(sets.clone()), fl),
-            (true, true) => isa::run_native(&big(sets.clone()), fl),
-        };
-        let test = if baseline && !p256 {
-            F32Test::MollerTrumbore
-        } else {
-            F32Test::Pluecker
-        };
-        let method = method_name(mi, p256);
-        let bad = mismatches_of(test, &format!("{scene_name} {method}"), &refi, sets, &out);
+    for (mi, (counted, bad, smp)) in runs.into_iter().enumerate() {
         ms.bad += bad;
         ms.rows.push(keyed(
             Row::new("hit_mismatches", bad as f64),
@@ -228,19 +261,17 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
             mi,
             p256,
         ));
-        ms.stats[mi] = st;
-        let per = if mi < 2 { per_p } else { per_s };
-        let smp = match (baseline, p256) {
-            (false, _) => sample(m, sets, batches, per, su.seed, frusta)?,
-            (true, false) => sample(m, sets, batches, per, su.seed, packets)?,
-            (true, true) => sample(m, sets, batches, per, su.seed, big)?,
-        };
+        ms.stats[mi] = counted.stats;
+        ms.count_ci[mi] = counted.ci;
         ms.ops += smp.ops;
         ms.cycles[mi] = (smp.cycles, smp.ci);
         unit_cost_rows(&mut ms.rows, &smp, (scene_name, mi, p256));
         ms.estimates[mi] = smp.estimates;
-        if !baseline {
-            ms.frusta_out[mi / 2] = out;
+        if mi % 2 == 1 {
+            ms.frusta_out[mi / 2] = counted.out;
+        }
+        if mi == 3 {
+            ms.shadow_counted = counted.sets;
         }
     }
     Ok(ms)
@@ -250,13 +281,17 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
 /// plus the 4 x 4 filter (soft-shadow rows), simulated on the same core over
 /// bands of the image; the same hits for both methods: (primary cycles,
 /// soft-shadow cycles, ops simulated).
-fn shading(su: &Setup, pr: &Prepared, frusta_out: &[Vec<Hit>; 2]) -> AppResult<(f64, f64, u64)> {
+/// Soft-shadow visibility comes from the counted shadow sets (in `--quick`
+/// a quarter of them: the rest read as unlit; the shading kernel's work does
+/// not depend on the values).
+fn shading(su: &Setup, pr: &Prepared, ms: &Measured) -> AppResult<(f64, f64, u64)> {
+    let frusta_out = &ms.frusta_out;
     let (m, res, bands) = (&su.m, su.res, su.bands);
     let hits = crate::shading::pixel_hits(&pr.primary, &frusta_out[0], res as usize);
     let su_ = crate::shading::shade_setup(pr, res);
     let lit = vec![1.0f32; (res * res) as usize];
     let mut free = vec![0u32; (res * res) as usize];
-    crate::shading::count_visible(&pr.shadow, &frusta_out[1], res, &mut free);
+    crate::shading::count_visible(&ms.shadow_counted, &frusta_out[1], res, &mut free);
     let vis: Vec<f32> = free.iter().map(|&c| c as f32 / 16.0).collect();
     let (shade_p, o1, _) = crate::shading::shade_cycles(m, pr, &su_, &hits, &lit, false, bands)?;
     let (shade_s, o2, _) = crate::shading::shade_cycles(m, pr, &su_, &hits, &vis, true, bands)?;
@@ -269,11 +304,12 @@ fn count_rows(
     p256: bool,
     scene_name: &str,
     paper: &[PaperRow; 4],
-    stats: &[MftStats; 4],
+    (stats, count_ci): (&[MftStats; 4], &[Option<[f64; 4]>; 4]),
     cycles: &[(f64, Option<f64>); 4],
     (shade_p, shade_s): (f64, f64),
 ) {
     for mi in 0..4 {
+        let ci = |k: usize| count_ci[mi].map(|c| c[k]);
         let st = stats[mi];
         let pp = paper[mi];
         let row = |metric: &str, v: f64, paper: Option<f64>| {
@@ -282,18 +318,19 @@ fn count_rows(
             r.paper = paper.filter(|_| !(p256 && mi % 2 == 0));
             r
         };
-        rows.push(row(
-            "tris_accessed",
-            st.tris_accessed as f64,
-            Some(pp.0 * 1e3),
-        ));
-        rows.push(row(
-            "tris_after_culling",
-            st.tris_after_culling as f64,
-            pp.1.map(|x| x * 1e3),
-        ));
-        rows.push(row("aabb_tests", st.aabb_tests as f64, Some(pp.2 * 1e3)));
-        rows.push(row("isec_tests", st.isec_tests as f64, Some(pp.3 * 1e3)));
+        for (k, (metric, v, paper)) in [
+            ("tris_accessed", st.tris_accessed, Some(pp.0)),
+            ("tris_after_culling", st.tris_after_culling, pp.1),
+            ("aabb_tests", st.aabb_tests, Some(pp.2)),
+            ("isec_tests", st.isec_tests, Some(pp.3)),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let mut r = row(metric, v as f64, paper.map(|x| x * 1e3));
+            r.ci95 = ci(k);
+            rows.push(r);
+        }
         // The paper's soft-shadow cycles include shading and filtering.
         let unshaded_paper = (mi < 2).then_some(pp.4 * 1e6);
         let mut r = row("cycles", cycles[mi].0, unshaded_paper).unit("cycles");

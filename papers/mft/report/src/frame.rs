@@ -3,13 +3,13 @@
 
 use isa::UnitProgram;
 use mft_kernels::{Frusta, FrustaRun, MftStats, PacketPrimaryRun, Shrink};
+use rayon::prelude::*;
 use repro::sampling::{mix, systematic_ratio_ci};
 use repro::{AppError, AppResult, Report, ReproduceArgs, Row};
 use scene::bvh::{BuildConfig, Bvh2};
 use scene::reference::Reference;
 use scene::scene::{Light, Scene};
 use scene::workload::soft_shadow_groups;
-use rayon::prelude::*;
 use scene::Hit;
 use std::collections::BTreeMap;
 use std::time::Instant;

@@ -46,6 +46,25 @@ struct Setup {
     seed: u64,
 }
 
+impl Setup {
+    /// The sample of a run at `res` x `res`; `quick`: fewer sampled runs of
+    /// the same frame (not a smaller image), soft-shadow counts from every
+    /// 4th set, shading on 2 bands instead of 4.
+    fn new(m: sim::MachineConfig, p256: bool, res: u32, quick: bool, seed: u64) -> Setup {
+        Setup {
+            m,
+            p256,
+            res,
+            batches: if quick { 24 } else { 64 },
+            per_p: 4,
+            per_s: 4,
+            bands: if quick { 2 } else { 4 },
+            count_every: if quick { 4 } else { 1 },
+            seed,
+        }
+    }
+}
+
 /// One scene's four methods: exact counts, sampled cycles (95% CI), the
 /// frusta's hits (primary, shadow) for shading, rows, mismatches, ops.
 struct Measured {
@@ -68,19 +87,8 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let name = if p256 { "mft-packet256" } else { "mft-table1" };
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
-    // --quick: fewer sampled runs of the same frame, not a smaller image.
-    let (batches, per_p, per_s) = if a.quick { (6, 8, 16) } else { (16, 8, 16) };
-    let su = Setup {
-        m,
-        p256,
-        res: 1024,
-        batches: a.tiles.map_or(batches, |t| t as usize),
-        per_p,
-        per_s,
-        bands: if a.quick { 2 } else { 4 },
-        count_every: if a.quick { 4 } else { 1 },
-        seed: a.seed,
-    };
+    let mut su = Setup::new(m, p256, 1024, a.quick, a.seed);
+    su.batches = a.tiles.map_or(su.batches, |t| t as usize);
     let (mut rows, mut notes) = (Vec::new(), Vec::new());
     let (mut ops_total, mut bad_total) = (0u64, 0usize);
     let mut unseparated: Vec<String> = Vec::new();
@@ -548,4 +556,47 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
             pparts.join("; ")
         ),
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `--quick` keeps the conclusions: on a small frame, wherever the full
+    /// design's interval separates frusta from packets (cycles), the quick
+    /// design names the same winner; AABB-test reductions (exact in the
+    /// full run) point the same way.
+    #[test]
+    fn quick_keeps_the_winner_of_every_cell_the_full_run_separates() {
+        let m = sim::MachineConfig::load("larrabee").unwrap();
+        let mut separated = 0;
+        for scene_name in ["saloon", "trex"] {
+            let pr = Prepared::new(scene_name, 256, "test", true).unwrap();
+            let run = |quick| {
+                let su = Setup::new(m.clone(), false, 256, quick, 7);
+                measure_methods(&su, &pr, scene_name).unwrap()
+            };
+            let (full, quick) = (run(false), run(true));
+            assert_eq!(full.bad + quick.bad, 0);
+            for (rays, pk, fr) in [("primary", 0, 1), ("shadow", 2, 3)] {
+                let f = paired_ratio(&full.estimates[pk], &full.estimates[fr]);
+                let q = paired_ratio(&quick.estimates[pk], &quick.estimates[fr]);
+                if separates(f) {
+                    separated += 1;
+                    assert_eq!(
+                        f.0 > 1.0,
+                        q.0 > 1.0,
+                        "{scene_name} {rays}: full {f:?}, quick {q:?}"
+                    );
+                }
+                let aabb = |s: &[MftStats; 4]| s[pk].aabb_tests as f64 / s[fr].aabb_tests as f64;
+                assert_eq!(
+                    aabb(&full.stats) > 1.0,
+                    aabb(&quick.stats) > 1.0,
+                    "{scene_name} {rays}"
+                );
+            }
+        }
+        assert!(separated > 0, "the full design separates some cell");
+    }
 }

@@ -197,9 +197,13 @@ pub struct ReproduceCli {
     /// Override a config field of the report's machine: `--set core.width=6`.
     #[arg(long = "set", value_name = "FIELD=VALUE")]
     pub sets: Vec<String>,
-    /// Tiles per scene, or batches of frusta sets (overrides the sample size).
+    /// Rounds of tiles per scene, or runs of frusta sets (overrides the sample size).
     #[arg(long)]
     pub tiles: Option<u32>,
+    /// Image width and height in pixels (MFT reports; a multiple of 16 from
+    /// 64 to 4096; default: the report's, the paper's 1024 for mft-table1).
+    #[arg(long)]
+    pub res: Option<u32>,
     /// Samples per pixel (DRS reports; overrides 16).
     #[arg(long)]
     pub spp: Option<u32>,
@@ -222,6 +226,7 @@ impl ReproduceCli {
             machine: self.machine,
             sets: self.sets,
             tiles: self.tiles,
+            res: self.res,
             spp: self.spp,
             seed: self.seed,
             format: self.format,

@@ -317,6 +317,8 @@ fn every_report_is_listed_and_reached_through_the_cli_with_its_options_checked()
         assert!(e.contains("--tiles: 0"), "{name}: {e}");
         let e = err(&rtsim(&["reproduce", name, "--spp", "0"]));
         assert!(e.contains("--spp"), "{name}: {e}");
+        let e = err(&rtsim(&["reproduce", name, "--res", "100"]));
+        assert!(e.contains("--res"), "{name}: {e}");
     }
     for name in REPORTS.iter().filter(|n| n.starts_with("mft")) {
         let e = err(&rtsim(&["reproduce", name, "--spp", "4"]));

@@ -21,6 +21,8 @@ pub enum Opt {
     Tiles,
     /// `--spp N`: samples per pixel.
     Spp,
+    /// `--res N`: the image's width and height.
+    Res,
     /// `--seed S`: the sample's seed.
     Seed,
     /// `--out DIR`: write the report (and its figures) there too.
@@ -29,12 +31,13 @@ pub enum Opt {
 
 impl Opt {
     /// Every option.
-    pub const ALL: [Opt; 7] = [
+    pub const ALL: [Opt; 8] = [
         Opt::Quick,
         Opt::Machine,
         Opt::Set,
         Opt::Tiles,
         Opt::Spp,
+        Opt::Res,
         Opt::Seed,
         Opt::Out,
     ];
@@ -47,6 +50,7 @@ impl Opt {
             Opt::Set => "--set",
             Opt::Tiles => "--tiles",
             Opt::Spp => "--spp",
+            Opt::Res => "--res",
             Opt::Seed => "--seed",
             Opt::Out => "--out",
         }
@@ -92,6 +96,8 @@ pub struct Given {
     pub tiles: Option<u32>,
     /// `--spp`.
     pub spp: Option<u32>,
+    /// `--res`.
+    pub res: Option<u32>,
     /// `--seed`.
     pub seed: Option<u64>,
     /// `--format`.
@@ -110,6 +116,7 @@ impl Given {
             Opt::Set => !self.sets.is_empty(),
             Opt::Tiles => self.tiles.is_some(),
             Opt::Spp => self.spp.is_some(),
+            Opt::Res => self.res.is_some(),
             Opt::Seed => self.seed.is_some(),
             Opt::Out => self.out.is_some(),
         }
@@ -146,6 +153,8 @@ pub struct ReproduceArgs {
     pub tiles: Option<u32>,
     /// Samples per pixel override (at least 1).
     pub spp: Option<u32>,
+    /// Image width and height override (a multiple of 16, 64 to 4096).
+    pub res: Option<u32>,
     /// Sample seed (default 7).
     pub seed: u64,
     /// Output format.
@@ -190,6 +199,13 @@ impl ReportDef {
                 return Err(AppError(format!("--tiles: {t} is not 1 to {MAX_TILES}")));
             }
         }
+        if let Some(r) = g.res {
+            if !(64..=4096).contains(&r) || !r.is_multiple_of(16) {
+                return Err(AppError(format!(
+                    "--res: {r} is not a multiple of 16 from 64 to 4096"
+                )));
+            }
+        }
         if g.spp == Some(0) {
             return Err(AppError("--spp: 0 samples per pixel".into()));
         }
@@ -202,6 +218,7 @@ impl ReportDef {
             },
             tiles: g.tiles,
             spp: g.spp,
+            res: g.res,
             seed: g.seed.unwrap_or(DEFAULT_SEED),
             format: g.format,
             out: g.out,

@@ -30,6 +30,7 @@ const OPTIONS: &[Opt] = &[
     Opt::Machine,
     Opt::Set,
     Opt::Tiles,
+    Opt::Res,
     Opt::Seed,
     Opt::Out,
 ];

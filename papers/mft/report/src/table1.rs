@@ -87,7 +87,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let name = if p256 { "mft-packet256" } else { "mft-table1" };
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
-    let mut su = Setup::new(m, p256, 1024, a.quick, a.seed);
+    let mut su = Setup::new(m, p256, a.res.unwrap_or(1024), a.quick, a.seed);
     su.batches = a.tiles.map_or(su.batches, |t| t as usize);
     let (mut rows, mut notes) = (Vec::new(), Vec::new());
     let (mut ops_total, mut bad_total) = (0u64, 0usize);

@@ -49,11 +49,31 @@ fn set_overrides_apply_to_the_reports_own_machine() {
         })
         .unwrap_err();
     assert!(e.0.starts_with("--spp: mft-table2 does not use"), "{}", e.0);
+    for bad in [0, 100, 8192] {
+        let e = def
+            .resolve(Given {
+                res: Some(bad),
+                ..Given::default()
+            })
+            .unwrap_err();
+        assert!(e.0.starts_with(&format!("--res: {bad} is not")), "{}", e.0);
+    }
 }
 
 #[test]
 fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
-    let j = quick_report("mft-table1", None);
+    // The paper's 1024 x 1024 is the report's default, also at --quick; a
+    // smaller frame here keeps the test fast.
+    let j = report(
+        "mft-table1",
+        Given {
+            quick: true,
+            tiles: Some(3),
+            res: Some(256),
+            ..Given::default()
+        },
+    );
+    assert_eq!(j["sample"]["resolution"], "256x256");
     assert_eq!(j["machine"], "larrabee", "defaults to the 16-lane machine");
     let rows = j["rows"].as_array().unwrap();
     let get = |scene: &str, method: &str, metric: &str| -> f64 {
@@ -87,7 +107,15 @@ fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
 
 #[test]
 fn reproduce_mft_packet256_checks_hits_and_counts_both_methods() {
-    let j = quick_report("mft-packet256", None);
+    let j = report(
+        "mft-packet256",
+        Given {
+            quick: true,
+            tiles: Some(3),
+            res: Some(256),
+            ..Given::default()
+        },
+    );
     let rows = j["rows"].as_array().unwrap();
     for method in ["packet256", "p-frusta", "s-frusta"] {
         let n = rows

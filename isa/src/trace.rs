@@ -206,3 +206,34 @@ impl Trace {
         Ok(())
     }
 }
+
+std::thread_local! {
+    /// Op and lane-address buffers of traces given back ([`recycle`]).
+    static POOL: std::cell::RefCell<Vec<(Vec<Op>, Vec<Addr>)>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Buffers kept for reuse per host thread (a frame's step holds a few units).
+const POOL_SIZE: usize = 8;
+
+/// Give `t`'s buffers back for the next unit [`crate::Traced::take`] records
+/// on this host thread. A frame's units are recorded and dropped by the
+/// thousand; without reuse each large buffer goes back to the OS on drop and
+/// the kernel zeroes its pages again for the next (a third of a DRS report's
+/// host time went to page clearing).
+pub fn recycle(t: Trace) {
+    let (mut ops, mut lanes) = (t.ops, t.lane_addrs);
+    ops.clear();
+    lanes.clear();
+    POOL.with(|p| {
+        let mut p = p.borrow_mut();
+        if p.len() < POOL_SIZE {
+            p.push((ops, lanes));
+        }
+    });
+}
+
+/// Empty buffers for a trace: recycled ones if this host thread has any.
+pub(crate) fn pooled_buffers() -> (Vec<Op>, Vec<Addr>) {
+    POOL.with(|p| p.borrow_mut().pop()).unwrap_or_default()
+}

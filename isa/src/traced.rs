@@ -141,8 +141,9 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
         let mut t = Trace::new(FL::ID, &self.trace.source);
         t.params = self.trace.params.clone();
         t.regions = self.space.regions().to_vec();
-        t.ops = std::mem::take(&mut self.trace.ops);
-        t.lane_addrs = std::mem::take(&mut self.trace.lane_addrs);
+        let (ops, lanes) = crate::trace::pooled_buffers();
+        t.ops = std::mem::replace(&mut self.trace.ops, ops);
+        t.lane_addrs = std::mem::replace(&mut self.trace.lane_addrs, lanes);
         t
     }
 

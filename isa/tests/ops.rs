@@ -724,3 +724,24 @@ fn native_avx2() {
 fn native_sse4() {
     check_all(Native::<Sse4, 4>::new());
 }
+
+#[test]
+fn a_recycled_trace_gives_its_buffers_to_the_next_unit_and_nothing_else() {
+    let first = check_all(Traced::<Avx2, 8>::new("test")).take();
+    let cap = first.ops.capacity();
+    assert!(!first.ops.is_empty());
+    isa::trace::recycle(first);
+    let unit = |m: &mut Traced<Avx2, 8>| {
+        let x = m.splat(1.0);
+        let y = m.add(x, x);
+        m.mul(y, x)
+    };
+    let mut m = Traced::<Avx2, 8>::new("test");
+    let _ = m.take(); // the layout's ops, as record_units drops them
+    unit(&mut m);
+    let t = m.take();
+    let mut fresh = Traced::<Avx2, 8>::new("test");
+    unit(&mut fresh);
+    assert_eq!(t.ops, fresh.take().ops, "only the new unit's ops");
+    assert!(t.ops.capacity() >= cap, "{} < {cap}", t.ops.capacity());
+}

@@ -419,7 +419,7 @@ pub(crate) fn measure_kernel(
         } else {
             session.warm(&step).map_err(AppError)?;
         }
-        pending.clear();
+        pending.drain(..).for_each(|p| isa::trace::recycle(p.1));
         Ok::<(), AppError>(())
     })?;
     ac.tiles = group_sums.into_values().collect();

@@ -65,7 +65,7 @@ const WARM_ROUNDS: usize = 1;
 /// The sample design the MFT reports state (see [`sample`]).
 pub(crate) fn design(m: &sim::MachineConfig, groups: usize, per_p: usize, per_s: usize) -> String {
     format!(
-        "the frame's frusta sets in render order (primary: rows of 16x16-pixel sets; soft shadows: rows of 4x4-pixel sets with a hit) taken by the {} hardware threads of one {} core as they free up, its caches, prefetcher and predictors carried from set to set; {groups} runs of {per_p} primary / {per_s} shadow consecutive sets per scene, evenly spaced through the frame from a seeded offset (a systematic sample), timed in full detail, each after functional warming of its own sets (as the previous frame left them) and of the {} set(s) rendered just before it; the same runs for every method; 95% CI over the runs (ratio estimator, variance from successive differences as for a systematic sample, Student t), paired where methods are compared",
+        "the frame's frusta sets in render order (primary: rows of 16x16-pixel sets; soft shadows: rows of 4x4-pixel sets with a hit) taken by the {} hardware threads of one {} core as they free up, its caches, prefetcher and predictors carried from set to set; {groups} runs of {per_p} primary / {per_s} shadow consecutive sets per scene, one at a seeded place in each of as many equal strata of the frame (a stratified sample), timed in full detail, each after functional warming of its own sets (as the previous frame left them) and of the {} set(s) rendered just before it; the same runs for every method; 95% CI over the runs (ratio estimator, variance from successive differences of neighbouring strata, Student t), paired where methods are compared",
         m.core.threads, m.name, WARM_ROUNDS * m.core.threads as usize
     )
 }
@@ -80,8 +80,8 @@ enum Phase {
 }
 
 /// [`sampled_cycles`], with the sample's counts and per-region statistics.
-/// The design ([`design`]): group g times the `per` consecutive sets from
-/// g / `groups` of the way through the frame (plus a seeded offset) on a session of the machine (the hardware
+/// The design ([`design`]): group g times the `per` consecutive sets from a
+/// seeded place in the g-th of `groups` equal strata of the frame on a session of the machine (the hardware
 /// threads take them as they free up: [`sim::Session::timed_queue`]), after
 /// warming them and the round of sets before them; state carries over from
 /// group to group.
@@ -109,11 +109,13 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
     // Units in order: per group its sets (recalled), then the sets before it.
     let mut plan: Vec<(Phase, bool)> = Vec::new();
     let mut units = Vec::new();
-    // Systematic: group g at g / groups of the way through the frame, all
-    // shifted by one seeded offset.
+    // Stratified: group g at a seeded place in the g-th of `groups` equal
+    // strata of the frame (one offset for all would align with the image's
+    // rows when the stride is a row of sets: every run in one column).
     let stride = sets.len() / groups.max(1);
-    let offset = (mix(seed ^ mix(1)) % (stride.saturating_sub(per) + 1) as u64) as usize;
     for g in 0..groups {
+        let r = mix(seed ^ mix(g as u64 + 1));
+        let offset = (r % (stride.saturating_sub(per) + 1) as u64) as usize;
         let first = (offset + g * stride).min(sets.len() - per);
         let before = first.saturating_sub(WARM_ROUNDS * threads)..first;
         let n = per + before.len();
@@ -143,6 +145,8 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
         if phase == Phase::Recall {
             out.stats.add(st);
             timed.push(t);
+        } else {
+            isa::trace::recycle(t);
         }
         if last {
             let queue: Vec<&isa::Trace> = timed.iter().collect();
@@ -151,7 +155,7 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
             out.estimates
                 .push(s.cycles as f64 / per as f64 * sets.len() as f64);
             pairs.push((s.cycles as f64, per as f64));
-            timed.clear();
+            timed.drain(..).for_each(isa::trace::recycle);
         }
         Ok::<(), AppError>(())
     })?;

@@ -250,6 +250,25 @@ pub(crate) fn count_native<P: isa::Program<Out = (Vec<Hit>, MftStats)>>(
     c
 }
 
+/// Share of active shadow frusta whose direction interval holds zero on
+/// some axis: they lose that axis's slab culling and rely on the
+/// zero-interval fix.
+pub(crate) fn zero_interval_share(shadow: &[Frusta]) -> f64 {
+    let (mut lanes, mut zero) = (0u64, 0u64);
+    for f in shadow {
+        let rec = f.record();
+        for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
+            lanes += 1;
+            let holds = (0..3).any(|a| {
+                rec[(mft_kernels::row::DIR_LO + a) * 16 + n] <= 0.0
+                    && rec[(mft_kernels::row::DIR_HI + a) * 16 + n] >= 0.0
+            });
+            zero += u64::from(holds);
+        }
+    }
+    zero as f64 / lanes.max(1) as f64
+}
+
 /// The machine of a 16-lane MFT report (the report's own, Larrabee, unless
 /// `--machine` names another): an error unless it has 16 lanes.
 pub(crate) fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::MachineConfig> {

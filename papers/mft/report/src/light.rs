@@ -4,7 +4,7 @@
 //! packet baseline beside it, so the light size where frusta stop paying is
 //! measured rather than assumed.
 
-use crate::frame::{lrb_machine, sampled_cycles, Frame, Prepared};
+use crate::frame::{lrb_machine, sampled_cycles, zero_interval_share, Frame, Prepared};
 use crate::shading::{pixel_hits, shadow_sets, Hits};
 use mft_kernels::{mismatches_of, Frusta, MftStats, Shrink};
 use repro::AppResult;
@@ -18,6 +18,14 @@ use std::time::Instant;
 
 /// Light sizes, as multiples of each scene's own light's edges.
 const SCALES: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
+
+/// Light offsets: the light moved sideways along its first edge by these
+/// multiples of the scene's half extent. Its placement, which the paper
+/// does not give, drives the share of shadow frusta whose direction
+/// interval holds zero: a hit point under the light's footprint has one.
+/// (Moving it along the line through the scene's centre changes no share:
+/// the footprint stays where it is; measured.)
+const OFFSETS: [f64; 4] = [0.0, 0.5, 1.0, 2.0];
 
 /// The paper's Figure 6 scenes, and Fairy Forest (not in the figure; the
 /// stand-in where soft-shadow frusta lose most to packets in mft-table1).
@@ -54,7 +62,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                 (&mut pr, scene_name, res),
                 &hits,
                 (centre, e1, e2, s),
-                (batches, check_every, a.seed),
+                (batches, per, check_every, a.seed),
             )?;
             let (fst, pst, cf, cp) = (p.frusta, p.packets, p.frusta_cycles, p.packet_cycles);
             bad_total += p.bad;
@@ -86,6 +94,17 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("method", "s-frusta"),
             );
         }
+        let (point, placed) = placement_sweep(
+            &m,
+            (&mut pr, scene_name, res),
+            &hits,
+            (centre, e1, e2),
+            (batches, per, check_every, a.seed),
+        )?;
+        rows.extend(placed);
+        bad_total += point.bad;
+        ops_total += point.ops;
+        notes.push(point.note);
         let cross = ratio.iter().rev().find(|p| p.1 >= 1.0).map(|p| p.0);
         notes.push(format!(
             "{scene_name}: frusta take fewer simulated shadow cycles than packets up to light scale {} (cycle reduction {} at scales {})",
@@ -119,7 +138,8 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     write_plot(&png, s_tris, s_isec, s_ratio)?;
     notes.push(format!("plot: {}", png.display()));
     notes.push(format!(
-        "shadow rays only, {res}x{res}, 16 samples per pixel, each scene's quad light scaled about its centre; counts exact (hits checked against the f64 reference on {}), cycles from {batches} systematic runs of {per} consecutive sets per point, in steady state (the frame design of mft-table1); the paper's Figure 6 gives curves, not numbers: both counts grow linearly with the light's size (the r2 rows measure how linearly here)",
+        "shadow rays only, {res}x{res}, 16 samples per pixel, each scene's quad light scaled about its centre, and (light_offset rows) its own light moved sideways along its first edge by {} times half the scene's extent; counts exact (hits checked against the f64 reference on {}), cycles from {batches} systematic runs of {per} consecutive sets per point, in steady state (the frame design of mft-table1); the paper's Figure 6 gives curves, not numbers: both counts grow linearly with the light's size (the r2 rows measure how linearly here)",
+        OFFSETS.map(|x| x.to_string()).join(", "),
         if check_every == 1 { "every ray".to_string() } else { format!("every {check_every}th set") }
     ));
     let rep = Frame::new(name, &m, res, a.seed, start).report(
@@ -155,8 +175,72 @@ fn r2(pts: &[(f64, f64)]) -> f64 {
     sxy * sxy / (sxx * syy)
 }
 
+/// What [`placement_sweep`] adds up: mismatches, ops, the scene's note.
+struct Swept {
+    bad: usize,
+    ops: u64,
+    note: String,
+}
+
+/// The scene's own light (size 1) moved by each of [`OFFSETS`]: counts,
+/// cycles, reductions and the zero-interval share per offset.
+fn placement_sweep(
+    m: &sim::MachineConfig,
+    (pr, scene_name, res): (&mut Prepared, &str, u32),
+    hits: &Hits,
+    (centre, e1, e2): ([f64; 3], [f32; 3], [f32; 3]),
+    sample: (usize, usize, usize, u64),
+) -> AppResult<(Swept, Vec<Row>)> {
+    let half = 0.5 * scene::workload::scene_size(&pr.scene);
+    let len = e1
+        .iter()
+        .map(|&x| f64::from(x).powi(2))
+        .sum::<f64>()
+        .sqrt()
+        .max(1e-9);
+    let dir = e1.map(|x| f64::from(x) / len);
+    let (mut rows, mut parts) = (Vec::new(), Vec::new());
+    let mut out = Swept {
+        bad: 0,
+        ops: 0,
+        note: String::new(),
+    };
+    for h in OFFSETS {
+        let at = [0, 1, 2].map(|i| centre[i] + h * half * dir[i]);
+        let p = light_point(m, (pr, scene_name, res), hits, (at, e1, e2, 1.0), sample)?;
+        out.bad += p.bad;
+        out.ops += p.ops;
+        let row = |metric: &str, v: f64| {
+            Row::new(metric, v)
+                .key("scene", scene_name)
+                .key("light_offset", h)
+        };
+        let r = |x: u64, y: u64| x as f64 / y.max(1) as f64;
+        let cyc = p.packet_cycles / p.frusta_cycles.max(1.0);
+        let tris = r(p.frusta.tris_accessed, p.packets.tris_accessed);
+        rows.push(row("zero_interval_share", p.zero));
+        rows.push(row("tris_accessed_frusta_over_packets", tris));
+        rows.push(row(
+            "aabb_reduction",
+            r(p.packets.aabb_tests, p.frusta.aabb_tests),
+        ));
+        rows.push(row("cycle_reduction", cyc));
+        parts.push(format!(
+            "x{h}: {:.0}% zero-interval, tris {tris:.2}x, cycles {cyc:.2}",
+            100.0 * p.zero
+        ));
+    }
+    out.note = format!(
+        "{scene_name}, light placement (its own light moved sideways along its first edge by x half the scene's extent; frusta triangles over packets', packet cycles over frusta): {}",
+        parts.join("; ")
+    );
+    Ok((out, rows))
+}
+
 /// One light size's measurements on one scene.
 struct Point {
+    /// Share of shadow frusta whose direction interval holds zero.
+    zero: f64,
     frusta: MftStats,
     packets: MftStats,
     frusta_cycles: f64,
@@ -173,9 +257,9 @@ fn light_point(
     (pr, scene_name, res): (&mut Prepared, &str, u32),
     hits: &Hits,
     (centre, e1, e2, s): ([f64; 3], [f32; 3], [f32; 3], f64),
-    (batches, check_every, seed): (usize, usize, u64),
+    (batches, per, check_every, seed): (usize, usize, usize, u64),
 ) -> AppResult<Point> {
-    let (fl, per) = (m.flavour(), 16);
+    let fl = m.flavour();
     let e1s = e1.map(|x| (f64::from(x) * s) as f32);
     let e2s = e2.map(|x| (f64::from(x) * s) as f32);
     let cs = [0, 1, 2].map(|i| (centre[i] - 0.5 * f64::from(e1s[i] + e2s[i])) as f32);
@@ -205,6 +289,7 @@ fn light_point(
     let (cf, _, o1) = sampled_cycles(m, &sets, batches, per, seed, fr)?;
     let (cp, _, o2) = sampled_cycles(m, &sets, batches, per, seed, pk)?;
     Ok(Point {
+        zero: zero_interval_share(&sets),
         frusta: fst,
         packets: pst,
         frusta_cycles: cf,

@@ -436,25 +436,6 @@ fn against_paper(
     )
 }
 
-/// Share of active shadow frusta whose direction interval holds zero on
-/// some axis: they lose that axis's slab culling and rely on the
-/// zero-interval fix.
-fn zero_interval_share(shadow: &[Frusta]) -> f64 {
-    let (mut lanes, mut zero) = (0u64, 0u64);
-    for f in shadow {
-        let rec = f.record();
-        for n in (0..16).filter(|&n| f.active & (1 << n) != 0) {
-            lanes += 1;
-            let holds = (0..3).any(|a| {
-                rec[(mft_kernels::row::DIR_LO + a) * 16 + n] <= 0.0
-                    && rec[(mft_kernels::row::DIR_HI + a) * 16 + n] >= 0.0
-            });
-            zero += u64::from(holds);
-        }
-    }
-    zero as f64 / lanes.max(1) as f64
-}
-
 /// A row's scene and method keys (the baseline rows of the 256-ray report
 /// are `packet256` with a `rays` key).
 fn keyed(r: Row, scene: &str, mi: usize, p256: bool) -> Row {

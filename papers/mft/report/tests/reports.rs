@@ -205,6 +205,15 @@ fn reproduce_mft_fig6_counts_grow_with_the_light() {
             .collect();
         assert_eq!(tris.len(), 5, "{scene}");
         assert!(tris.windows(2).all(|w| w[1] > w[0]), "{scene}: {tris:?}");
+        // The placement sweep: the light moved off the scene's footprint
+        // leaves fewer shadow frusta with a zero direction interval.
+        let zero: Vec<f64> = rows
+            .iter()
+            .filter(|r| r["scene"] == scene && r["metric"] == "zero_interval_share")
+            .map(|r| r["value"].as_f64().unwrap())
+            .collect();
+        assert_eq!(zero.len(), 4, "{scene}");
+        assert!(zero[3] < zero[0], "{scene}: {zero:?}");
         // The paper's Figure 6: linear in the light's size.
         for metric in ["tris_accessed_linear_r2", "isec_tests_linear_r2"] {
             let r2 = rows

@@ -19,11 +19,20 @@ pub fn ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
         return None;
     }
     let n = v.len() as f64;
+    let (d, dbar) = residuals(v);
+    let var = d.iter().map(|x| x * x).sum::<f64>() / (n - 1.0);
+    Some(t95(v.len() - 1) * (var / n).sqrt() / dbar)
+}
+
+/// Each observation's residual `num - r den` from the ratio estimate `r`,
+/// and the mean denominator.
+fn residuals(v: &[(f64, f64)]) -> (Vec<f64>, f64) {
     let (sn, sd) = v.iter().fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
     let r = sn / sd;
-    let dbar = sd / n;
-    let var = v.iter().map(|&(x, y)| (x - r * y).powi(2)).sum::<f64>() / (n - 1.0);
-    Some(t95(v.len() - 1) * (var / n).sqrt() / dbar)
+    (
+        v.iter().map(|&(x, y)| x - r * y).collect(),
+        sd / v.len() as f64,
+    )
 }
 
 /// [`ratio_ci`] for a systematic sample (observations at evenly spaced
@@ -37,19 +46,22 @@ pub fn systematic_ratio_ci(v: &[(f64, f64)]) -> Option<f64> {
         return None;
     }
     let n = v.len() as f64;
-    let (sn, sd) = v.iter().fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
-    let r = sn / sd;
-    let d: Vec<f64> = v.iter().map(|&(x, y)| x - r * y).collect();
+    let (d, dbar) = residuals(v);
     let var = d.windows(2).map(|w| (w[1] - w[0]).powi(2)).sum::<f64>() / (2.0 * (n - 1.0));
-    Some(t95(v.len() - 1) * (var / n).sqrt() / (sd / n))
+    Some(t95(v.len() - 1) * (var / n).sqrt() / dbar)
 }
 
 /// [`paired_ratio`] over a systematic sample ([`systematic_ratio_ci`]).
 #[must_use]
 pub fn paired_ratio_systematic(a: &[f64], b: &[f64]) -> (f64, Option<f64>) {
+    paired_with(a, b, systematic_ratio_ci)
+}
+
+/// sum(a) / sum(b) and `ci` of the pairs.
+fn paired_with(a: &[f64], b: &[f64], ci: fn(&[(f64, f64)]) -> Option<f64>) -> (f64, Option<f64>) {
     let pairs: Vec<(f64, f64)> = a.iter().copied().zip(b.iter().copied()).collect();
     let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
-    (sa / sb.max(f64::MIN_POSITIVE), systematic_ratio_ci(&pairs))
+    (sa / sb.max(f64::MIN_POSITIVE), ci(&pairs))
 }
 
 /// The ratio sum(a) / sum(b) of two methods measured on the same samples
@@ -57,9 +69,7 @@ pub fn paired_ratio_systematic(a: &[f64], b: &[f64]) -> (f64, Option<f64>) {
 /// share cancels.
 #[must_use]
 pub fn paired_ratio(a: &[f64], b: &[f64]) -> (f64, Option<f64>) {
-    let pairs: Vec<(f64, f64)> = a.iter().copied().zip(b.iter().copied()).collect();
-    let (sa, sb): (f64, f64) = (a.iter().sum(), b.iter().sum());
-    (sa / sb.max(f64::MIN_POSITIVE), ratio_ci(&pairs))
+    paired_with(a, b, ratio_ci)
 }
 
 /// Whether a ratio's interval excludes 1: the sample separates the two.

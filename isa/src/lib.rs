@@ -35,7 +35,9 @@ pub use lanes::{BinOp, Cmp, Fma, IOp, Shift};
 pub use machine::{Float, Int, Logic, Machine, SOp};
 pub use mem::{AddrSpace, At, Buf, MemRegion, SpaceMark};
 pub use native::Native;
-pub use program::{record, record_units, run_native, Placed, Program, UnitProgram, THREAD_SPAN};
-pub use trace::{Op, Trace};
+pub use program::{
+    record, record_units, run_native, run_units, Detail, Placed, Program, UnitProgram, THREAD_SPAN,
+};
+pub use trace::{Op, Trace, WarmEvent};
 pub use traced::Traced;
 pub use types::{Addr, LaneMask, LineAddr, MemId, MemKind, Region, Site, ValId};

@@ -7,6 +7,7 @@
 //! alignment of every structure are what the cache model sees.
 
 use crate::types::{Addr, MemId, MemKind};
+use std::sync::Arc;
 
 /// Where the first region starts.
 pub const BASE: u64 = 0x1000_0000;
@@ -122,6 +123,14 @@ impl AddrSpace {
         }
     }
 
+    /// Whether nothing has been placed yet beyond the ISA's own region (as
+    /// [`AddrSpace::new`] leaves it).
+    #[must_use]
+    pub fn is_fresh(&self) -> bool {
+        let fresh = AddrSpace::new();
+        self.regions.len() == fresh.regions.len() && self.next == fresh.next
+    }
+
     /// Forget every region registered after `mark` (their buffers must not be
     /// used again), e.g. a benchmark iteration's ray buffers.
     pub fn release(&mut self, mark: SpaceMark) {
@@ -141,7 +150,7 @@ impl AddrSpace {
     pub fn alloc(&mut self, kind: MemKind, name: &str, size: usize, align: usize) -> Buf {
         let r = self.place(kind, name, size as u64, align as u64);
         Buf {
-            data: vec![0u8; size],
+            data: Arc::new(vec![0u8; size]),
             base: r.base,
             id: r.id,
         }
@@ -151,7 +160,7 @@ impl AddrSpace {
     pub fn alloc_bytes(&mut self, kind: MemKind, name: &str, bytes: Vec<u8>, align: usize) -> Buf {
         let r = self.place(kind, name, bytes.len() as u64, align as u64);
         Buf {
-            data: bytes,
+            data: Arc::new(bytes),
             base: r.base,
             id: r.id,
         }
@@ -175,7 +184,7 @@ impl AddrSpace {
     pub fn lut(&self) -> Buf {
         let r = &self.regions[0];
         Buf {
-            data: vec![0u8; r.size as usize],
+            data: Arc::new(vec![0u8; r.size as usize]),
             base: r.base,
             id: r.id,
         }
@@ -196,10 +205,12 @@ impl AddrSpace {
 
 /// The bytes of one registered region. Host-side reads and writes through
 /// these methods are not recorded (they are setup and result extraction);
-/// kernels access a `Buf` only through the machine's ops.
+/// kernels access a `Buf` only through the machine's ops. A clone shares the
+/// bytes until either writes (copy on write): two machines laying out the
+/// same scene (a traced and a warming one) hold it once.
 #[derive(Clone, Debug)]
 pub struct Buf {
-    data: Vec<u8>,
+    data: Arc<Vec<u8>>,
     base: Addr,
     id: MemId,
 }
@@ -234,7 +245,7 @@ impl Buf {
     }
     /// All bytes, writable.
     pub fn bytes_mut(&mut self) -> &mut [u8] {
-        &mut self.data
+        Arc::make_mut(&mut self.data).as_mut_slice()
     }
 
     #[inline(always)]
@@ -257,7 +268,7 @@ impl Buf {
     #[inline(always)]
     pub fn write(&mut self, off: usize, b: &[u8]) {
         self.check(off, b.len());
-        self.data[off..off + b.len()].copy_from_slice(b);
+        Arc::make_mut(&mut self.data)[off..off + b.len()].copy_from_slice(b);
     }
     /// Read an f32 at `off`.
     #[inline(always)]
@@ -332,7 +343,7 @@ impl Buf {
         unsafe {
             std::ptr::copy_nonoverlapping(
                 v.as_ptr() as *const u8,
-                self.data.as_mut_ptr().add(off),
+                Arc::make_mut(&mut self.data).as_mut_ptr().add(off),
                 4 * N,
             );
         }

@@ -2,7 +2,16 @@
 //! host has it (lane arrays that LLVM vectorises; with `target-cpu=x86-64-v3`
 //! the 8-lane ops become AVX2 instructions). No recording, no allocation, no
 //! per-op branching. Results are bit-identical to the traced backend's.
+//!
+//! A *logging* native machine ([`Native::logging`]) also keeps, for
+//! functional warming (SMARTS), the memory accesses and branches the traced
+//! backend would record for the same code — the same addresses, regions,
+//! per-lane addresses and branch outcomes in the same order, the flavour's
+//! expansions included (a gather without a gather instruction is its lane
+//! loads) — and nothing else: warming at the native backend's speed instead
+//! of recording every op (a test holds the two logs equal on every kernel).
 
+use crate::class::OpClass;
 use crate::flavour::{Flavour, FlavourId};
 use crate::lanes::{
     cvt_round, cvt_trunc, permute2, rcp_approx, reduce, rsqrt_approx, BinOp, Cmp, Fma, IOp, Shift,
@@ -10,7 +19,8 @@ use crate::lanes::{
 };
 use crate::machine::{Float, Int, Logic, Machine, SOp};
 use crate::mem::{AddrSpace, At, Buf};
-use crate::types::{Region, Site};
+use crate::trace::{Op, Trace, FLAG_TAKEN};
+use crate::types::{Addr, LaneMask, MemId, Region, Site};
 use std::marker::PhantomData;
 
 /// Scalar integer of the native backend.
@@ -37,6 +47,8 @@ impl Float for NX {
 #[derive(Debug)]
 pub struct Native<FL, const N: usize> {
     space: AddrSpace,
+    /// The warming log of a logging machine.
+    log: Option<Box<Trace>>,
     _f: PhantomData<FL>,
 }
 
@@ -52,9 +64,124 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
     pub fn new() -> Self {
         Native {
             space: AddrSpace::new(),
+            log: None,
             _f: PhantomData,
         }
     }
+
+    /// A machine that logs its memory accesses and branches for functional
+    /// warming ([`Native::take_log`]); the log's header says it came from `source`.
+    #[must_use]
+    pub fn logging(source: &str) -> Self {
+        Native {
+            space: AddrSpace::new(),
+            log: Some(Box::new(Trace::new(FL::ID, source))),
+            _f: PhantomData,
+        }
+    }
+
+    /// [`Native::logging`] in `space` (e.g. a traced machine's, after it
+    /// laid a scene out whose buffers this machine then shares).
+    #[must_use]
+    pub fn logging_in(space: AddrSpace, source: &str) -> Self {
+        Native {
+            space,
+            log: Some(Box::new(Trace::new(FL::ID, source))),
+            _f: PhantomData,
+        }
+    }
+
+    /// The memory and branch ops logged since the last take, as a trace with
+    /// the address space's current regions (empty unless [`Native::logging`]).
+    #[must_use]
+    pub fn take_log(&mut self) -> Trace {
+        let Some(log) = self.log.as_deref_mut() else {
+            return Trace::new(FL::ID, "native");
+        };
+        let mut t = Trace::new(FL::ID, &log.source);
+        t.regions = self.space.regions().to_vec();
+        let (ops, lanes) = crate::trace::pooled_buffers();
+        t.ops = std::mem::replace(&mut log.ops, ops);
+        t.lane_addrs = std::mem::replace(&mut log.lane_addrs, lanes);
+        t
+    }
+
+    /// Log an access of `class` at byte `off` of `buf`.
+    #[inline(always)]
+    fn log_mem(&mut self, class: OpClass, buf: &Buf, off: usize, bytes: usize) {
+        if let Some(log) = self.log.as_deref_mut() {
+            log_at(log, class, buf.addr(off), buf.id(), bytes);
+        }
+    }
+
+    /// Log a gather or scatter: one address per active lane, in lane order.
+    #[inline(always)]
+    fn log_lanes(
+        &mut self,
+        class: OpClass,
+        buf: &Buf,
+        k: Vk<N>,
+        lane_off: impl Fn(usize) -> usize,
+    ) {
+        if let Some(log) = self.log.as_deref_mut() {
+            let first = log.lane_addrs.len() as u32;
+            for i in (0..N).filter(|&i| k.get(i)) {
+                log.lane_addrs.push(buf.addr(lane_off(i)));
+            }
+            let mut op = Op::new(class, Region::Other);
+            op.mask = LaneMask(k.bits());
+            op.addr = log
+                .lane_addrs
+                .get(first as usize)
+                .copied()
+                .unwrap_or(Addr(0));
+            op.bytes = 4;
+            op.mem = buf.id();
+            op.aux = first;
+            log.ops.push(op);
+        }
+    }
+
+    /// Log each active lane as an access of its own (the flavour has no
+    /// gather or scatter instruction: lane loads or stores).
+    #[inline(always)]
+    fn log_each_lane(
+        &mut self,
+        class: OpClass,
+        buf: &Buf,
+        k: Vk<N>,
+        lane_off: impl Fn(usize) -> usize,
+    ) {
+        for i in (0..N).filter(|&i| k.get(i)) {
+            self.log_mem(class, buf, lane_off(i), 4);
+        }
+    }
+}
+
+impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
+    /// Log a compress-store of `n` lanes at `off`: one compressing store, or
+    /// (no compress instruction) the permutation's LUT load and a full store.
+    #[inline(always)]
+    fn log_compress(&mut self, k: Vk<N>, buf: &Buf, off: usize, n: usize) {
+        if FL::COMPRESS {
+            self.log_mem(OpClass::VCompress, buf, off, 4 * n);
+        } else if let Some(log) = self.log.as_deref_mut() {
+            let lut = &self.space.regions()[0];
+            let entry = Addr(lut.base.0 + (4 * N * k.bits() as usize) as u64);
+            log_at(log, OpClass::VLoad, entry, lut.id, 4 * N);
+            log_at(log, OpClass::VStore, buf.addr(off), buf.id(), 4 * N);
+        }
+    }
+}
+
+/// Append one memory op to a warming log.
+#[inline(always)]
+fn log_at(log: &mut Trace, class: OpClass, addr: Addr, mem: MemId, bytes: usize) {
+    let mut op = Op::new(class, Region::Other);
+    op.addr = addr;
+    op.bytes = bytes as u32;
+    op.mem = mem;
+    log.ops.push(op);
 }
 
 /// Byte offset of an effective address.
@@ -382,20 +509,26 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
             "misaligned load at {}",
             buf.addr(off)
         );
+        self.log_mem(OpClass::VLoad, buf, off, 4 * N);
         Vf(buf.f32s::<N>(off))
     }
     #[inline(always)]
     fn loadu(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
-        Vf(buf.f32s::<N>(ea(at)))
+        let off = ea(at);
+        self.log_mem(OpClass::VLoad, buf, off, 4 * N);
+        Vf(buf.f32s::<N>(off))
     }
     #[inline(always)]
     fn load_bcast(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
-        Vf([buf.f32_at(ea(at)); N])
+        let off = ea(at);
+        self.log_mem(OpClass::VLoadBcast, buf, off, 4);
+        Vf([buf.f32_at(off); N])
     }
     #[inline(always)]
     fn load_repeat(&mut self, buf: &Buf, at: At<NS>, n: usize) -> Vf<N> {
         assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
         let off = ea(at);
+        self.log_mem(OpClass::VLoad, buf, off, 4 * n);
         if n == N {
             return Vf(buf.f32s::<N>(off));
         }
@@ -411,6 +544,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     #[inline(always)]
     fn load_masked(&mut self, k: Vk<N>, src: Vf<N>, buf: &Buf, at: At<NS>) -> Vf<N> {
         let off = ea(at);
+        self.log_mem(OpClass::VLoadMasked, buf, off, 4 * N);
         let mut r = src.0;
         for (i, x) in r.iter_mut().enumerate() {
             if k.get(i) {
@@ -427,15 +561,23 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
             "misaligned store at {}",
             buf.addr(off)
         );
+        self.log_mem(OpClass::VStore, buf, off, 4 * N);
         buf.set_f32s(off, &v.0);
     }
     #[inline(always)]
     fn storeu(&mut self, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
-        buf.set_f32s(ea(at), &v.0);
+        let off = ea(at);
+        self.log_mem(OpClass::VStore, buf, off, 4 * N);
+        buf.set_f32s(off, &v.0);
     }
     #[inline(always)]
     fn store_masked(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
         let off = ea(at);
+        if FL::MASKED_MEM {
+            self.log_mem(OpClass::VStoreMasked, buf, off, 4 * N);
+        } else {
+            self.log_each_lane(OpClass::Store, buf, k, |i| off + 4 * i);
+        }
         for i in 0..N {
             if k.get(i) {
                 buf.set_f32(off + 4 * i, v.0[i]);
@@ -453,6 +595,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
         scale: u8,
     ) -> Vf<N> {
         let off = ea(at);
+        let lane = |i: usize| ea_off(Some(i64::from(idx.0[i])), scale, off);
+        if FL::GATHER {
+            self.log_lanes(OpClass::VGather, buf, k, lane);
+        } else {
+            self.log_each_lane(OpClass::Load, buf, k, lane);
+        }
         let mut r = src.0;
         for (i, x) in r.iter_mut().enumerate() {
             if k.get(i) {
@@ -464,6 +612,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     #[inline(always)]
     fn scatter(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, idx: Vi<N>, scale: u8, v: Vf<N>) {
         let off = ea(at);
+        let lane = |i: usize| ea_off(Some(i64::from(idx.0[i])), scale, off);
+        if FL::SCATTER {
+            self.log_lanes(OpClass::VScatter, buf, k, lane);
+        } else {
+            self.log_each_lane(OpClass::Store, buf, k, lane);
+        }
         for i in 0..N {
             if k.get(i) {
                 let o = ea_off(Some(i64::from(idx.0[i])), scale, off);
@@ -475,6 +629,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     fn compress_store(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, v: Vf<N>) -> NS {
         let off = ea(at);
         let (packed, n) = compress_lanes(k, v);
+        self.log_compress(k, buf, off, n);
         if FL::COMPRESS {
             for i in 0..n {
                 buf.set_f32(off + 4 * i, packed.0[i]);
@@ -515,11 +670,15 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     }
     #[inline(always)]
     fn s_load(&mut self, buf: &Buf, at: At<NS>, width: u8, signed: bool) -> NS {
-        NS(load_int(buf, ea(at), width, signed))
+        let off = ea(at);
+        self.log_mem(OpClass::Load, buf, off, width as usize);
+        NS(load_int(buf, off, width, signed))
     }
     #[inline(always)]
     fn s_store(&mut self, buf: &mut Buf, at: At<NS>, width: u8, v: NS) {
-        buf.set_uint(ea(at), width as usize, v.0 as u64);
+        let off = ea(at);
+        self.log_mem(OpClass::Store, buf, off, width as usize);
+        buf.set_uint(off, width as usize, v.0 as u64);
     }
 
     #[inline(always)]
@@ -540,16 +699,29 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     }
     #[inline(always)]
     fn x_load(&mut self, buf: &Buf, at: At<NS>) -> NX {
-        NX(buf.f32_at(ea(at)))
+        let off = ea(at);
+        self.log_mem(OpClass::Load, buf, off, 4);
+        NX(buf.f32_at(off))
     }
     #[inline(always)]
     fn x_store(&mut self, buf: &mut Buf, at: At<NS>, v: NX) {
-        buf.set_f32(ea(at), v.0);
+        let off = ea(at);
+        self.log_mem(OpClass::Store, buf, off, 4);
+        buf.set_f32(off, v.0);
     }
 
     #[inline(always)]
-    fn branch(&mut self, _site: Site, c: NS) -> bool {
-        c.0 != 0
+    fn branch(&mut self, site: Site, c: NS) -> bool {
+        let taken = c.0 != 0;
+        if let Some(log) = self.log.as_deref_mut() {
+            let mut op = Op::new(OpClass::Branch, Region::Other);
+            op.aux = site.0;
+            if taken {
+                op.flags |= FLAG_TAKEN;
+            }
+            log.ops.push(op);
+        }
+        taken
     }
 
     fn lane(&self, a: Vf<N>, i: usize) -> f32 {

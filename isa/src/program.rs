@@ -43,8 +43,9 @@ pub fn record<P: Program>(p: &P, flavour: FlavourId, source: &str) -> (Trace, P:
 /// lays its data out once and runs every unit on the same machine, as a
 /// renderer does: memory and values carry from unit to unit.
 pub trait UnitProgram {
-    /// What [`UnitProgram::lay_out`] leaves for the units (buffer handles).
-    type Laid;
+    /// What [`UnitProgram::lay_out`] leaves for the units (buffer handles;
+    /// cloned for a second machine, sharing the buffers' bytes).
+    type Laid: Clone;
     /// One unit's input.
     type Unit;
     /// What a unit yields besides its ops.
@@ -68,6 +69,16 @@ pub struct Placed<U> {
 /// Address space between the per-unit buffers of two simulated threads.
 pub const THREAD_SPAN: u64 = 1 << 30;
 
+/// How a unit of [`run_units`] runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Detail {
+    /// Recorded op by op, for full timing.
+    Timed,
+    /// Run natively, only its memory accesses and branches logged (the ones
+    /// the traced run would record), for functional warming.
+    Warmed,
+}
+
 /// Record `units` of `p` in order on one traced machine of `flavour`; each
 /// unit's ops go to `each` as a trace of their own (with the regions live
 /// while it ran), with the unit and its output. Stops at `each`'s first error.
@@ -78,22 +89,67 @@ pub fn record_units<P: UnitProgram, E>(
     units: impl IntoIterator<Item = Placed<P::Unit>>,
     mut each: impl FnMut(&Placed<P::Unit>, Trace, P::Out) -> Result<(), E>,
 ) -> Result<(), E> {
+    run_units(
+        p,
+        flavour,
+        source,
+        units.into_iter().map(|u| (u, Detail::Timed)),
+        |u, _, t, out| each(u, t, out),
+    )
+}
+
+/// Run `units` of `p` in order, each in its [`Detail`]: timed units on one
+/// traced machine (their full traces), warmed units on one logging native
+/// machine (traces of their memory and branch ops only). The data is laid
+/// out once, the native machine starting from the traced one's address
+/// space, and each unit's buffers get the same addresses on either, so a
+/// unit touches the same memory in either detail. `each` gets the unit, its
+/// detail, its trace and its output; stops at `each`'s first error.
+pub fn run_units<P: UnitProgram, E>(
+    p: &P,
+    flavour: FlavourId,
+    source: &str,
+    units: impl IntoIterator<Item = (Placed<P::Unit>, Detail)>,
+    mut each: impl FnMut(&Placed<P::Unit>, Detail, Trace, P::Out) -> Result<(), E>,
+) -> Result<(), E> {
+    fn unit<P: UnitProgram, M: Machine>(
+        p: &P,
+        m: &mut M,
+        laid: &P::Laid,
+        u: &Placed<P::Unit>,
+        take: fn(&mut M) -> Trace,
+    ) -> (Trace, P::Out) {
+        let mark = m.space().mark();
+        m.space().skip(u.thread as u64 * THREAD_SPAN);
+        let out = p.unit(m, laid, &u.unit);
+        let t = take(m);
+        m.space().release(mark);
+        (t, out)
+    }
     fn go<P: UnitProgram, FL: crate::Flavour<N>, const N: usize, E>(
         p: &P,
         source: &str,
-        units: impl IntoIterator<Item = Placed<P::Unit>>,
-        each: &mut impl FnMut(&Placed<P::Unit>, Trace, P::Out) -> Result<(), E>,
+        units: impl IntoIterator<Item = (Placed<P::Unit>, Detail)>,
+        each: &mut impl FnMut(&Placed<P::Unit>, Detail, Trace, P::Out) -> Result<(), E>,
     ) -> Result<(), E> {
-        let mut m = Traced::<FL, N>::new(source);
-        let laid = p.lay_out(&mut m);
-        let _ = m.take();
-        for u in units {
-            let mark = m.space().mark();
-            m.space().skip(u.thread as u64 * THREAD_SPAN);
-            let out = p.unit(&mut m, &laid, &u.unit);
-            let t = m.take();
-            m.space().release(mark);
-            each(&u, t, out)?;
+        let mut traced = Traced::<FL, N>::new(source);
+        let laid = p.lay_out(&mut traced);
+        let _ = traced.take();
+        // The warming machine: the same address space and laid-out buffers
+        // (their bytes shared), made when the first warmed unit comes.
+        let mut native: Option<(Native<FL, N>, P::Laid)> = None;
+        for (u, d) in units {
+            let (t, out) = match d {
+                Detail::Timed => unit(p, &mut traced, &laid, &u, Traced::take),
+                Detail::Warmed => {
+                    let (m, laid) = native.get_or_insert_with(|| {
+                        let space = traced.space().clone();
+                        (Native::<FL, N>::logging_in(space, source), laid.clone())
+                    });
+                    unit(p, m, laid, &u, Native::take_log)
+                }
+            };
+            each(&u, d, t, out)?;
         }
         Ok(())
     }
@@ -112,5 +168,94 @@ pub fn run_native<P: Program>(p: &P, flavour: FlavourId) -> P::Out {
         FlavourId::Avx512 => p.run(&mut Native::<Avx512, 16>::new()),
         FlavourId::Avx2 => p.run(&mut Native::<Avx2, 8>::new()),
         FlavourId::Sse4 => p.run(&mut Native::<Sse4, 4>::new()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::machine::Int;
+    use crate::mem::{At, Buf};
+    use crate::types::{MemKind, Site};
+
+    /// Every memory op of the machine trait once per unit, with lane masks
+    /// and indices from the unit, and a branch on a loaded value.
+    struct AllMemOps;
+
+    impl UnitProgram for AllMemOps {
+        type Laid = Buf;
+        type Unit = u32;
+        type Out = i64;
+        fn lay_out<M: Machine>(&self, m: &mut M) -> Buf {
+            let v: Vec<f32> = (0..4096).map(|i| i as f32).collect();
+            m.space().alloc_f32(MemKind::Nodes, "data", &v, 64)
+        }
+        fn unit<M: Machine>(&self, m: &mut M, data: &Buf, &bits: &u32) -> i64 {
+            let n = M::LANES;
+            let mut out = m.space().alloc(MemKind::Rays, "out", 16384, 64);
+            let k = m.mask(bits & ((1u32 << n) - 1));
+            let at = |i: usize| At::off(4 * i);
+            let a = m.load(data, at(64));
+            let b = m.loadu(data, at(3));
+            let c = m.load_bcast(data, at(7));
+            let d = m.load_repeat(data, at(128), 4);
+            let e = m.load_operand(data, at(256), 4);
+            let f = m.load_masked(k, a, data, at(300));
+            let idx: Vec<i32> = (0..n as i32).map(|i| 97 * i + (bits % 64) as i32).collect();
+            let ix = m.consts_i(&idx);
+            let g = m.gather(k, b, data, at(0), ix, 4);
+            let s = m.add(c, d);
+            let s = m.add(s, e);
+            let s = m.add(s, f);
+            let s = m.add(s, g);
+            m.store(&mut out, at(0), s);
+            m.storeu(&mut out, at(33), s);
+            m.store_masked(k, &mut out, at(64), s);
+            m.scatter(k, &mut out, at(128), ix, 4, s);
+            let packed = m.compress_store(k, &mut out, at(900), s);
+            let i = m.int(bits as i64 % 50);
+            let x = m.s_load(data, At::idx(i, 4, 0), 4, false);
+            m.s_store(&mut out, At::idx(i, 8, 2048), 8, x);
+            let y = m.x_load(data, at(999));
+            m.x_store(&mut out, at(1000), y);
+            let one = m.int(1);
+            let odd = m.s_op(crate::SOp::And, packed, one);
+            let taken = m.branch(Site(1), odd);
+            i64::from(taken) + m.s_load(&out, At::off(2048), 8, false).get()
+        }
+    }
+
+    #[test]
+    fn a_warmed_unit_touches_what_its_recorded_trace_touches_on_every_flavour() {
+        for fl in [
+            FlavourId::Sse4,
+            FlavourId::Avx2,
+            FlavourId::Avx512,
+            FlavourId::Lrb16,
+        ] {
+            let masks = [0u32, 1, 0b1011, 0xFFFF, 0x5A5A, 0x8001];
+            let units = masks.iter().enumerate().flat_map(|(j, &bits)| {
+                [Detail::Timed, Detail::Warmed].map(|d| {
+                    let u = Placed {
+                        thread: j % 3,
+                        unit: bits,
+                    };
+                    (u, d)
+                })
+            });
+            let mut views = Vec::new();
+            run_units(&AllMemOps, fl, "t", units, |_, d, t, out| {
+                views.push((d, t.warming_view(), out));
+                Ok::<(), ()>(())
+            })
+            .unwrap();
+            for (j, pair) in views.chunks(2).enumerate() {
+                assert_eq!(pair[0].0, Detail::Timed);
+                assert_eq!(pair[1].0, Detail::Warmed);
+                assert_eq!(pair[0].2, pair[1].2, "{fl} unit {j}: same result");
+                assert!(pair[0].1.len() >= 12, "{fl} unit {j}");
+                assert_eq!(pair[0].1, pair[1].1, "{fl} unit {j} (mask {:#x})", masks[j]);
+            }
+        }
     }
 }

@@ -88,6 +88,15 @@ impl Op {
     }
 }
 
+/// One event of [`Trace::warming_view`].
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum WarmEvent {
+    /// A memory op: whether it stores, its region, its addresses.
+    Mem(bool, MemId, Vec<Addr>),
+    /// A branch: its site and whether it was taken.
+    Branch(u32, bool),
+}
+
 /// A recorded run: header facts and the ops.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Trace {
@@ -136,6 +145,30 @@ impl Trace {
         single
             .into_iter()
             .chain(self.lanes_of(op).iter().map(move |&a| (a, op.bytes)))
+    }
+    /// What functional warming reads of the trace, in order: each memory op
+    /// as (store?, region, addresses: one, or one per active lane of a gather
+    /// or scatter) and each branch as (site, taken). Two runs warm caches and
+    /// predictors alike exactly when their views are equal.
+    #[must_use]
+    pub fn warming_view(&self) -> Vec<WarmEvent> {
+        self.ops
+            .iter()
+            .filter_map(|op| {
+                if op.class == OpClass::Branch {
+                    Some(WarmEvent::Branch(op.site().0, op.taken()))
+                } else if op.class.is_mem() {
+                    let addrs = if op.class.is_per_lane_mem() {
+                        self.lanes_of(op).to_vec()
+                    } else {
+                        vec![op.addr]
+                    };
+                    Some(WarmEvent::Mem(op.class.is_store(), op.mem, addrs))
+                } else {
+                    None
+                }
+            })
+            .collect()
     }
     /// As [`Trace::validate`], but a source may be defined anywhere in the
     /// trace (a loop body whose later values are carried to the next iteration).

@@ -28,6 +28,7 @@ pub const NODE_BYTES: usize = 128;
 pub const HIT_BYTES: usize = 16;
 
 /// The scene's buffers in a machine's address space.
+#[derive(Clone)]
 pub struct Bvh4Bufs {
     /// BVH4 nodes.
     pub nodes: Buf,
@@ -96,6 +97,7 @@ fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u32> 
 
 /// A BVH2 laid into a machine's memory ([`scene::bvh::Bvh2Layout`] nodes,
 /// the same triangle blocks); `root` is the root's ref.
+#[derive(Clone)]
 pub struct Bvh2Bufs {
     /// BVH2 nodes, 64 bytes each.
     pub nodes: Buf,
@@ -166,6 +168,7 @@ pub fn is_leaf(r: u32) -> bool {
 
 /// Triangles as a mesh holds them: vertex indices into a vertex array (the
 /// MFT paper's packet baseline reads these at leaves).
+#[derive(Clone)]
 pub struct IndexedTris {
     /// Vertices, 16 bytes each: `x, y, z, 0` f32.
     pub verts: Buf,

@@ -121,6 +121,7 @@ pub fn packet_records(
 }
 
 /// Where a packet leaf reads each triangle from.
+#[derive(Clone)]
 pub enum TriForm {
     /// The leaf's triangle block: v0 and two edges, precomputed.
     Edges,

@@ -9,7 +9,8 @@ use scene::scene::Scene;
 use scene::workload::RayStream;
 use scene::Hit;
 
-use isa::{Machine, MemKind, Program};
+use isa::{AddrSpace, Machine, MemKind, Program};
+use std::sync::OnceLock;
 
 /// Which traversal kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -47,6 +48,19 @@ pub struct Run<'a> {
     /// pixel), to form packets as a packet renderer does
     /// ([`scene::workload::packet_slots`]); `None`: consecutive rays.
     pub packet_tile: Option<(u32, u32)>,
+    /// Layouts shared with other runs of the same scene ([`SharedLayouts`]);
+    /// `None`: each machine lays the scene out itself.
+    pub shared: Option<&'a SharedLayouts>,
+}
+
+/// A scene's BVH2 and BVH4 layouts shared by every method's machines: each
+/// laid out once, on first use, and given to a fresh machine as its address
+/// space and buffers (the bytes shared), exactly as if that machine had laid
+/// it out — seven methods of a 7.8 M-triangle scene hold two layouts, not seven.
+#[derive(Default)]
+pub struct SharedLayouts {
+    bvh2: OnceLock<(AddrSpace, Laid)>,
+    bvh4: OnceLock<(AddrSpace, Laid)>,
 }
 
 impl<'a> Run<'a> {
@@ -66,6 +80,7 @@ impl<'a> Run<'a> {
             b4,
             rays,
             packet_tile: None,
+            shared: None,
         }
     }
 
@@ -151,6 +166,7 @@ impl isa::UnitProgram for Run<'_> {
 
 /// A scene laid out in a machine's memory for one kernel: the BVH4 or BVH2
 /// records it reads.
+#[derive(Clone)]
 pub struct Laid {
     /// BVH4 layout (BVH4 kernels).
     pub bvh4: Option<rt::layout::Bvh4Bufs>,
@@ -162,12 +178,37 @@ pub struct Laid {
 }
 
 impl Run<'_> {
-    /// Lay out the tree the kernel reads (once per machine; see [`Run::trace`]).
+    /// Lay out the tree the kernel reads (once per machine; see [`Run::trace`]):
+    /// from [`Run::shared`] when the machine's space is fresh.
     pub fn lay_out<M: Machine>(&self, m: &mut M) -> Laid {
-        if matches!(
+        let Some(shared) = self.shared.filter(|_| m.space().is_fresh()) else {
+            return self.lay_out_here(m);
+        };
+        let cell = if self.reads_bvh2() {
+            &shared.bvh2
+        } else {
+            &shared.bvh4
+        };
+        let (space, laid) = cell.get_or_init(|| {
+            let mut t = isa::Native::<isa::Sse4, 4>::new();
+            let laid = self.lay_out_here(&mut t);
+            (t.space().clone(), laid)
+        });
+        *m.space() = space.clone();
+        laid.clone()
+    }
+
+    /// Whether the kernel reads the BVH2 (else the BVH4).
+    fn reads_bvh2(&self) -> bool {
+        matches!(
             self.kernel,
             Kernel::SingleBvh2 | Kernel::DrsBvh2 | Kernel::PacketBvh2
-        ) {
+        )
+    }
+
+    /// [`Run::lay_out`] on `m` itself.
+    fn lay_out_here<M: Machine>(&self, m: &mut M) -> Laid {
+        if self.reads_bvh2() {
             Laid {
                 bvh4: None,
                 bvh2: Some(rt::layout::lay_out_bvh2(m, &self.scene.mesh, self.b2)),

@@ -167,10 +167,12 @@ pub(crate) fn measure_loaded(
     let refi = Reference::with_bvh(&scene.mesh, b2);
     let plan = frame_plan(a, smp, ld, &refi);
     let streams = trace_streams(ld, &plan, smp, a.seed);
-    // Methods are independent runs: one host thread each, results in order.
+    // Methods are independent runs: one host thread each, results in order,
+    // the scene's two layouts shared.
+    let shared = drs_kernels::methods::SharedLayouts::default();
     let runs = kernels
         .par_iter()
-        .map(|&k| measure_kernel(smp, ld, &refi, (&plan, &streams), k, scene_name))
+        .map(|&k| measure_kernel(smp, (ld, &shared), &refi, (&plan, &streams), k, scene_name))
         .collect::<AppResult<Vec<(Acc, u64)>>>()?;
     *ops_total += runs.iter().map(|r| r.1).sum::<u64>();
     Ok(runs.into_iter().map(|r| r.0).collect())
@@ -324,7 +326,7 @@ struct Slot {
 /// One method over a frame plan on a session of the machine.
 pub(crate) fn measure_kernel(
     smp: &Sample,
-    ld: &Loaded,
+    (ld, shared): (&Loaded, &drs_kernels::methods::SharedLayouts),
     refi: &Reference,
     (plan, streams): (&[Round], &Streams),
     k: Kernel,
@@ -352,10 +354,16 @@ pub(crate) fn measure_kernel(
                     tile: round.tiles[c],
                     last: n + 1 == cores.len(),
                 });
-                units.push(isa::Placed {
+                let detail = if round.timed {
+                    isa::Detail::Timed
+                } else {
+                    isa::Detail::Warmed
+                };
+                let unit = isa::Placed {
                     thread: c,
                     unit: of(c)[j].clone(),
-                });
+                };
+                units.push((unit, detail));
             }
         }
     }
@@ -367,40 +375,50 @@ pub(crate) fn measure_kernel(
         scene::workload::RayStream::from_rays(StreamKind::Primary, vec![], vec![], vec![]),
     );
     prog.packet_tile = Some((smp.size, smp.spp));
+    prog.shared = Some(shared);
     let mut session = sim::Session::new(&smp.m);
     let mut ac = Acc::default();
     // Per (sampled group, core): the observations of the confidence interval.
     let mut group_sums: BTreeMap<(usize, usize), (u64, u64)> = BTreeMap::new();
     let mut pending: Vec<(usize, isa::Trace, u64, &'static str)> = Vec::new();
     let mut next = 0usize;
-    isa::record_units(&prog, smp.fl, k.name(), units, |u, t, (hits, tests)| {
-        let slot = &slots[next];
-        next += 1;
-        let label = format!(
-            "{scene_name} tile ({}, {}) {:?} {}",
-            slot.tile.x,
-            slot.tile.y,
-            u.unit.kind,
-            k.name()
-        );
-        ac.bad += stream_mismatches(&label, refi, &u.unit, &hits) as u64;
-        ops_total += t.ops.len() as u64;
-        let round = &plan[slot.round];
-        if round.timed {
+    // Warmed rounds run natively, only their memory accesses and branches
+    // logged, and warm the caches and predictors as their traces would.
+    isa::run_units(
+        &prog,
+        smp.fl,
+        k.name(),
+        units,
+        |u, detail, t, (hits, tests)| {
+            let slot = &slots[next];
+            next += 1;
+            let label = format!(
+                "{scene_name} tile ({}, {}) {:?} {}",
+                slot.tile.x,
+                slot.tile.y,
+                u.unit.kind,
+                k.name()
+            );
+            ac.bad += stream_mismatches(&label, refi, &u.unit, &hits) as u64;
+            ops_total += t.ops.len() as u64;
+            if detail == isa::Detail::Warmed {
+                session.warm(&[(slot.core, &t)]).map_err(AppError)?;
+                isa::trace::recycle(t);
+                return Ok(());
+            }
+            let round = &plan[slot.round];
             ac.core_tests += tests.core_loop;
             ac.node_tests += tests.node_tests();
-        }
-        let kind = match u.unit.kind {
-            StreamKind::Primary => "primary",
-            StreamKind::Bounce(_) => "bounce",
-            StreamKind::Shadow(_) => "shadow",
-        };
-        pending.push((slot.core, t, u.unit.len() as u64, kind));
-        if !slot.last {
-            return Ok(());
-        }
-        let step: Vec<(usize, &isa::Trace)> = pending.iter().map(|p| (p.0, &p.1)).collect();
-        if round.timed {
+            let kind = match u.unit.kind {
+                StreamKind::Primary => "primary",
+                StreamKind::Bounce(_) => "bounce",
+                StreamKind::Shadow(_) => "shadow",
+            };
+            pending.push((slot.core, t, u.unit.len() as u64, kind));
+            if !slot.last {
+                return Ok(());
+            }
+            let step: Vec<(usize, &isa::Trace)> = pending.iter().map(|p| (p.0, &p.1)).collect();
             let (s, own) = session.timed_each(&step).map_err(AppError)?;
             ac.ops += s.ops;
             ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
@@ -416,12 +434,10 @@ pub(crate) fn measure_kernel(
                 g.0 += p.2;
                 g.1 += c;
             }
-        } else {
-            session.warm(&step).map_err(AppError)?;
-        }
-        pending.drain(..).for_each(|p| isa::trace::recycle(p.1));
-        Ok::<(), AppError>(())
-    })?;
+            pending.drain(..).for_each(|p| isa::trace::recycle(p.1));
+            Ok::<(), AppError>(())
+        },
+    )?;
     ac.tiles = group_sums.into_values().collect();
     Ok((ac, ops_total))
 }

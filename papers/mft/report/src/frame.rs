@@ -35,7 +35,7 @@ pub(crate) struct Sample {
     pub cycles: f64,
     /// Their 95% CI half-width.
     pub ci: Option<f64>,
-    /// Ops recorded (timed and warmed).
+    /// Ops simulated: every op of the timed sets, the memory and branch ops of the warmed ones.
     pub ops: u64,
     /// The timed sets' counts.
     pub stats: MftStats,
@@ -126,10 +126,17 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
                 Phase::Before
             };
             plan.push((phase, j + 1 == n));
-            units.push(isa::Placed {
+            // Timed sets are recorded; the sets before them run natively,
+            // their memory accesses and branches logged for warming.
+            let detail = match phase {
+                Phase::Recall => isa::Detail::Timed,
+                Phase::Before => isa::Detail::Warmed,
+            };
+            let unit = isa::Placed {
                 thread: j % threads,
                 unit: sets[i].clone(),
-            });
+            };
+            units.push((unit, detail));
         }
     }
     let mut session = sim::Session::new(m);
@@ -137,7 +144,7 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
     let mut pairs = Vec::new();
     let mut next = 0usize;
     let p = prog(Vec::new());
-    isa::record_units(&p, m.flavour(), "mft", units, |u, t, (_, st)| {
+    isa::run_units(&p, m.flavour(), "mft", units, |u, _, t, (_, st)| {
         let (phase, last) = plan[next];
         next += 1;
         out.ops += t.ops.len() as u64;

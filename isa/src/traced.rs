@@ -37,8 +37,8 @@ use crate::lanes::{
 use crate::machine::{Float, Int, Logic, Machine, SOp};
 use crate::mem::{AddrSpace, At, Buf};
 use crate::native::{arr, compress_lanes, ea_off, idx_arr, load_int, reduce_op};
-use crate::trace::{Op, Trace, FLAG_TAKEN};
-use crate::types::{Addr, LaneMask, Region, Site, ValId};
+use crate::trace::{Op, Trace, FLAG_TAKEN, MAX_SRCS};
+use crate::types::{Addr, LaneMask, MemId, Region, Site, ValId};
 use std::marker::PhantomData;
 
 /// Traced f32 vector: value and id.
@@ -166,20 +166,36 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
     /// Record one op; returns its destination id (or NONE when `dst` is false).
     #[inline]
     fn emit(&mut self, class: OpClass, srcs: &[ValId], mask: u32, dst: bool) -> ValId {
-        let mut op = Op::new(class, self.region);
+        debug_assert!(srcs.len() <= MAX_SRCS, "too many sources");
+        // The op built in one go (field-by-field edits of a stack copy cost
+        // store-forwarding stalls when it is then copied into the buffer).
+        let mut ids = [ValId::NONE; MAX_SRCS];
+        let mut nsrc = 0;
         for &s in srcs {
-            op.push_src(s);
+            if s.is_some() {
+                ids[nsrc] = s;
+                nsrc += 1;
+            }
         }
-        op.mask = LaneMask(if class.is_vector() {
+        let mask = LaneMask(if class.is_vector() {
             mask & self.active
         } else {
             mask
         });
-        if dst {
-            op.dst = self.fresh();
-        }
-        let id = op.dst;
-        self.trace.ops.push(op);
+        let id = if dst { self.fresh() } else { ValId::NONE };
+        self.trace.ops.push(Op {
+            class,
+            region: self.region,
+            flags: 0,
+            nsrc: nsrc as u8,
+            mask,
+            dst: id,
+            srcs: ids,
+            addr: Addr(0),
+            bytes: 0,
+            mem: MemId(0),
+            aux: 0,
+        });
         id
     }
 
@@ -426,52 +442,64 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     type S = TS;
     type X = TX;
 
+    #[inline]
     fn space(&mut self) -> &mut AddrSpace {
         &mut self.space
     }
+    #[inline]
     fn region(&mut self, r: Region) {
         self.region = r;
     }
+    #[inline]
     fn active(&mut self, k: Option<TK<N>>) {
         self.active = k.map_or(Self::FULL, |k| k.v.bits());
     }
 
+    #[inline]
     fn splat(&mut self, x: f32) -> TF<N> {
         Self::tf(Vf([x; N]), ValId::NONE)
     }
+    #[inline]
     fn consts(&mut self, v: &[f32]) -> TF<N> {
         Self::tf(Vf(arr(v)), ValId::NONE)
     }
+    #[inline]
     fn splat_i(&mut self, x: i32) -> TI<N> {
         TI {
             v: Vi([x; N]),
             id: ValId::NONE,
         }
     }
+    #[inline]
     fn consts_i(&mut self, v: &[i32]) -> TI<N> {
         TI {
             v: Vi(arr(v)),
             id: ValId::NONE,
         }
     }
+    #[inline]
     fn mask(&mut self, bits: u32) -> TK<N> {
         TK {
             v: Vk::from_bits(bits),
             id: ValId::NONE,
         }
     }
+    #[inline]
     fn int(&mut self, v: i64) -> TS {
         TS { v, id: ValId::NONE }
     }
+    #[inline]
     fn float(&mut self, v: f32) -> TX {
         TX { v, id: ValId::NONE }
     }
 
+    #[inline]
     fn bin(&mut self, op: BinOp, a: TF<N>, b: TF<N>) -> TF<N> {
         let b_id = self.divisor(op, b.id);
         let id = self.v(Self::bin_class(op), &[a.id, b_id]);
         Self::tf(a.v.zip(b.v, |x, y| FL::eval(op, x, y)), id)
     }
+    #[inline]
     fn masked(&mut self, op: BinOp, k: TK<N>, src: TF<N>, a: TF<N>, b: TF<N>) -> TF<N> {
         let v = k.v.select(a.v.zip(b.v, |x, y| FL::eval(op, x, y)), src.v);
         let b = TF {
@@ -491,6 +519,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         };
         Self::tf(v, id)
     }
+    #[inline]
     fn fma(&mut self, kind: Fma, a: TF<N>, b: TF<N>, c: TF<N>) -> TF<N> {
         let id = self.rec_fma(kind, a.id, b.id, c.id, Self::FULL);
         Self::tf(
@@ -498,6 +527,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         )
     }
+    #[inline]
     fn masked_fma(&mut self, kind: Fma, k: TK<N>, a: TF<N>, b: TF<N>, c: TF<N>) -> TF<N> {
         let v = k.v.select(
             a.v.zip3(b.v, c.v, |x, y, z| kind.eval(FL::FMA, x, y, z)),
@@ -511,18 +541,22 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         };
         Self::tf(v, id)
     }
+    #[inline]
     fn abs(&mut self, a: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VLogic, &[a.id]);
         Self::tf(a.v.map(f32::abs), id)
     }
+    #[inline]
     fn neg(&mut self, a: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VLogic, &[a.id]);
         Self::tf(a.v.map(|x| -x), id)
     }
+    #[inline]
     fn sqrt(&mut self, a: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VSqrt, &[a.id]);
         Self::tf(a.v.map(f32::sqrt), id)
     }
+    #[inline]
     fn rcp(&mut self, a: TF<N>) -> TF<N> {
         if !FL::DIV {
             return self.rcp_approx(a);
@@ -530,10 +564,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         let id = self.v(OpClass::VDiv, &[a.id]);
         Self::tf(a.v.map(|x| 1.0 / x), id)
     }
+    #[inline]
     fn rcp_approx(&mut self, a: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VRcp, &[a.id]);
         Self::tf(a.v.map(|x| rcp_approx(x, FL::RCP_BITS)), id)
     }
+    #[inline]
     fn rsqrt(&mut self, a: TF<N>) -> TF<N> {
         let s = self.v(OpClass::VSqrt, &[a.id]);
         let inv = if FL::DIV {
@@ -544,10 +580,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         let id = self.v(inv, &[s]);
         Self::tf(a.v.map(|x| 1.0 / x.sqrt()), id)
     }
+    #[inline]
     fn rsqrt_approx(&mut self, a: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VRsqrt, &[a.id]);
         Self::tf(a.v.map(|x| rsqrt_approx(x, FL::RCP_BITS)), id)
     }
+    #[inline]
     fn cmp(&mut self, p: Cmp, a: TF<N>, b: TF<N>) -> TK<N> {
         let id = self.v(OpClass::VCmp, &[a.id, b.id]);
         TK {
@@ -555,10 +593,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn select(&mut self, k: TK<N>, t: TF<N>, f: TF<N>) -> TF<N> {
         let id = self.rec_select(k.id, t.id, f.id);
         Self::tf(k.v.select(t.v, f.v), id)
     }
+    #[inline]
     fn blend_sign(&mut self, s: TF<N>, a: TF<N>, b: TF<N>) -> TF<N> {
         let v = Vf(std::array::from_fn(|i| {
             if s.v.0[i].is_sign_negative() {
@@ -576,6 +616,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         };
         Self::tf(v, id)
     }
+    #[inline]
     fn logic(&mut self, op: Logic, a: TF<N>, b: TF<N>) -> TF<N> {
         let id = self.v(OpClass::VLogic, &[a.id, b.id]);
         Self::tf(
@@ -585,25 +626,30 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         )
     }
+    #[inline]
     fn broadcast(&mut self, x: TX) -> TF<N> {
         let id = self.v(OpClass::VBcast, &[x.id]);
         Self::tf(Vf([x.v; N]), id)
     }
+    #[inline]
     fn extract(&mut self, a: TF<N>, i: usize) -> TX {
         assert!(i < N, "lane {i} of {N}");
         let id = self.rec_extract(a.id, i);
         TX { v: a.v.0[i], id }
     }
+    #[inline]
     fn permute(&mut self, a: TF<N>, idx: &[u8]) -> TF<N> {
         let idx = idx_arr::<N>(idx, N);
         let id = self.v(Self::perm_class(&idx), &[a.id]);
         Self::tf(permute2(a.v, a.v, &idx), id)
     }
+    #[inline]
     fn shuffle2(&mut self, a: TF<N>, b: TF<N>, idx: &[u8]) -> TF<N> {
         let idx = idx_arr::<N>(idx, 2 * N);
         let id = self.rec_shuffle2(a.id, b.id, &idx);
         Self::tf(permute2(a.v, b.v, &idx), id)
     }
+    #[inline]
     fn reduce(&mut self, op: BinOp, a: TF<N>) -> TX {
         let v = reduce_op(op, a.v);
         let class = Self::bin_class(op);
@@ -617,6 +663,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         TX { v, id }
     }
+    #[inline]
     fn to_int(&mut self, a: TF<N>) -> TI<N> {
         let id = self.v(OpClass::VCvt, &[a.id]);
         let mut r = [0i32; N];
@@ -625,6 +672,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         TI { v: Vi(r), id }
     }
+    #[inline]
     fn to_int_round(&mut self, a: TF<N>) -> TI<N> {
         let id = self.v(OpClass::VCvt, &[a.id]);
         let mut r = [0i32; N];
@@ -633,6 +681,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         TI { v: Vi(r), id }
     }
+    #[inline]
     fn to_float(&mut self, a: TI<N>) -> TF<N> {
         let id = self.v(OpClass::VCvt, &[a.id]);
         let mut r = [0f32; N];
@@ -641,16 +690,19 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         Self::tf(Vf(r), id)
     }
+    #[inline]
     fn bits_to_i(&mut self, a: TF<N>) -> TI<N> {
         TI {
             v: a.v.to_bits(),
             id: a.id,
         }
     }
+    #[inline]
     fn bits_to_f(&mut self, a: TI<N>) -> TF<N> {
         Self::tf(a.v.to_f32_bits(), a.id)
     }
 
+    #[inline]
     fn iop(&mut self, op: IOp, a: TI<N>, b: TI<N>) -> TI<N> {
         let class = match op {
             IOp::Add | IOp::Sub | IOp::Min | IOp::Max => OpClass::VIAdd,
@@ -663,6 +715,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn ishift(&mut self, s: Shift, a: TI<N>, n: u32) -> TI<N> {
         let id = self.v(OpClass::VIShift, &[a.id]);
         TI {
@@ -670,6 +723,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn icmp(&mut self, p: Cmp, a: TI<N>, b: TI<N>) -> TK<N> {
         assert!(!matches!(p, Cmp::Ord | Cmp::Unord), "integer compare {p:?}");
         let mut id = self.v(OpClass::VICmp, &[a.id, b.id]);
@@ -683,6 +737,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         TK { v: Vk(r), id }
     }
+    #[inline]
     fn iselect(&mut self, k: TK<N>, t: TI<N>, f: TI<N>) -> TI<N> {
         let id = self.rec_select(k.id, t.id, f.id);
         TI {
@@ -691,6 +746,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
     }
 
+    #[inline]
     fn klogic(&mut self, op: Logic, a: TK<N>, b: TK<N>) -> TK<N> {
         let class = if FL::MASK_REGS {
             OpClass::KLogic
@@ -703,6 +759,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn knot(&mut self, a: TK<N>) -> TK<N> {
         let class = if FL::MASK_REGS {
             OpClass::KLogic
@@ -715,6 +772,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn kmov(&mut self, bits: TS) -> TK<N> {
         let v = Vk::from_bits((bits.v as u64 & ((1u64 << N) - 1)) as u32);
         let id = if FL::MASK_REGS {
@@ -726,6 +784,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         };
         TK { v, id }
     }
+    #[inline]
     fn movemask(&mut self, k: TK<N>) -> TS {
         let id = self.s(OpClass::MovMsk, &[k.id]);
         TS {
@@ -733,6 +792,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn popcnt(&mut self, k: TK<N>) -> TS {
         let m = self.s(OpClass::MovMsk, &[k.id]);
         let id = self.s(OpClass::BitCnt, &[m]);
@@ -741,6 +801,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn bitscan(&mut self, k: TK<N>) -> TS {
         let m = self.s(OpClass::MovMsk, &[k.id]);
         let g = self.s(OpClass::Alu, &[m]);
@@ -750,6 +811,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn any(&mut self, k: TK<N>) -> TS {
         let id = self.s(OpClass::KTest, &[k.id]);
         TS {
@@ -757,6 +819,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn all(&mut self, k: TK<N>) -> TS {
         let id = self.s(OpClass::KTest, &[k.id]);
         TS {
@@ -765,6 +828,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
     }
 
+    #[inline]
     fn load(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
         let (off, ix) = Self::ea(&at);
         assert!(
@@ -776,16 +840,19 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         let id = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * N, true);
         Self::tf(Vf(buf.f32s::<N>(off)), id)
     }
+    #[inline]
     fn loadu(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
         let (off, ix) = Self::ea(&at);
         let id = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * N, true);
         Self::tf(Vf(buf.f32s::<N>(off)), id)
     }
+    #[inline]
     fn load_bcast(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
         let (off, ix) = Self::ea(&at);
         let id = self.mem(OpClass::VLoadBcast, &[ix], Self::FULL, buf, off, 4, true);
         Self::tf(Vf([buf.f32_at(off); N]), id)
     }
+    #[inline]
     fn load_operand(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
         if !FL::folds(n) {
             return self.load_repeat(buf, at, n);
@@ -796,6 +863,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         let v: [f32; N] = std::array::from_fn(|i| buf.f32_at(off + 4 * (i % n)));
         Self::tf(Vf(v), id)
     }
+    #[inline]
     fn load_repeat(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
         assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
         let (off, ix) = Self::ea(&at);
@@ -821,6 +889,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         Self::tf(Vf(r), id)
     }
+    #[inline]
     fn load_masked(&mut self, k: TK<N>, src: TF<N>, buf: &Buf, at: At<TS>) -> TF<N> {
         let (off, ix) = Self::ea(&at);
         let bits = k.v.bits();
@@ -851,6 +920,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         }
         Self::tf(Vf(r), id)
     }
+    #[inline]
     fn store(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
         let (off, ix) = Self::ea(&at);
         assert!(
@@ -870,6 +940,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         );
         buf.set_f32s(off, &v.v.0);
     }
+    #[inline]
     fn storeu(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
         let (off, ix) = Self::ea(&at);
         self.mem(
@@ -883,6 +954,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         );
         buf.set_f32s(off, &v.v.0);
     }
+    #[inline]
     fn store_masked(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, v: TF<N>) {
         let (off, ix) = Self::ea(&at);
         let bits = k.v.bits();
@@ -911,6 +983,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             }
         }
     }
+    #[inline]
     fn gather(
         &mut self,
         k: TK<N>,
@@ -957,6 +1030,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         };
         Self::tf(Vf(r), id)
     }
+    #[inline]
     fn scatter(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, idx: TI<N>, scale: u8, v: TF<N>) {
         let (off, ix) = Self::ea(&at);
         let bits = k.v.bits();
@@ -997,6 +1071,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             }
         }
     }
+    #[inline]
     fn compress_store(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, v: TF<N>) -> TS {
         let (off, ix) = Self::ea(&at);
         let bits = k.v.bits();
@@ -1046,6 +1121,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         TS { v: n as i64, id }
     }
 
+    #[inline]
     fn s_op(&mut self, op: SOp, a: TS, b: TS) -> TS {
         let id = match op {
             SOp::Add | SOp::Sub | SOp::And | SOp::Or | SOp::Xor => {
@@ -1062,6 +1138,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_shift(&mut self, s: Shift, a: TS, n: u32) -> TS {
         let id = self.s(OpClass::Alu, &[a.id]);
         TS {
@@ -1069,6 +1146,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_cmp(&mut self, p: Cmp, a: TS, b: TS) -> TS {
         let id = self.s(OpClass::Cmp, &[a.id, b.id]);
         TS {
@@ -1076,6 +1154,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_select(&mut self, c: TS, a: TS, b: TS) -> TS {
         let id = self.s(OpClass::Cmov, &[c.id, a.id, b.id]);
         TS {
@@ -1083,6 +1162,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_popcnt(&mut self, a: TS) -> TS {
         let id = self.s(OpClass::BitCnt, &[a.id]);
         TS {
@@ -1090,6 +1170,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_tzcnt(&mut self, a: TS) -> TS {
         let id = self.s(OpClass::BitCnt, &[a.id]);
         TS {
@@ -1097,6 +1178,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_load(&mut self, buf: &Buf, at: At<TS>, width: u8, signed: bool) -> TS {
         let (off, ix) = Self::ea(&at);
         let id = self.mem(OpClass::Load, &[ix], 1, buf, off, width as usize, true);
@@ -1105,6 +1187,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn s_store(&mut self, buf: &mut Buf, at: At<TS>, width: u8, v: TS) {
         let (off, ix) = Self::ea(&at);
         self.mem(
@@ -1119,6 +1202,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         buf.set_uint(off, width as usize, v.v as u64);
     }
 
+    #[inline]
     fn x_op(&mut self, op: BinOp, a: TX, b: TX) -> TX {
         let id = self.s(Self::bin_class(op), &[a.id, b.id]);
         TX {
@@ -1126,6 +1210,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn x_fma(&mut self, kind: Fma, a: TX, b: TX, c: TX) -> TX {
         let id = self.rec_fma(kind, a.id, b.id, c.id, 1);
         TX {
@@ -1133,10 +1218,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn x_sqrt(&mut self, a: TX) -> TX {
         let id = self.s(OpClass::VSqrt, &[a.id]);
         TX { v: a.v.sqrt(), id }
     }
+    #[inline]
     fn x_cmp(&mut self, p: Cmp, a: TX, b: TX) -> TS {
         let id = self.s(OpClass::VCmp, &[a.id, b.id]);
         TS {
@@ -1144,6 +1231,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn x_load(&mut self, buf: &Buf, at: At<TS>) -> TX {
         let (off, ix) = Self::ea(&at);
         let id = self.mem(OpClass::Load, &[ix], 1, buf, off, 4, true);
@@ -1152,12 +1240,14 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             id,
         }
     }
+    #[inline]
     fn x_store(&mut self, buf: &mut Buf, at: At<TS>, v: TX) {
         let (off, ix) = Self::ea(&at);
         self.mem(OpClass::Store, &[ix, v.id], 1, buf, off, 4, false);
         buf.set_f32(off, v.v);
     }
 
+    #[inline]
     fn branch(&mut self, site: Site, c: TS) -> bool {
         let taken = c.v != 0;
         self.emit(OpClass::Branch, &[c.id], 1, false);
@@ -1169,12 +1259,15 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         taken
     }
 
+    #[inline]
     fn lane(&self, a: TF<N>, i: usize) -> f32 {
         a.v.0[i]
     }
+    #[inline]
     fn lane_i(&self, a: TI<N>, i: usize) -> i32 {
         a.v.0[i]
     }
+    #[inline]
     fn bits(&self, k: TK<N>) -> u32 {
         k.v.bits()
     }

@@ -30,6 +30,45 @@ pub(crate) struct Acc {
     pub(crate) tiles: Vec<(u64, u64)>,
     /// Per stream kind (primary, bounce, shadow): (rays, cycles).
     pub(crate) kinds: BTreeMap<&'static str, (u64, u64)>,
+    /// Per stream kind: instructions and node tests, all and the core loop's.
+    pub(crate) kind_work: BTreeMap<&'static str, Work>,
+}
+
+/// Instructions and ray-node tests of the timed rays of one stream kind.
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Work {
+    pub(crate) rays: u64,
+    pub(crate) instructions: u64,
+    pub(crate) core_instructions: u64,
+    pub(crate) node_tests: u64,
+    pub(crate) core_tests: u64,
+}
+
+impl Work {
+    /// What one timed unit adds: its rays, its trace's instructions (the
+    /// core loop's by region) and its test counts.
+    fn of(rays: u64, t: &isa::Trace, tests: &rt::stats::Tests) -> Work {
+        let core = t
+            .ops
+            .iter()
+            .filter(|o| o.region == Region::CoreLoop)
+            .map(|o| sim::stats::instructions(o.class))
+            .sum();
+        Work {
+            rays,
+            instructions: sim::session::instructions(t),
+            core_instructions: core,
+            node_tests: tests.node_tests(),
+            core_tests: tests.core_loop,
+        }
+    }
+    fn add(&mut self, o: Work) {
+        self.rays += o.rays;
+        self.instructions += o.instructions;
+        self.core_instructions += o.core_instructions;
+        self.node_tests += o.node_tests;
+        self.core_tests += o.core_tests;
+    }
 }
 
 impl Acc {
@@ -409,11 +448,13 @@ pub(crate) fn measure_kernel(
             let round = &plan[slot.round];
             ac.core_tests += tests.core_loop;
             ac.node_tests += tests.node_tests();
+            let work = Work::of(u.unit.len() as u64, &t, &tests);
             let kind = match u.unit.kind {
                 StreamKind::Primary => "primary",
                 StreamKind::Bounce(_) => "bounce",
                 StreamKind::Shadow(_) => "shadow",
             };
+            ac.kind_work.entry(kind).or_default().add(work);
             pending.push((slot.core, t, u.unit.len() as u64, kind));
             if !slot.last {
                 return Ok(());

@@ -81,6 +81,25 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
                         .key("region", "core-loop"),
                 );
             }
+            for (kind, w) in &ac.kind_work {
+                let krow = |metric: &str, v: f64| row(metric, v).key("stream", kind);
+                rows.push(krow("rays", w.rays as f64));
+                rows.push(krow(
+                    "instructions_per_ray",
+                    per_ray(w.instructions, w.rays),
+                ));
+                rows.push(krow("node_tests_per_ray", per_ray(w.node_tests, w.rays)));
+                if k == Kernel::DrsBvh4 {
+                    rows.push(
+                        krow("instructions_per_ray", per_ray(w.core_instructions, w.rays))
+                            .key("region", "core-loop"),
+                    );
+                    rows.push(
+                        krow("node_tests_per_ray", per_ray(w.core_tests, w.rays))
+                            .key("region", "core-loop"),
+                    );
+                }
+            }
         }
         let (s1, s2) = (
             sgray(acc[0].cycles, acc[0].rays),

@@ -136,7 +136,14 @@ fn program<M: Machine>(m: &mut M, seed: u64, steps: usize) -> Vec<u64> {
             10 => fs.push(m.rsqrt_approx(a)),
             11 => ks.push(m.cmp(cmp, a, b)),
             12 => fs.push(m.select(k, a, b)),
-            13 => fs.push(m.logic(logic, a, b)),
+            // Bit logic on a NaN exposes its sign and payload, which the
+            // backends need not agree on (see `compare`): skipped then.
+            13 => {
+                let nan = |m: &M, v: M::F| (0..n).any(|i| m.lane(v, i).is_nan());
+                if !nan(m, a) && !nan(m, b) {
+                    fs.push(m.logic(logic, a, b));
+                }
+            }
             14 => fs.push(m.broadcast(x1)),
             15 => xs.push(m.extract(a, r.below(n as u64) as usize)),
             16 => fs.push(m.permute(a, &perm)),

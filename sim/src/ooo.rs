@@ -71,8 +71,9 @@ pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
 /// tagged with the absolute block it holds, so stale words read as free
 /// without ever being cleared.
 pub(crate) struct Calendar {
-    bits: Vec<[u64; WORDS]>,
-    tags: Vec<[u64; WORDS]>,
+    /// Per port, per ring word: (the block it holds, its busy bits) — side
+    /// by side, so a lookup reads one host cache line.
+    words: Vec<[(u64, u64); WORDS]>,
     base: u64,
     uses: Vec<u64>,
 }
@@ -80,8 +81,7 @@ pub(crate) struct Calendar {
 impl Calendar {
     pub fn new(ports: usize) -> Calendar {
         Calendar {
-            bits: vec![[0u64; WORDS]; ports],
-            tags: vec![[u64::MAX; WORDS]; ports],
+            words: vec![[(u64::MAX, 0u64); WORDS]; ports],
             base: 0,
             uses: vec![0; ports],
         }
@@ -97,9 +97,9 @@ impl Calendar {
     #[inline]
     fn word(&self, p: usize, c: u64) -> u64 {
         let blk = c / 64;
-        let w = (blk as usize) % WORDS;
-        if self.tags[p][w] == blk {
-            self.bits[p][w]
+        let (tag, bits) = self.words[p][(blk as usize) % WORDS];
+        if tag == blk {
+            bits
         } else {
             0
         }
@@ -139,12 +139,11 @@ impl Calendar {
         }
         for k in c..c + occ {
             let blk = k / 64;
-            let w = (blk as usize) % WORDS;
-            if self.tags[p][w] != blk {
-                self.tags[p][w] = blk;
-                self.bits[p][w] = 0;
+            let word = &mut self.words[p][(blk as usize) % WORDS];
+            if word.0 != blk {
+                *word = (blk, 0);
             }
-            self.bits[p][w] |= 1 << (k % 64);
+            word.1 |= 1 << (k % 64);
         }
         self.uses[p] += 1;
     }

@@ -216,6 +216,9 @@ pub struct ReproduceCli {
     /// Also write the report (and its figures) to DIR.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// No progress bar on standard error (there is none when it is not a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 impl ReproduceCli {
@@ -231,6 +234,7 @@ impl ReproduceCli {
             seed: self.seed,
             format: self.format,
             out: self.out,
+            quiet: self.quiet,
         }
     }
 }

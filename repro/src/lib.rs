@@ -18,6 +18,7 @@ pub mod machine;
 pub mod options;
 pub mod plot;
 pub mod png;
+pub mod progress;
 pub mod report;
 pub mod sampling;
 pub mod scenes;

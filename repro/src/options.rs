@@ -104,6 +104,8 @@ pub struct Given {
     pub format: Format,
     /// `--out`.
     pub out: Option<PathBuf>,
+    /// `--quiet`: no progress bar.
+    pub quiet: bool,
 }
 
 impl Given {
@@ -161,6 +163,8 @@ pub struct ReproduceArgs {
     pub format: Format,
     /// Also write the report to this directory.
     pub out: Option<PathBuf>,
+    /// The run's progress bar (hidden with `--quiet` or off a terminal).
+    pub progress: crate::progress::Progress,
 }
 
 impl ReproduceArgs {
@@ -222,6 +226,7 @@ impl ReportDef {
             seed: g.seed.unwrap_or(DEFAULT_SEED),
             format: g.format,
             out: g.out,
+            progress: crate::progress::Progress::for_terminal(self.name, g.quiet),
         })
     }
 }
@@ -236,7 +241,9 @@ impl ReportDef {
     /// Compute the report with `a`, print it, and with `--out` write it to
     /// DIR/NAME.{txt,json,csv}; an error if any ray differed from the reference.
     pub fn produce(&self, a: &ReproduceArgs) -> AppResult<()> {
-        let p = (self.run)(a)?;
+        let p = (self.run)(a);
+        a.progress.finish();
+        let p = p?;
         let text = p.report.render(a.format);
         if let Some(dir) = &a.out {
             std::fs::create_dir_all(dir)

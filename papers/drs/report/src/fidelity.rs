@@ -169,6 +169,7 @@ pub fn fidelity_frame(m: &sim::MachineConfig, f: &FrameFidelity) -> AppResult<Re
         size: 16,
         spp: f.spp,
         block: 0,
+        progress: repro::progress::Progress::hidden(),
     };
     let refi = Reference::with_bvh(&ld.scene.mesh, &ld.b2);
     let rounds = window_rounds(&ld, f, smp.size, m.cores.max(1) as usize);

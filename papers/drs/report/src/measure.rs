@@ -131,6 +131,8 @@ pub(crate) struct Sample {
     /// pixels, each covered by the k x k aligned tiles around it (so sweeps
     /// over the tile size look at the same parts of the image).
     pub(crate) block: u32,
+    /// The run's progress bar: a unit per stream recorded or warmed.
+    pub(crate) progress: repro::progress::Progress,
 }
 
 pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
@@ -172,6 +174,7 @@ pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
         size,
         spp,
         block: 0,
+        progress: a.progress.clone(),
     })
 }
 
@@ -206,6 +209,12 @@ pub(crate) fn measure_loaded(
     let refi = Reference::with_bvh(&scene.mesh, b2);
     let plan = frame_plan(a, smp, ld, &refi);
     let streams = trace_streams(ld, &plan, smp, a.seed);
+    let units: usize = plan
+        .iter()
+        .flat_map(|r| &r.tiles)
+        .map(|t| streams[&(t.x, t.y)].len())
+        .sum();
+    smp.progress.add_units((units * kernels.len()) as u64);
     // Methods are independent runs: one host thread each, results in order,
     // the scene's two layouts shared.
     let shared = drs_kernels::methods::SharedLayouts::default();
@@ -431,6 +440,7 @@ pub(crate) fn measure_kernel(
         |u, detail, t, (hits, tests)| {
             let slot = &slots[next];
             next += 1;
+            smp.progress.done(1);
             let label = format!(
                 "{scene_name} tile ({}, {}) {:?} {}",
                 slot.tile.x,

@@ -4,6 +4,7 @@
 use isa::UnitProgram;
 use mft_kernels::{Frusta, FrustaRun, MftStats, PacketPrimaryRun, Shrink};
 use rayon::prelude::*;
+use repro::progress::Progress;
 use repro::sampling::{mix, systematic_ratio_ci};
 use repro::{AppError, AppResult, Report, ReproduceArgs, Row};
 use scene::bvh::{BuildConfig, Bvh2};
@@ -22,10 +23,10 @@ pub(crate) fn sampled_cycles<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit
     sets: &[Frusta],
     groups: usize,
     per: usize,
-    seed: u64,
+    (seed, progress): (u64, &Progress),
     prog: impl Fn(Vec<Frusta>) -> P,
 ) -> AppResult<(f64, Option<f64>, u64)> {
-    let s = sample(m, sets, groups, per, seed, prog)?;
+    let s = sample(m, sets, groups, per, (seed, progress), prog)?;
     Ok((s.cycles, s.ci, s.ops))
 }
 
@@ -90,7 +91,7 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
     sets: &[Frusta],
     groups: usize,
     per: usize,
-    seed: u64,
+    (seed, progress): (u64, &Progress),
     prog: impl Fn(Vec<Frusta>) -> P,
 ) -> AppResult<Sample> {
     let mut out = Sample {
@@ -139,6 +140,7 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
             units.push((unit, detail));
         }
     }
+    progress.add_units(units.len() as u64);
     let mut session = sim::Session::new(m);
     let mut timed: Vec<isa::Trace> = Vec::new();
     let mut pairs = Vec::new();
@@ -147,6 +149,7 @@ pub(crate) fn sample<P: UnitProgram<Unit = Frusta, Out = (Vec<scene::Hit>, MftSt
     isa::run_units(&p, m.flavour(), "mft", units, |u, _, t, (_, st)| {
         let (phase, last) = plan[next];
         next += 1;
+        progress.done(1);
         out.ops += t.ops.len() as u64;
         session.warm(&[(u.thread, &t)]).map_err(AppError)?;
         if phase == Phase::Recall {

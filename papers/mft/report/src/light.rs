@@ -286,8 +286,22 @@ fn light_point(
     }
     let fr = |v: Vec<Frusta>| pr.frusta(v, false, Shrink::None);
     let pk = |v: Vec<Frusta>| pr.packets(v);
-    let (cf, _, o1) = sampled_cycles(m, &sets, batches, per, seed, fr)?;
-    let (cp, _, o2) = sampled_cycles(m, &sets, batches, per, seed, pk)?;
+    let (cf, _, o1) = sampled_cycles(
+        m,
+        &sets,
+        batches,
+        per,
+        (seed, &repro::progress::Progress::hidden()),
+        fr,
+    )?;
+    let (cp, _, o2) = sampled_cycles(
+        m,
+        &sets,
+        batches,
+        per,
+        (seed, &repro::progress::Progress::hidden()),
+        pk,
+    )?;
     Ok(Point {
         zero: zero_interval_share(&sets),
         frusta: fst,

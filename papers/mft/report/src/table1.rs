@@ -44,6 +44,8 @@ struct Setup {
     /// Soft-shadow counts from every n-th set (1: exact).
     count_every: u32,
     seed: u64,
+    /// The run's progress bar.
+    progress: repro::progress::Progress,
 }
 
 impl Setup {
@@ -61,6 +63,7 @@ impl Setup {
             bands: if quick { 2 } else { 4 },
             count_every: if quick { 4 } else { 1 },
             seed,
+            progress: repro::progress::Progress::hidden(),
         }
     }
 }
@@ -88,6 +91,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let start = Instant::now();
     let m = lrb_machine(a, name)?;
     let mut su = Setup::new(m, p256, a.res.unwrap_or(1024), a.quick, a.seed);
+    su.progress = a.progress.clone();
     su.batches = a.tiles.map_or(su.batches, |t| t as usize);
     let (mut rows, mut notes) = (Vec::new(), Vec::new());
     let (mut ops_total, mut bad_total) = (0u64, 0usize);
@@ -243,9 +247,9 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
             let bad = mismatches_of(test, &label, &refi, &counted.sets, &counted.out);
             let per = if mi < 2 { per_p } else { per_s };
             let smp = match (baseline, p256) {
-                (false, _) => sample(m, sets, batches, per, su.seed, frusta)?,
-                (true, false) => sample(m, sets, batches, per, su.seed, packets)?,
-                (true, true) => sample(m, sets, batches, per, su.seed, big)?,
+                (false, _) => sample(m, sets, batches, per, (su.seed, &su.progress), frusta)?,
+                (true, false) => sample(m, sets, batches, per, (su.seed, &su.progress), packets)?,
+                (true, true) => sample(m, sets, batches, per, (su.seed, &su.progress), big)?,
             };
             Ok((counted, bad, smp))
         })
@@ -487,8 +491,22 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
                 ..pr.frusta(sets, false, Shrink::None)
             }
         };
-        let keep = sample(m, sets, b, per, su.seed, with(PlaneNoise::Keep))?;
-        let reject = sample(m, sets, b, per, su.seed, with(PlaneNoise::Reject))?;
+        let keep = sample(
+            m,
+            sets,
+            b,
+            per,
+            (su.seed, &su.progress),
+            with(PlaneNoise::Keep),
+        )?;
+        let reject = sample(
+            m,
+            sets,
+            b,
+            per,
+            (su.seed, &su.progress),
+            with(PlaneNoise::Reject),
+        )?;
         let ratio = reject.cycles / keep.cycles.max(1.0);
         let tests = keep.stats.isec_tests.max(1) as f64;
         let ops = (reject.regions.ops as f64 - keep.regions.ops as f64) / tests;
@@ -513,8 +531,22 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
                 ..pr.packets(sets)
             }
         };
-        let idx = sample(m, sets, b, per, su.seed, with(PacketLeaves::Indexed))?;
-        let edges = sample(m, sets, b, per, su.seed, with(PacketLeaves::Edges))?;
+        let idx = sample(
+            m,
+            sets,
+            b,
+            per,
+            (su.seed, &su.progress),
+            with(PacketLeaves::Indexed),
+        )?;
+        let edges = sample(
+            m,
+            sets,
+            b,
+            per,
+            (su.seed, &su.progress),
+            with(PacketLeaves::Edges),
+        )?;
         let ratio = edges.cycles / idx.cycles.max(1.0);
         let tris = idx.stats.tris_accessed.max(1) as f64;
         let ops = (idx.regions.ops as f64 - edges.regions.ops as f64) / tris;

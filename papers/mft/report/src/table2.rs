@@ -41,9 +41,14 @@ pub fn mft_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             &out,
         );
         bad_total += bad;
-        let (cyc, ci, ops) = sampled_cycles(&m, &pr.shadow, batches, per, a.seed, |sets| {
-            pr.frusta(sets, false, shrink)
-        })?;
+        let (cyc, ci, ops) = sampled_cycles(
+            &m,
+            &pr.shadow,
+            batches,
+            per,
+            (a.seed, &a.progress),
+            |sets| pr.frusta(sets, false, shrink),
+        )?;
         ops_total += ops;
         let row = |metric: &str, v: f64, paper: Option<f64>| variant_row(label, metric, v, paper);
         rows.push(row("hit_mismatches", bad as f64, None));

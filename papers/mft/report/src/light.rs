@@ -7,6 +7,7 @@
 use crate::frame::{lrb_machine, sampled_cycles, zero_interval_share, Frame, Prepared};
 use crate::shading::{pixel_hits, shadow_sets, Hits};
 use mft_kernels::{mismatches_of, Frusta, MftStats, Shrink};
+use repro::progress::Progress;
 use repro::AppResult;
 use repro::Produced;
 use repro::ReproduceArgs;
@@ -62,7 +63,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                 (&mut pr, scene_name, res),
                 &hits,
                 (centre, e1, e2, s),
-                (batches, per, check_every, a.seed),
+                (batches, per, check_every, (a.seed, &a.progress)),
             )?;
             let (fst, pst, cf, cp) = (p.frusta, p.packets, p.frusta_cycles, p.packet_cycles);
             bad_total += p.bad;
@@ -99,7 +100,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
             (&mut pr, scene_name, res),
             &hits,
             (centre, e1, e2),
-            (batches, per, check_every, a.seed),
+            (batches, per, check_every, (a.seed, &a.progress)),
         )?;
         rows.extend(placed);
         bad_total += point.bad;
@@ -189,7 +190,7 @@ fn placement_sweep(
     (pr, scene_name, res): (&mut Prepared, &str, u32),
     hits: &Hits,
     (centre, e1, e2): ([f64; 3], [f32; 3], [f32; 3]),
-    sample: (usize, usize, usize, u64),
+    sample: (usize, usize, usize, (u64, &Progress)),
 ) -> AppResult<(Swept, Vec<Row>)> {
     let half = 0.5 * scene::workload::scene_size(&pr.scene);
     let len = e1
@@ -257,7 +258,7 @@ fn light_point(
     (pr, scene_name, res): (&mut Prepared, &str, u32),
     hits: &Hits,
     (centre, e1, e2, s): ([f64; 3], [f32; 3], [f32; 3], f64),
-    (batches, per, check_every, seed): (usize, usize, usize, u64),
+    (batches, per, check_every, seed): (usize, usize, usize, (u64, &Progress)),
 ) -> AppResult<Point> {
     let fl = m.flavour();
     let e1s = e1.map(|x| (f64::from(x) * s) as f32);
@@ -286,22 +287,8 @@ fn light_point(
     }
     let fr = |v: Vec<Frusta>| pr.frusta(v, false, Shrink::None);
     let pk = |v: Vec<Frusta>| pr.packets(v);
-    let (cf, _, o1) = sampled_cycles(
-        m,
-        &sets,
-        batches,
-        per,
-        (seed, &repro::progress::Progress::hidden()),
-        fr,
-    )?;
-    let (cp, _, o2) = sampled_cycles(
-        m,
-        &sets,
-        batches,
-        per,
-        (seed, &repro::progress::Progress::hidden()),
-        pk,
-    )?;
+    let (cf, _, o1) = sampled_cycles(m, &sets, batches, per, seed, fr)?;
+    let (cp, _, o2) = sampled_cycles(m, &sets, batches, per, seed, pk)?;
     Ok(Point {
         zero: zero_interval_share(&sets),
         frusta: fst,

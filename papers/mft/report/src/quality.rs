@@ -53,6 +53,7 @@ struct Setup {
     per_s: usize,
     bands: u32,
     seed: u64,
+    progress: repro::progress::Progress,
 }
 
 /// MFT's image: primary frusta, 16 shadow rays per pixel, shading, filter.
@@ -100,6 +101,7 @@ pub fn mft_quality(a: &ReproduceArgs) -> AppResult<Produced> {
         per_s,
         bands,
         seed: a.seed,
+        progress: a.progress.clone(),
     };
     let (res, scene_name) = (st.res, SCENE);
     let pr = Prepared::new(scene_name, res, name, false)?;
@@ -348,42 +350,14 @@ fn cycle_rows(
     let ref_sets_sample = &ri.sampled;
     let fr = |sets: Vec<Frusta>| pr.frusta(sets, false, Shrink::None);
     let pk = |sets: Vec<Frusta>| pr.packets(sets);
-    let (c_p, _, o1) = sampled_cycles(
-        m,
-        &pr.primary,
-        batches,
-        per_p,
-        (seed, &repro::progress::Progress::hidden()),
-        fr,
-    )?;
-    let (c_s, _, o2) = sampled_cycles(
-        m,
-        sets0,
-        batches,
-        per_s,
-        (seed, &repro::progress::Progress::hidden()),
-        fr,
-    )?;
+    let (c_p, _, o1) = sampled_cycles(m, &pr.primary, batches, per_p, (seed, &st.progress), fr)?;
+    let (c_s, _, o2) = sampled_cycles(m, sets0, batches, per_s, (seed, &st.progress), fr)?;
     let (c_shade, o3, dram_shade) = shade_cycles(m, pr, su, hits, vis16, true, bands)?;
-    let (c_pp, _, o4) = sampled_cycles(
-        m,
-        &pr.primary,
-        batches,
-        per_p,
-        (seed, &repro::progress::Progress::hidden()),
-        pk,
-    )?;
+    let (c_pp, _, o4) = sampled_cycles(m, &pr.primary, batches, per_p, (seed, &st.progress), pk)?;
     let mut c_ref_s = 0.0;
     let mut o5 = 0;
     for sets in ref_sets_sample {
-        let (c, _, o) = sampled_cycles(
-            m,
-            sets,
-            batches,
-            per_s,
-            (seed, &repro::progress::Progress::hidden()),
-            pk,
-        )?;
+        let (c, _, o) = sampled_cycles(m, sets, batches, per_s, (seed, &st.progress), pk)?;
         c_ref_s += c * 16.0 / ref_sets_sample.len() as f64;
         o5 += o;
     }

@@ -73,11 +73,7 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
     /// warming ([`Native::take_log`]); the log's header says it came from `source`.
     #[must_use]
     pub fn logging(source: &str) -> Self {
-        Native {
-            space: AddrSpace::new(),
-            log: Some(Box::new(Trace::new(FL::ID, source))),
-            _f: PhantomData,
-        }
+        Self::logging_in(AddrSpace::new(), source)
     }
 
     /// [`Native::logging`] in `space` (e.g. a traced machine's, after it

@@ -249,7 +249,8 @@ pub struct SimCli {
     #[arg(long)]
     pub trace: PathBuf,
     /// Repeat the trace as a loop body this many times (loop-carried values
-    /// are sources defined later in the body).
+    /// are sources defined later in the body); cycles per iteration is then
+    /// the steady state, (cycles(N) - cycles(N/2)) / (N - N/2).
     #[arg(long, default_value_t = 1)]
     pub iterations: usize,
     /// Fidelity: counts, caches, full.

@@ -125,7 +125,11 @@ fn report(
 }
 
 /// `rtsim sim`: `trace` (repeated `iterations` times as a loop body) timed
-/// on `m` at `fidelity`.
+/// on `m` at `fidelity`. With two or more iterations, `cycles_per_iteration`
+/// is the loop's steady state, differenced: (cycles(N) - cycles(N/2)) /
+/// (N - N/2), so the first iterations' cold misses, predictor training and
+/// pipeline fill (and the drain after the last) cancel; the mean over all N
+/// iterations is `cycles_per_iteration_all`. Every other row is of the N runs.
 pub fn sim_report(
     m: &MachineConfig,
     trace: &Path,
@@ -137,27 +141,52 @@ pub fn sim_report(
         return Err(AppError("--iterations: must be at least 1".into()));
     }
     let body = load_trace_loop(trace, iterations > 1)?;
-    let t = if iterations > 1 {
-        sim::repeat(&body, iterations)
-    } else {
-        body.clone()
-    };
-    let s = simulate(
-        m,
-        &[&t],
-        &SimOptions {
+    let run = |n: usize| {
+        let t = if n > 1 {
+            sim::repeat(&body, n)
+        } else {
+            body.clone()
+        };
+        let opt = SimOptions {
             fidelity,
             warmup_ops: 0,
-        },
-    )
-    .map_err(|e| AppError(format!("{}: {e}", trace.display())))?;
-    let mut rows =
-        vec![Row::new("cycles_per_iteration", s.cycles as f64 / iterations as f64).unit("cycles")];
+        };
+        simulate(m, &[&t], &opt)
+            .map(|s| (s, t))
+            .map_err(|e| AppError(format!("{}: {e}", trace.display())))
+    };
+    let (s, t) = run(iterations)?;
+    let mut ops = t.ops.len() as u64;
+    let mean = s.cycles as f64 / iterations as f64;
+    let mut notes = Vec::new();
+    let per_iteration = if iterations > 1 {
+        let half = iterations / 2;
+        let (h, th) = run(half)?;
+        ops += th.ops.len() as u64;
+        notes.push(format!(
+            "cycles_per_iteration is the loop's steady state: (cycles of {iterations} iterations              - cycles of {half}) / {}; the first iterations' cold misses and pipeline fill cancel.              cycles_per_iteration_all is the mean over all {iterations}, warm-up included.",
+            iterations - half
+        ));
+        s.cycles.saturating_sub(h.cycles) as f64 / (iterations - half) as f64
+    } else {
+        notes.push(
+            "one iteration: cycles_per_iteration is its cycles from cold, not a steady state              (give --iterations 2 or more)"
+                .into(),
+        );
+        mean
+    };
+    let mut rows = vec![
+        Row::new("cycles_per_iteration", per_iteration).unit("cycles"),
+        Row::new("cycles_per_iteration_all", mean).unit("cycles"),
+    ];
     for c in OpClass::ALL {
         let n = s.class_ops[*c as usize];
         if n > 0 {
+            // Steady cycles per op of this class: a steady iteration's cycles
+            // over the class's ops in one iteration.
+            let per_iter = n as f64 / iterations as f64;
             rows.push(
-                Row::new("cycles_per_op", s.cycles as f64 / n as f64)
+                Row::new("cycles_per_op", per_iteration / per_iter)
                     .key("class", c.name())
                     .unit("cycles"),
             );
@@ -165,15 +194,16 @@ pub fn sim_report(
     }
     rows.extend(stats_rows(&s, m, None));
     rows.extend(region_rows(&s, &t));
-    let rep = report(
+    let mut rep = report(
         "sim",
         m,
         fidelity,
         format!("{} x {}", trace.display(), iterations),
-        t.ops.len() as u64,
+        ops,
         start.elapsed().as_secs_f64(),
         rows,
     );
+    rep.notes = notes;
     Ok(rep)
 }
 

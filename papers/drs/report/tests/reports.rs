@@ -17,14 +17,17 @@ fn report(name: &str, g: Given) -> serde_json::Value {
 
 #[test]
 fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
-    let j = report(
-        "drs-table2",
-        Given {
-            quick: true,
-            tiles: Some(1),
-            spp: Some(2),
-            ..Given::default()
-        },
+    let g = || Given {
+        quick: true,
+        tiles: Some(1),
+        spp: Some(2),
+        ..Given::default()
+    };
+    let j = on_threads(2, "drs-table2", g());
+    assert_eq!(
+        j,
+        on_threads(1, "drs-table2", g()),
+        "the same report on 1 and 2 host threads"
     );
     assert_eq!(j["machine"], "haswell-i7-4750hq");
     assert_eq!(j["sample"]["rounds_per_scene"], 1);
@@ -197,4 +200,15 @@ fn reproduce_drs_figures_write_their_table_and_plot() {
         .unwrap()
         .starts_with(b"\x89PNG"));
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `report` computed on a pool of `threads` host threads, host time removed.
+fn on_threads(threads: usize, name: &str, g: Given) -> serde_json::Value {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let mut j = pool.install(|| report(name, g));
+    j.as_object_mut().unwrap().remove("host_seconds");
+    j
 }

@@ -230,3 +230,26 @@ fn reproduce_mft_fig6_counts_grow_with_the_light() {
         .starts_with(b"\x89PNG"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `report` computed on a pool of `threads` host threads, host time removed.
+fn on_threads(threads: usize, name: &str, g: Given) -> serde_json::Value {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let mut j = pool.install(|| report(name, g));
+    j.as_object_mut().unwrap().remove("host_seconds");
+    j
+}
+
+#[test]
+fn one_and_two_host_threads_give_identical_reports() {
+    let g = || Given {
+        quick: true,
+        tiles: Some(1),
+        res: Some(128),
+        ..Given::default()
+    };
+    let one = on_threads(1, "mft-table1", g());
+    assert_eq!(one, on_threads(2, "mft-table1", g()));
+}

@@ -288,7 +288,7 @@ fn bad_configs_name_file_line_and_field() {
         "size_kib: 32, ways: 0,",
     );
     assert!(
-        e.contains("ways.ron") && e.contains("caches[0].ways") && e.contains("line 76"),
+        e.contains("ways.ron") && e.contains("caches[0].ways") && e.contains("line 78"),
         "{e}"
     );
     let e = bad_config(

@@ -39,7 +39,17 @@ pub struct CoreConfig {
     /// Store-to-load forwarding latency (OoO).
     #[serde(default)]
     pub store_forward_latency: u32,
-    /// A compare followed by the branch reading it takes one dispatch slot.
+    /// Extra cycles of a load that overlaps an older store it cannot take
+    /// its bytes from (wider than the store, or spanning two stores): it
+    /// waits for the stores to write the cache instead (OoO).
+    #[serde(default)]
+    pub store_forward_fail_penalty: u32,
+    /// Store buffer entries (OoO): a store dispatches only with a free
+    /// entry, held until the store retires; loads forward from its stores.
+    #[serde(default)]
+    pub store_buffer: u32,
+    /// A compare followed by the branch reading it is one uop: one dispatch
+    /// slot, executed once on the branch's ports.
     #[serde(default)]
     pub macro_fusion: bool,
     /// Hardware threads (in-order), interleaved on the core.
@@ -362,6 +372,9 @@ impl MachineConfig {
             }
             if c.retire_width == 0 {
                 return e("core.retire_width", "must be at least 1");
+            }
+            if c.store_buffer == 0 || c.store_buffer > 1024 {
+                return e("core.store_buffer", "must be 1 to 1024");
             }
         } else if c.threads == 0 || c.threads > 16 {
             return e("core.threads", "must be 1 to 16");

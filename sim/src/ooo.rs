@@ -9,11 +9,19 @@
 //!   cycle of any allowed port (ports keep a booking calendar, so a later op
 //!   can take an earlier free slot: out-of-order issue);
 //! - execute: the class latency, or the memory system's for loads (an L1 miss
-//!   also waits for one of `mshrs` miss slots), or store-to-load forwarding;
-//! - retire: in order, `retire_width` per cycle.
+//!   also waits for one of `mshrs` miss slots), or store-to-load forwarding
+//!   from the youngest older store still in the store buffer that overlaps
+//!   the load; a load that store does not contain (wider, or spanning two
+//!   stores) cannot forward and pays `store_forward_fail_penalty`;
+//! - retire: in order, `retire_width` per cycle; a store holds its store
+//!   buffer entry until it retires.
 //!
-//! Deviations: a macro-fused compare and branch take one dispatch slot but both
-//! uops still execute; memory ordering is not enforced beyond forwarding.
+//! A compare whose value only the next op, a branch, reads is macro-fused
+//! with it (`macro_fusion`): the pair is one uop, dispatched once and
+//! executed once on the branch's ports as soon as the compare's sources are
+//! ready. Deviation: a load that issues before an older aliasing store's
+//! address is known waits for it (a trained disambiguation predictor); no
+//! memory-ordering machine clears.
 
 use crate::config::MachineConfig;
 use crate::memory::Hierarchy;
@@ -26,8 +34,29 @@ const WINDOW: u64 = 1 << 16;
 const WORDS: usize = (WINDOW / 64) as usize;
 /// Value ready-time ring: values older than this many ids are long complete.
 const VALUES: usize = 1 << 16;
-/// Recent stores checked for forwarding.
-const STORES: usize = 16;
+/// A store buffer entry: the bytes a store writes, when its data is ready
+/// and when it retires (its entry is free after that).
+#[derive(Clone, Copy, Debug, Default)]
+struct StoreEntry {
+    lo: u64,
+    hi: u64,
+    data: u64,
+    ret: u64,
+}
+
+/// A macro-fused compare: no uop and no dispatch slot of its own; its value
+/// is ready when its sources are (the branch it fuses with executes it).
+const FUSED_CMP: ClassT = ClassT {
+    lat: 0,
+    uops: Vec::new(),
+    occ: 1,
+    fused: 0,
+    per_line: 0,
+    load: false,
+    store: false,
+    per_lane: false,
+    vector: false,
+};
 
 /// A class's timing, prepared for the hot loop.
 #[derive(Clone, Debug)]
@@ -217,6 +246,7 @@ pub struct OooCore {
     sched: usize,
     l1_latency: u64,
     sf_latency: u64,
+    sf_fail: u64,
     macro_fusion: bool,
     penalty: u64,
     cal: Calendar,
@@ -231,7 +261,7 @@ pub struct OooCore {
     /// Every uop issuing at or before this cycle has left the scheduler.
     rs_cursor: u64,
     mshr: crate::memory::Mshrs,
-    stores: [(u64, u64, u64); STORES],
+    stores: Vec<StoreEntry>,
     store_seq: usize,
     pred: Gshare,
     d: u64,
@@ -239,7 +269,6 @@ pub struct OooCore {
     fetch_block: u64,
     last_ret: u64,
     ret_count: u32,
-    prev_cmp: Option<ValId>,
     /// Cycle of the last retirement.
     pub now: u64,
 }
@@ -258,6 +287,7 @@ impl OooCore {
             sched: c.scheduler as usize,
             l1_latency: u64::from(m.caches[0].latency),
             sf_latency: u64::from(c.store_forward_latency),
+            sf_fail: u64::from(c.store_forward_fail_penalty),
             macro_fusion: c.macro_fusion,
             penalty: u64::from(c.mispredict_penalty),
             cal: Calendar::new(c.ports as usize),
@@ -268,7 +298,7 @@ impl OooCore {
             rs_held: 0,
             rs_cursor: 0,
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
-            stores: [(u64::MAX, 0, 0); STORES],
+            stores: vec![StoreEntry::default(); c.store_buffer.max(1) as usize],
             store_seq: 0,
             pred: Gshare::new(c.history_bits, c.predictor_bits),
             d: 0,
@@ -276,7 +306,6 @@ impl OooCore {
             fetch_block: 0,
             last_ret: 0,
             ret_count: 0,
-            prev_cmp: None,
             now: 0,
         }
     }
@@ -292,13 +321,26 @@ impl OooCore {
     ) {
         // The class table is read while the core's state changes.
         let classes = std::mem::take(&mut self.classes);
+        let end = range.end;
         for i in range {
             let op = &t.ops[i];
-            let ct = &classes[op.class as usize];
+            let fused = self.macro_fusion
+                && op.class == OpClass::Cmp
+                && i + 1 < end
+                && fuses(op, &t.ops[i + 1]);
+            let ct = if fused {
+                &FUSED_CMP
+            } else {
+                &classes[op.class as usize]
+            };
             let counted = i >= count_from;
-            let (d, f, mut why) = self.dispatch(op, ct);
+            let (d, f, mut why) = self.dispatch(ct);
             let (first, last, gather_lat) = self.issue(t, op, ct, d, mem);
-            let mut done = (first + ct.lat).max(last + 1);
+            let mut done = if fused {
+                first
+            } else {
+                (first + ct.lat).max(last + 1)
+            };
             if ct.per_lane {
                 done += gather_lat;
                 if gather_lat > 0 {
@@ -316,8 +358,11 @@ impl OooCore {
             if op.class == OpClass::Branch {
                 self.branch(op, done, (s, counted));
             }
-            self.prev_cmp = (op.class == OpClass::Cmp).then_some(op.dst);
             let ret = self.retire(f, done);
+            if ct.store && !ct.per_lane {
+                let k = (self.store_seq - 1) % self.stores.len();
+                self.stores[k].ret = ret;
+            }
             if counted {
                 count(s, op, ct, why, ret - self.last_ret);
             }
@@ -385,12 +430,8 @@ impl OooCore {
     /// mispredict's redirect, a free ROB entry and free scheduler entries);
     /// (cycle, fused-domain uops, stall reason so far).
     #[inline(always)]
-    fn dispatch(&mut self, op: &Op, ct: &ClassT) -> (u64, u32, Stall) {
-        let fused_away = self.macro_fusion
-            && op.class == OpClass::Branch
-            && op.nsrc == 1
-            && self.prev_cmp == Some(op.srcs[0]);
-        let f = if fused_away { 0 } else { ct.fused };
+    fn dispatch(&mut self, ct: &ClassT) -> (u64, u32, Stall) {
+        let f = ct.fused;
         let mut d = self.d;
         if self.dcount + f > self.width {
             d += 1;
@@ -404,6 +445,14 @@ impl OooCore {
             let need = self.rob_ring[wrap(self.rob_seq, f as usize - 1, self.rob)];
             if need > d {
                 d = need;
+                why = Stall::Resources;
+            }
+        }
+        if ct.store && !ct.per_lane {
+            // The entry this store takes is free once its last store retired.
+            let free = self.stores[self.store_seq % self.stores.len()].ret + 1;
+            if free > d && self.store_seq >= self.stores.len() {
+                d = free;
                 why = Stall::Resources;
             }
         }
@@ -496,15 +545,15 @@ impl OooCore {
         if ct.load {
             let lo = op.addr.0;
             let hi = lo + u64::from(op.bytes);
-            let fwd = self
-                .stores
-                .iter()
-                .filter(|st| st.0 < hi && lo < st.1)
-                .map(|st| st.2)
-                .max();
-            if let Some(data) = fwd {
+            if let Some((data, whole)) = self.forwarding(lo, hi, first) {
                 done = first.max(data) + self.sf_latency;
-                s.forwarded += u64::from(counted);
+                if whole {
+                    s.forwarded += u64::from(counted);
+                } else {
+                    done += self.sf_fail;
+                    s.forward_fails += u64::from(counted);
+                    *why = Stall::Memory;
+                }
             } else {
                 // An L1 miss first waits for a miss slot; the access starts then.
                 let mut start = first;
@@ -529,11 +578,36 @@ impl OooCore {
                 .map(|v| self.values.get(*v))
                 .max()
                 .unwrap_or(0);
-            self.stores[self.store_seq % STORES] =
-                (op.addr.0, op.addr.0 + u64::from(op.bytes), data.max(d + 1));
+            let k = self.store_seq % self.stores.len();
+            self.stores[k] = StoreEntry {
+                lo: op.addr.0,
+                hi: op.addr.0 + u64::from(op.bytes),
+                data: data.max(d + 1),
+                ret: u64::MAX - 1,
+            };
             self.store_seq += 1;
         }
         done
+    }
+
+    /// The youngest store still in the buffer when a load of bytes
+    /// `lo..hi` executes at `at` that overlaps it: its data time and whether
+    /// it holds every byte of the load (else forwarding fails). Entries
+    /// retire in program order, so the search stops at the first retired one.
+    #[inline(always)]
+    fn forwarding(&self, lo: u64, hi: u64, at: u64) -> Option<(u64, bool)> {
+        let n = self.stores.len();
+        let held = self.store_seq.min(n);
+        for j in 1..=held {
+            let st = &self.stores[(self.store_seq - j) % n];
+            if st.ret < at {
+                return None;
+            }
+            if st.lo < hi && lo < st.hi {
+                return Some((st.data, st.lo <= lo && hi <= st.hi));
+            }
+        }
+        None
     }
 
     /// Predict a branch, update the predictor; a mispredict blocks fetch
@@ -569,6 +643,12 @@ impl OooCore {
         }
         ret
     }
+}
+
+/// Whether compare `cmp` macro-fuses with `next`: a branch on its value.
+#[inline(always)]
+fn fuses(cmp: &Op, next: &Op) -> bool {
+    next.class == OpClass::Branch && next.nsrc == 1 && next.srcs[0] == cmp.dst && cmp.dst.is_some()
 }
 
 /// Count a timed op into the statistics: `delta` cycles to its retire.

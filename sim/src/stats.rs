@@ -72,6 +72,8 @@ pub struct Stats {
     pub lanes: u64,
     /// Loads served by store-to-load forwarding.
     pub forwarded: u64,
+    /// Loads that overlapped an older store but could not forward from it.
+    pub forward_fails: u64,
     /// Cache level counters.
     pub levels: Vec<LevelStats>,
     /// Cache level names.
@@ -134,6 +136,7 @@ impl Stats {
         self.vector_ops += o.vector_ops;
         self.active_lanes += o.active_lanes;
         self.forwarded += o.forwarded;
+        self.forward_fails += o.forward_fails;
     }
 }
 

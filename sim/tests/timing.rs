@@ -79,23 +79,24 @@ fn every_cache_level_hit_latency() {
 #[test]
 fn a_mispredicted_branch_costs_resolution_plus_penalty() {
     let m = hsw();
-    // alu: issue 1, done 2; cmp: done 3; branch (fused with the cmp): done 4.
+    // alu: issue 1, done 2; the compare macro-fuses with the branch: one uop
+    // on p06 that issues when the alu's value is ready (2), done 3.
     // Predicted not-taken (counters start weakly not-taken) but taken: fetch
-    // resumes at 4 + 15 = 19; the alu after it issues 20, done 21.
+    // resumes at 3 + 15 = 18; the alu after it issues 19, done 20.
     assert_eq!(
         cycles(
             &m,
             "%1 = alu\n%2 = cmp %1\nbranch %2 site=1 taken\n%3 = alu\n"
         ),
-        21
+        20
     );
-    // Correctly predicted: the last alu finishes at 2, the branch retires at 4.
+    // Correctly predicted: the last alu finishes at 2, the branch retires at 3.
     assert_eq!(
         cycles(
             &m,
             "%1 = alu\n%2 = cmp %1\nbranch %2 site=1 not-taken\n%3 = alu\n"
         ),
-        4
+        3
     );
 }
 
@@ -272,4 +273,95 @@ fn haswell_folded_load_is_micro_fused() {
     // The same uops and ports; folded, the 16 ops dispatch in 8 slots, not 16.
     assert!(folded < separate, "{folded} {separate}");
     assert_eq!(separate - folded, 2);
+}
+
+/// `body` after ten dependent imuls on the value `%3` it produces: makes
+/// the time `%3` is ready the run's end (+ 30).
+fn then_chain(body: &str) -> String {
+    let mut s = body.to_string();
+    s.push_str("%10 = imul %3\n");
+    for i in 11..20 {
+        s.push_str(&format!("%{i} = imul %{}\n", i - 1));
+    }
+    s
+}
+
+#[test]
+fn a_load_forwards_from_the_youngest_overlapping_store() {
+    let m = hsw();
+    // An old store of a slow value (vdiv: done 22) and a younger store of
+    // a fast one (alu: done 2) to the same stack slot; the load (dispatched
+    // in cycle 1, issues 2) takes the younger store's data: 2 + 5 = 7, and
+    // the chain ends at 7 + 30. Forwarding from the old store would be a
+    // false chain through the slot: 22 + 5 + 30 = 57.
+    let body = then_chain(
+        "%1 = vdiv\nstore %1 @d+0x40:8\n%2 = alu\nstore %2 @d+0x40:8\n%3 = load @d+0x40:8\n",
+    );
+    assert_eq!(cycles(&m, &body), 37);
+}
+
+#[test]
+fn a_load_the_store_does_not_contain_cannot_forward() {
+    let m = hsw();
+    let run = |m: &MachineConfig, stores: &str, load: &str| {
+        cycles(m, &then_chain(&format!("%1 = imul\n{stores}%3 = {load}\n")))
+    };
+    // Store data ready at 4 (imul), the load issues 2: forwarded at 4 + 5.
+    let fwd = 9 + 30;
+    assert_eq!(run(&m, "store %1 @d+0x40:8\n", "load @d+0x40:8"), fwd);
+    // A smaller load inside the store forwards too.
+    assert_eq!(run(&m, "store %1 @d+0x40:8\n", "load @d+0x44:4"), fwd);
+    // Wider than the store: fails, 12 cycles more (Haswell).
+    assert_eq!(run(&m, "store %1 @d+0x40:4\n", "load @d+0x40:8"), fwd + 12);
+    // Spanning two stores: fails too.
+    let two = "store %1 @d+0x40:4\nstore %1 @d+0x44:4\n";
+    assert_eq!(run(&m, two, "load @d+0x40:8"), fwd + 12);
+    let p = m
+        .with_sets(&["core.store_forward_fail_penalty=3".into()])
+        .unwrap();
+    assert_eq!(run(&p, two, "load @d+0x40:8"), fwd + 3);
+}
+
+#[test]
+fn a_full_store_buffer_stalls_dispatch() {
+    // A slow store first (its data: a divide, done 22; it retires in 22),
+    // then two more stores and an alu chain.
+    let body = "%1 = vdiv\nstore %1 @d+0x0:8\nstore @d+0x40:8\nstore @d+0x80:8\n\
+                %2 = alu\n%3 = alu %2\n";
+    // 42 entries: nothing waits. The first store issues when its data is
+    // ready (22), done 23; the four ops after the divide retire in 23 and
+    // the last alu in 24.
+    assert_eq!(cycles(&hsw(), body), 24);
+    // Two entries: the third store waits for the first's entry (it retires
+    // in 23): dispatch 24, and the alus after it issue 25 and 26: done 27.
+    let two = hsw().with_sets(&["core.store_buffer=2".into()]).unwrap();
+    assert_eq!(cycles(&two, body), 27);
+}
+
+#[test]
+fn a_macro_fused_compare_and_branch_is_one_uop() {
+    // Eight independent compare-branch pairs: fused, each pair is one uop
+    // on p06 and one dispatch slot; unfused, 16 uops (cmp on p0156, branch
+    // on p06) in 16 slots.
+    let mut body = String::new();
+    for k in 1..=8 {
+        body.push_str(&format!("%{k} = cmp\nbranch %{k} site={k} not-taken\n"));
+    }
+    let fused = hsw();
+    let plain = hsw()
+        .with_sets(&["core.macro_fusion=false".into()])
+        .unwrap();
+    let s = |m: &MachineConfig| {
+        let t = trace(&m.isa, &body);
+        simulate(m, &[&t], &SimOptions::default()).unwrap()
+    };
+    let (f, p) = (s(&fused), s(&plain));
+    assert_eq!((f.uops, p.uops), (8, 16));
+    // Fused: 8 uops on two ports (p0, p6) issue 4 cycles (1..4), done 5.
+    assert_eq!(f.cycles, 5);
+    // Unfused: 16 slots dispatch in cycles 0..3; each cmp issues a cycle
+    // after its dispatch and its branch a cycle later, on p0/p6: the
+    // eight branches end at 6 (all four ALU ports help the compares).
+    assert_eq!(p.cycles, 6);
+    assert_eq!(f.ops, p.ops, "both count 16 instructions");
 }

@@ -306,7 +306,7 @@ fn bad_configs_name_file_line_and_field() {
         "\"vadd\": (lat: 3, uops: [[9]])",
     );
     assert!(
-        e.contains("classes.vadd.uops") && e.contains("port 9") && e.contains("line 32"),
+        e.contains("classes.vadd.uops") && e.contains("port 9") && e.contains("line 34"),
         "{e}"
     );
     let e = err(&rtsim(&[

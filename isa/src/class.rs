@@ -112,6 +112,15 @@ op_classes! {
     /// full, {1to16}, {4to16}; AVX-512: full, {1to16}; AVX2, SSE: full,
     /// micro-fused); see [`crate::Machine::load_operand`].
     VLoadFold = "vloadfold",
+    /// A scalar memory operand folded into the op that reads it (`add r,
+    /// [m]`): micro-fused on Intel, one macro-op on AMD. Hand-written traces
+    /// use it; the flavours' scalar code loads separately.
+    LoadFold = "loadfold",
+    /// Scalar FP divide (divss, divsd), priced apart from the vector divide.
+    Div = "div",
+    /// Three-component address arithmetic (`lea r, [b + i*s + d]`); a
+    /// two-component LEA is `alu`.
+    Lea3 = "lea3",
 }
 
 impl OpClass {
@@ -133,6 +142,7 @@ impl OpClass {
             OpClass::VLoad
                 | OpClass::VLoadBcast
                 | OpClass::VLoadFold
+                | OpClass::LoadFold
                 | OpClass::VLoadMasked
                 | OpClass::VGather
                 | OpClass::Load
@@ -171,6 +181,9 @@ impl OpClass {
                 | OpClass::Cmp
                 | OpClass::Cmov
                 | OpClass::Load
+                | OpClass::LoadFold
+                | OpClass::Div
+                | OpClass::Lea3
                 | OpClass::Store
                 | OpClass::Branch
                 | OpClass::MovMsk

@@ -192,5 +192,8 @@ impl PerRay {
 #[inline(always)]
 #[must_use]
 pub fn instructions(class: isa::OpClass) -> u64 {
-    u64::from(class != isa::OpClass::VLoadFold)
+    u64::from(!matches!(
+        class,
+        isa::OpClass::VLoadFold | isa::OpClass::LoadFold
+    ))
 }

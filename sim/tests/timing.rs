@@ -365,3 +365,48 @@ fn a_macro_fused_compare_and_branch_is_one_uop() {
     assert_eq!(p.cycles, 6);
     assert_eq!(f.ops, p.ops, "both count 16 instructions");
 }
+
+#[test]
+fn a_scalar_divide_is_priced_apart_from_the_vector_divide() {
+    let m = hsw();
+    // divsd: 13 cycles, the divider busy 8; vdivps ymm: 21, busy 14.
+    assert_eq!(cycles(&m, "%1 = div\n%2 = div %1\n"), 1 + 13 + 13);
+    assert_eq!(cycles(&m, "%1 = div\n%2 = div\n"), 9 + 13);
+    assert_eq!(cycles(&m, "%1 = vdiv\n%2 = vdiv\n"), 15 + 21);
+}
+
+#[test]
+fn a_three_component_lea_is_slow_and_on_one_port() {
+    let m = hsw();
+    // lea3: 3 cycles on p1 only; a two-component lea (alu): 1 cycle, p0156.
+    assert_eq!(cycles(&m, "%1 = lea3\n%2 = lea3 %1\n"), 1 + 3 + 3);
+    assert_eq!(cycles(&m, "%1 = lea3\n%2 = lea3\n%3 = lea3\n"), 3 + 3);
+    assert_eq!(cycles(&m, "%1 = alu\n%2 = alu\n%3 = alu\n"), 2);
+}
+
+#[test]
+fn haswell_scalar_load_op_is_micro_fused() {
+    let m = hsw();
+    // Eight alus, each reading its own memory operand (an L1 hit).
+    let pairs = |class: &str| {
+        warm(
+            &(1..=8)
+                .map(|k| {
+                    format!(
+                        "%{a} = {class} @d+0x0:8\n%{b} = alu %{a}\n",
+                        a = 2 * k,
+                        b = 2 * k + 1
+                    )
+                })
+                .collect::<String>(),
+        )
+    };
+    let (folded, separate) = (cycles(&m, &pairs("loadfold")), cycles(&m, &pairs("load")));
+    // The same uops on the same ports; folded, the 16 ops take 8 dispatch
+    // slots (2 cycles), not 16 (4 cycles): the loads issue, two a cycle,
+    // as soon as they dispatch, and the last pair ends 2 cycles earlier.
+    assert_eq!(separate - folded, 2);
+    let t = trace(&m.isa, &pairs("loadfold"));
+    let s = simulate(&m, &[&t], &SimOptions::default()).unwrap();
+    assert_eq!(s.ops, 2 + 8, "a folded operand is part of its op");
+}

@@ -32,7 +32,9 @@ pub struct Op {
     pub srcs: [ValId; MAX_SRCS],
     /// First byte accessed (memory ops; for gather/scatter the first active lane's).
     pub addr: Addr,
-    /// Bytes accessed (per lane for gather/scatter).
+    /// Bytes accessed (per lane for gather/scatter); for other ops the
+    /// operand width in bytes (an xmm op on AVX2: 16), 0 for the flavour's
+    /// full width (what every recorded op has).
     pub bytes: u32,
     /// Memory region accessed.
     pub mem: MemId,
@@ -208,6 +210,15 @@ impl Trace {
                     "mask {:#x} has lanes beyond {lanes}",
                     op.mask.0
                 )));
+            }
+            if !op.class.is_mem() && op.bytes != 0 {
+                let w = op.bytes;
+                if !w.is_power_of_two() || w > 4 * lanes as u32 {
+                    return Err(at(format!(
+                        "operand width {w} bytes: not a power of two up to {}",
+                        4 * lanes
+                    )));
+                }
             }
             if op.class.is_mem() {
                 let r = self

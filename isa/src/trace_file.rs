@@ -1,4 +1,4 @@
-//! Binary trace files (`.rtt`), format version 1. `traces/FORMAT.md` is the
+//! Binary trace files (`.rtt`), format version 2 (version 1 still read). `traces/FORMAT.md` is the
 //! specification; this is its implementation.
 //!
 //! ```text
@@ -18,7 +18,11 @@ use std::fmt;
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"RTSIMTRC";
 /// Format version written and read.
-pub const VERSION: u16 = 1;
+pub const VERSION: u16 = 2;
+/// The oldest version still read (version 1 has no operand widths).
+pub const OLDEST: u16 = 1;
+/// Class byte bit: an operand width (varint bytes) follows the mask (version 2).
+const C_WIDTH: u8 = 0x80;
 
 const F_NSRC: u8 = 0b0000_0111;
 const F_DST: u8 = 0b0000_1000;
@@ -104,7 +108,8 @@ pub fn encode(t: &Trace) -> Vec<u8> {
     let mut region = Region::Other;
     let mut prev_addr = 0u64;
     for op in &t.ops {
-        out.push(op.class as u8);
+        let width = !op.class.is_mem() && op.bytes != 0;
+        out.push(op.class as u8 | if width { C_WIDTH } else { 0 });
         let implicit = last_dst + 1;
         let mut flags = op.nsrc & F_NSRC;
         if op.dst.is_some() {
@@ -136,6 +141,9 @@ pub fn encode(t: &Trace) -> Vec<u8> {
         }
         if flags & F_MASK != 0 {
             put_varint(&mut out, u64::from(op.mask.0));
+        }
+        if width {
+            put_varint(&mut out, u64::from(op.bytes));
         }
         if op.class.is_mem() {
             put_varint(&mut out, u64::from(op.mem.0));
@@ -233,6 +241,8 @@ struct OpState {
     region: Region,
     /// The last address (addresses are deltas).
     prev_addr: u64,
+    /// The file's format version.
+    version: u16,
 }
 
 /// Decode a trace, checking structure, ids, regions and the checksum.
@@ -267,6 +277,7 @@ pub fn decode(bytes: &[u8]) -> Result<Trace, FormatError> {
         last_dst: 0,
         region: Region::Other,
         prev_addr: 0,
+        version: u16::from_le_bytes([bytes[8], bytes[9]]),
     };
     for i in 0..nops {
         let op = read_op(
@@ -312,10 +323,12 @@ fn check_preamble(bytes: &[u8]) -> Result<(), FormatError> {
         });
     }
     let version = u16::from_le_bytes([bytes[8], bytes[9]]);
-    if version != VERSION {
+    if !(OLDEST..=VERSION).contains(&version) {
         return Err(FormatError {
             offset: 8,
-            msg: format!("unsupported trace format version {version} (this rtsim reads {VERSION})"),
+            msg: format!(
+                "unsupported trace format version {version} (this rtsim reads {OLDEST} to {VERSION})"
+            ),
         });
     }
     Ok(())
@@ -360,7 +373,13 @@ fn read_op(
 ) -> Result<Op, FormatError> {
     let full = LaneMask::full(flavour.lanes());
     let at = r.pos;
-    let c = r.u8("op")?;
+    let byte = r.u8("op")?;
+    let width = byte & C_WIDTH != 0 && st.version >= 2;
+    let c = if st.version >= 2 {
+        byte & !C_WIDTH
+    } else {
+        byte
+    };
     let class = OpClass::from_id(c).ok_or_else(|| FormatError {
         offset: at,
         msg: format!("op {i}: unknown op class {c}"),
@@ -419,6 +438,14 @@ fn read_op(
     } else {
         default_mask(class, full)
     };
+    if width {
+        let wat = r.pos;
+        let w = r.u32v("operand width")?;
+        if class.is_mem() || !w.is_power_of_two() || w > 4 * flavour.lanes() as u32 {
+            return r.err(wat, format!("op {i}: bad operand width {w} on a {class}"));
+        }
+        op.bytes = w;
+    }
     if flags & F_TAKEN != 0 {
         if class != OpClass::Branch {
             return r.err(at + 1, format!("op {i}: taken flag on a {class}"));
@@ -522,5 +549,42 @@ mod tests {
     fn fnv_known_value() {
         assert_eq!(fnv1a64(b""), 0xcbf2_9ce4_8422_2325);
         assert_eq!(fnv1a64(b"a"), 0xaf63_dc4c_8601_ec8c);
+    }
+
+    /// `bytes` with its version set to `v` and its checksum redone.
+    fn as_version(mut bytes: Vec<u8>, v: u16) -> Vec<u8> {
+        bytes[8..10].copy_from_slice(&v.to_le_bytes());
+        let end = bytes.len() - 8;
+        let sum = fnv1a64(&bytes[..end]);
+        bytes[end..].copy_from_slice(&sum.to_le_bytes());
+        bytes
+    }
+
+    #[test]
+    fn operand_widths_round_trip_and_version_1_files_still_read() {
+        let text = ".trace 1\n.isa avx2\n%1 = vdiv w=16\n%2 = vdiv %1\n%3 = div %2 w=4\n";
+        let t = crate::trace_text::parse(text).unwrap();
+        assert_eq!((t.ops[0].bytes, t.ops[1].bytes, t.ops[2].bytes), (16, 0, 4));
+        let bin = encode(&t);
+        assert_eq!(decode(&bin).unwrap(), t);
+        assert_eq!(
+            crate::trace_text::parse(&crate::trace_text::write(&t)).unwrap(),
+            t
+        );
+        // A version-1 file (no widths) reads as before.
+        let plain = crate::trace_text::parse(".trace 1\n.isa avx2\n%1 = vdiv\n").unwrap();
+        assert_eq!(decode(&as_version(encode(&plain), 1)).unwrap(), plain);
+        // In version 1 the width bit is no class: a clear error.
+        let e = decode(&as_version(bin, 1)).unwrap_err();
+        assert!(e.msg.contains("unknown op class"), "{e:?}");
+        // Bad widths: not a power of two, wider than the flavour, on a load.
+        for bad in [
+            "%1 = vdiv w=12",
+            "%1 = vdiv w=64",
+            ".mem 0 lut isa-lut 0x10000000 64\n%1 = vload @0+0x0:4 w=4",
+        ] {
+            let e = crate::trace_text::parse(&format!(".trace 1\n.isa avx2\n{bad}\n")).unwrap_err();
+            assert!(e.to_string().contains("w="), "{bad}: {e}");
+        }
     }
 }

@@ -112,6 +112,9 @@ pub fn write(t: &Trace) -> String {
         if op.mask != default_mask(op.class, full) {
             let _ = write!(s, " mask={:#x}", op.mask.0);
         }
+        if !op.class.is_mem() && op.bytes != 0 {
+            let _ = write!(s, " w={}", op.bytes);
+        }
         if op.class == OpClass::Branch {
             let _ = write!(
                 s,
@@ -274,7 +277,7 @@ fn directive(t: &mut Trace, st: &mut TextState, key: &str, rest: &str) -> Result
 }
 
 /// An op line: `[%D =] CLASS [%S ...] [@REGION+OFFSET:BYTES ...] [mask=M]
-/// [site=N] [taken|not-taken]`.
+/// [w=BYTES] [site=N] [taken|not-taken]`.
 fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
     let err = |msg: String| msg;
     let mut toks = line.split_whitespace().peekable();
@@ -326,6 +329,22 @@ fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
                 )));
             }
             op.mask = LaneMask(m as u32);
+        } else if let Some(v) = tok.strip_prefix("w=") {
+            if op.class.is_mem() {
+                return Err(err(format!(
+                    "w= on '{class_tok}': a memory op's width is its access size"
+                )));
+            }
+            op.bytes = v
+                .parse()
+                .ok()
+                .filter(|w: &u32| w.is_power_of_two() && *w <= 4 * t.flavour.lanes() as u32)
+                .ok_or_else(|| {
+                    err(format!(
+                        "bad operand width 'w={v}' (bytes: a power of two up to {})",
+                        4 * t.flavour.lanes()
+                    ))
+                })?;
         } else if let Some(v) = tok.strip_prefix("site=") {
             if op.class != OpClass::Branch {
                 return Err(err("site= on an op that is not a branch".into()));

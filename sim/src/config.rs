@@ -87,6 +87,21 @@ pub struct ClassTiming {
     /// Extra port cycles per distinct cache line beyond the first (gather/scatter).
     #[serde(default)]
     pub per_line: u32,
+    /// Timing on operands of at most 16 bytes where it differs from the
+    /// full width (an xmm divide on a 256-bit machine); out-of-order cores.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub narrow: Option<Narrow>,
+}
+
+/// A class's latency and port occupancy on narrow (<= 16-byte) operands.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Narrow {
+    /// Result latency in cycles.
+    pub lat: u32,
+    /// Cycles each uop keeps its port busy.
+    #[serde(default = "one")]
+    pub occ: u32,
 }
 
 /// One cache level.
@@ -416,6 +431,21 @@ impl MachineConfig {
             }
             if t.occ == 0 {
                 return Err((format!("{f}.occ"), "must be at least 1".into()));
+            }
+            if let Some(n) = t.narrow {
+                if c.kind != CoreKind::OutOfOrder || class.is_mem() {
+                    return Err((
+                        format!("{f}.narrow"),
+                        "narrow timings are modelled for non-memory classes on out-of-order cores"
+                            .into(),
+                    ));
+                }
+                if n.occ == 0 || n.lat == 0 || n.lat > 10_000 {
+                    return Err((
+                        format!("{f}.narrow"),
+                        "lat 1 to 10000, occ at least 1".into(),
+                    ));
+                }
             }
             if t.lat == 0 || t.lat > 10_000 {
                 return Err((format!("{f}.lat"), "must be 1 to 10000 cycles".into()));

@@ -73,18 +73,28 @@ pub(crate) struct ClassT {
 }
 
 pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
+    class_table_of(m, false)
+}
+
+/// The class table, with the narrow-operand timings where a class has
+/// them if `narrow`.
+fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
     OpClass::ALL
         .iter()
         .map(|c| {
             let t = m.class(*c);
+            let (lat, occ) = match t.narrow {
+                Some(n) if narrow => (n.lat, n.occ),
+                _ => (t.lat, t.occ),
+            };
             ClassT {
-                lat: u64::from(t.lat),
+                lat: u64::from(lat),
                 uops: t
                     .uops
                     .iter()
                     .map(|ports| ports.iter().fold(0u32, |a, p| a | 1 << p))
                     .collect(),
-                occ: u64::from(t.occ),
+                occ: u64::from(occ),
                 fused: t.fused,
                 per_line: u64::from(t.per_line),
                 load: c.is_load(),
@@ -240,6 +250,8 @@ fn wrap(a: usize, b: usize, n: usize) -> usize {
 pub struct OooCore {
     core: usize,
     classes: Vec<ClassT>,
+    /// The class table for ops on operands of at most 16 bytes.
+    narrow: Vec<ClassT>,
     width: u32,
     retire_width: u32,
     rob: usize,
@@ -281,6 +293,7 @@ impl OooCore {
         OooCore {
             core,
             classes: class_table(m),
+            narrow: class_table_of(m, true),
             width: c.width,
             retire_width: c.retire_width,
             rob: c.rob as usize,
@@ -321,6 +334,7 @@ impl OooCore {
     ) {
         // The class table is read while the core's state changes.
         let classes = std::mem::take(&mut self.classes);
+        let narrow = std::mem::take(&mut self.narrow);
         let end = range.end;
         for i in range {
             let op = &t.ops[i];
@@ -330,6 +344,8 @@ impl OooCore {
                 && fuses(op, &t.ops[i + 1]);
             let ct = if fused {
                 &FUSED_CMP
+            } else if op.bytes != 0 && op.bytes <= 16 && !op.class.is_mem() {
+                &narrow[op.class as usize]
             } else {
                 &classes[op.class as usize]
             };
@@ -370,6 +386,7 @@ impl OooCore {
             self.now = ret;
         }
         self.classes = classes;
+        self.narrow = narrow;
     }
 
     /// Functional warming: `t`'s ops update the caches, the prefetcher and

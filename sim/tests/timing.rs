@@ -410,3 +410,17 @@ fn haswell_scalar_load_op_is_micro_fused() {
     let s = simulate(&m, &[&t], &SimOptions::default()).unwrap();
     assert_eq!(s.ops, 2 + 8, "a folded operand is part of its op");
 }
+
+#[test]
+fn a_narrow_operand_takes_its_own_timing() {
+    let m = hsw();
+    // divps xmm (w=16): 13 cycles, the divider busy 7; ymm: 21 and 14.
+    assert_eq!(
+        cycles(&m, "%1 = vdiv w=16\n%2 = vdiv w=16 %1\n"),
+        1 + 13 + 13
+    );
+    assert_eq!(cycles(&m, "%1 = vdiv w=16\n%2 = vdiv w=16\n"), 8 + 13);
+    assert_eq!(cycles(&m, "%1 = vdiv w=32\n%2 = vdiv\n"), 15 + 21);
+    // A class without a narrow timing keeps its own: vfma 5.
+    assert_eq!(cycles(&m, "%1 = vfma w=16\n"), 6);
+}

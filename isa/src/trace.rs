@@ -12,8 +12,8 @@ pub const MAX_SRCS: usize = 4;
 ///
 /// Layout (48 bytes): class, region, flags, nsrc (4 x u8); mask (u32);
 /// dst (u32); srcs (4 x u32); addr (u64); bytes (u32); mem (u16); pad (u16);
-/// aux (u32: branch site, or the first index into [`Trace::lane_addrs`] of a
-/// gather or scatter).
+/// aux (u32: branch site, a load's static site (0: none), or the first index
+/// into [`Trace::lane_addrs`] of a gather or scatter).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Op {
     /// Instruction kind.
@@ -38,7 +38,9 @@ pub struct Op {
     pub bytes: u32,
     /// Memory region accessed.
     pub mem: MemId,
-    /// Branch site, or first lane address index for gather/scatter.
+    /// Branch site, a load's static site (0: none; a memory-dependence
+    /// predictor learns per site), or first lane address index for
+    /// gather/scatter.
     pub aux: u32,
 }
 
@@ -46,6 +48,9 @@ const _: () = assert!(std::mem::size_of::<Op>() == 48);
 
 /// `Op::flags`: a branch that was taken.
 pub const FLAG_TAKEN: u8 = 1;
+/// `Op::flags`: a store's first source is its address (the rest its data);
+/// without it a store's address is known when it dispatches.
+pub const FLAG_ADDR: u8 = 2;
 
 impl Op {
     /// A blank op of `class` in `region`.
@@ -87,6 +92,16 @@ impl Op {
     #[must_use]
     pub fn taken(&self) -> bool {
         self.flags & FLAG_TAKEN != 0
+    }
+    /// Whether a store's first source is its address ([`FLAG_ADDR`]).
+    #[must_use]
+    pub fn has_addr_src(&self) -> bool {
+        self.flags & FLAG_ADDR != 0
+    }
+    /// Whether the op is a load that may carry a static site (not a gather).
+    #[must_use]
+    pub fn is_sited_load(&self) -> bool {
+        self.class.is_load() && !self.class.is_per_lane_mem()
     }
 }
 

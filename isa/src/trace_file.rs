@@ -11,7 +11,7 @@
 use crate::class::OpClass;
 use crate::flavour::FlavourId;
 use crate::mem::MemRegion;
-use crate::trace::{Op, Trace, FLAG_TAKEN, MAX_SRCS};
+use crate::trace::{Op, Trace, FLAG_ADDR, FLAG_TAKEN, MAX_SRCS};
 use crate::types::{Addr, LaneMask, MemId, MemKind, Region, ValId};
 use std::fmt;
 
@@ -147,7 +147,7 @@ pub fn encode(t: &Trace) -> Vec<u8> {
         }
         if op.class.is_mem() {
             put_varint(&mut out, u64::from(op.mem.0));
-            put_varint(&mut out, u64::from(op.bytes));
+            put_varint(&mut out, mem_size_word(op));
             if op.class.is_per_lane_mem() {
                 for a in t.lanes_of(op) {
                     put_varint(&mut out, zigzag(a.0 as i64 - prev_addr as i64));
@@ -156,6 +156,9 @@ pub fn encode(t: &Trace) -> Vec<u8> {
             } else {
                 put_varint(&mut out, zigzag(op.addr.0 as i64 - prev_addr as i64));
                 prev_addr = op.addr.0;
+                if op.is_sited_load() && op.aux != 0 {
+                    put_varint(&mut out, u64::from(op.aux));
+                }
             }
         }
         if op.class == OpClass::Branch {
@@ -243,6 +246,19 @@ struct OpState {
     prev_addr: u64,
     /// The file's format version.
     version: u16,
+}
+
+/// A memory op's size word (version 2): the access size shifted left once,
+/// bit 0 a store's address-source flag or a load's "a site follows".
+fn mem_size_word(op: &Op) -> u64 {
+    let bit = if op.class.is_per_lane_mem() {
+        false
+    } else if op.class.is_store() {
+        op.has_addr_src()
+    } else {
+        op.aux != 0
+    };
+    u64::from(op.bytes) << 1 | u64::from(bit)
 }
 
 /// Decode a trace, checking structure, ids, regions and the checksum.
@@ -453,7 +469,7 @@ fn read_op(
         op.flags |= FLAG_TAKEN;
     }
     if class.is_mem() {
-        read_mem(r, &mut op, i, regions, (lane_addrs, &mut st.prev_addr))?;
+        read_mem(r, &mut op, i, regions, (lane_addrs, st))?;
     }
     if class == OpClass::Branch {
         op.aux = r.u32v("branch site")?;
@@ -471,15 +487,36 @@ fn read_mem(
     op: &mut Op,
     i: u64,
     regions: usize,
-    (lane_addrs, prev_addr): (&mut Vec<Addr>, &mut u64),
+    (lane_addrs, st): (&mut Vec<Addr>, &mut OpState),
 ) -> Result<(), FormatError> {
+    let prev_addr = &mut st.prev_addr;
     let mat = r.pos;
     let m = r.varint("memory region")?;
     if m >= regions as u64 {
         return r.err(mat, format!("op {i}: memory region {m} does not exist"));
     }
     op.mem = MemId(m as u16);
-    op.bytes = r.u32v("access size")?;
+    let sat = r.pos;
+    let word = r.varint("access size")?;
+    let (bytes, bit) = if st.version >= 2 {
+        (word >> 1, word & 1 != 0)
+    } else {
+        (word, false)
+    };
+    op.bytes =
+        u32::try_from(bytes).or_else(|_| r.err(sat, format!("op {i}: access size {bytes}")))?;
+    if bit && op.class.is_per_lane_mem() {
+        return r.err(sat, format!("op {i}: a flag on a {}", op.class));
+    }
+    if bit && op.class.is_store() {
+        if op.nsrc == 0 {
+            return r.err(
+                sat,
+                format!("op {i}: an address source on a store with none"),
+            );
+        }
+        op.flags |= FLAG_ADDR;
+    }
     if op.class.is_per_lane_mem() {
         op.aux = lane_addrs.len() as u32;
         for _ in 0..op.mask.count() {
@@ -492,6 +529,13 @@ fn read_mem(
         let d = unzigzag(r.varint("address")?);
         *prev_addr = (*prev_addr as i64).wrapping_add(d) as u64;
         op.addr = Addr(*prev_addr);
+        if bit && op.class.is_load() {
+            let at = r.pos;
+            op.aux = r.u32v("load site")?;
+            if op.aux == 0 {
+                return r.err(at, format!("op {i}: load site 0 written"));
+            }
+        }
     }
     Ok(())
 }
@@ -567,6 +611,20 @@ mod tests {
         assert_eq!((t.ops[0].bytes, t.ops[1].bytes, t.ops[2].bytes), (16, 0, 4));
         let bin = encode(&t);
         assert_eq!(decode(&bin).unwrap(), t);
+        assert_eq!(
+            crate::trace_text::parse(&crate::trace_text::write(&t)).unwrap(),
+            t
+        );
+        // Address sources of stores and sites of loads round-trip too.
+        let text = ".trace 1\n.isa avx2\n.mem 0 lut isa-lut 0x10000000 64\n%1 = alu\n%2 = alu\n\
+                    store %2 @0+0x8:8 addr=%1\n%3 = load @0+0x8:8 site=7\nstore %3 @0+0x0:4\n";
+        let t = crate::trace_text::parse(text).unwrap();
+        assert!(t.ops[2].has_addr_src() && !t.ops[4].has_addr_src());
+        assert_eq!(
+            (t.ops[2].srcs[0].0, t.ops[2].srcs[1].0, t.ops[3].aux),
+            (1, 2, 7)
+        );
+        assert_eq!(decode(&encode(&t)).unwrap(), t);
         assert_eq!(
             crate::trace_text::parse(&crate::trace_text::write(&t)).unwrap(),
             t

@@ -18,7 +18,7 @@
 use crate::class::OpClass;
 use crate::flavour::FlavourId;
 use crate::mem::{MemRegion, LUT_BYTES};
-use crate::trace::{Op, Trace, FLAG_TAKEN};
+use crate::trace::{Op, Trace, FLAG_ADDR, FLAG_TAKEN};
 use crate::trace_file::default_mask;
 use crate::types::{Addr, LaneMask, MemId, MemKind, Region, ValId};
 use std::fmt::{self, Write as _};
@@ -90,7 +90,8 @@ pub fn write(t: &Trace) -> String {
             let _ = write!(s, "%{} = ", op.dst.0);
         }
         s.push_str(op.class.name());
-        for src in op.sources() {
+        let addr_src = op.class.is_store() && op.has_addr_src();
+        for src in &op.sources()[usize::from(addr_src)..] {
             let _ = write!(s, " %{}", src.0);
         }
         if op.class.is_mem() {
@@ -108,6 +109,12 @@ pub fn write(t: &Trace) -> String {
             } else {
                 let _ = write!(s, " @{name}+{:#x}:{}", op.addr.0 - r.base.0, op.bytes);
             }
+        }
+        if addr_src {
+            let _ = write!(s, " addr=%{}", op.srcs[0].0);
+        }
+        if op.is_sited_load() && op.aux != 0 {
+            let _ = write!(s, " site={}", op.aux);
         }
         if op.mask != default_mask(op.class, full) {
             let _ = write!(s, " mask={:#x}", op.mask.0);
@@ -276,8 +283,8 @@ fn directive(t: &mut Trace, st: &mut TextState, key: &str, rest: &str) -> Result
     Ok(())
 }
 
-/// An op line: `[%D =] CLASS [%S ...] [@REGION+OFFSET:BYTES ...] [mask=M]
-/// [w=BYTES] [site=N] [taken|not-taken]`.
+/// An op line: `[%D =] CLASS [%S ...] [@REGION+OFFSET:BYTES ...] [addr=%A]
+/// [mask=M] [w=BYTES] [site=N] [taken|not-taken]`.
 fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
     let err = |msg: String| msg;
     let mut toks = line.split_whitespace().peekable();
@@ -345,9 +352,29 @@ fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
                         4 * t.flavour.lanes()
                     ))
                 })?;
+        } else if let Some(v) = tok.strip_prefix("addr=%") {
+            if !op.class.is_store() || op.class.is_per_lane_mem() || op.has_addr_src() {
+                return Err(err(format!(
+                    "addr= on '{class_tok}': one address source, on a store (not a scatter)"
+                )));
+            }
+            if op.nsrc as usize == crate::trace::MAX_SRCS {
+                return Err(err(format!("more than {} sources", crate::trace::MAX_SRCS)));
+            }
+            let id: u32 = v
+                .parse()
+                .ok()
+                .filter(|&v| v > 0)
+                .ok_or_else(|| err(format!("bad address source '{tok}'")))?;
+            op.srcs.copy_within(0..op.nsrc as usize, 1);
+            op.srcs[0] = ValId(id);
+            op.nsrc += 1;
+            op.flags |= FLAG_ADDR;
         } else if let Some(v) = tok.strip_prefix("site=") {
-            if op.class != OpClass::Branch {
-                return Err(err("site= on an op that is not a branch".into()));
+            if op.class != OpClass::Branch && !op.is_sited_load() {
+                return Err(err(
+                    "site= on an op that is neither a branch nor a load".into()
+                ));
             }
             op.aux = v
                 .parse()

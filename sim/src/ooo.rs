@@ -19,9 +19,16 @@
 //! A compare whose value only the next op, a branch, reads is macro-fused
 //! with it (`macro_fusion`): the pair is one uop, dispatched once and
 //! executed once on the branch's ports as soon as the compare's sources are
-//! ready. Deviation: a load that issues before an older aliasing store's
-//! address is known waits for it (a trained disambiguation predictor); no
-//! memory-ordering machine clears.
+//! ready.
+//!
+//! Memory disambiguation: a load issues before older stores whose addresses
+//! are unknown. A load with a static site (`site=` in a trace) that turns out
+//! to read an older store's bytes before that store's address was known
+//! costs a machine clear (fetch resumes `mispredict_penalty` after the
+//! address is known) and its site is then predicted dependent: it waits for
+//! every older store's address from then on. Loads without a site (what
+//! kernels record) are disambiguated perfectly: they never wait needlessly
+//! and never clear.
 
 use crate::config::MachineConfig;
 use crate::memory::Hierarchy;
@@ -34,15 +41,20 @@ const WINDOW: u64 = 1 << 16;
 const WORDS: usize = (WINDOW / 64) as usize;
 /// Value ready-time ring: values older than this many ids are long complete.
 const VALUES: usize = 1 << 16;
-/// A store buffer entry: the bytes a store writes, when its data is ready
-/// and when it retires (its entry is free after that).
+/// A store buffer entry: the bytes a store writes, when its address is
+/// known, when its data is ready and when it retires (its entry is free
+/// after that).
 #[derive(Clone, Copy, Debug, Default)]
 struct StoreEntry {
     lo: u64,
     hi: u64,
+    addr: u64,
     data: u64,
     ret: u64,
 }
+
+/// Entries of the memory-dependence predictor (by load site).
+const MDP: usize = 4096;
 
 /// A macro-fused compare: no uop and no dispatch slot of its own; its value
 /// is ready when its sources are (the branch it fuses with executes it).
@@ -276,6 +288,10 @@ pub struct OooCore {
     stores: Vec<StoreEntry>,
     store_seq: usize,
     pred: Gshare,
+    /// Per load site: the load once issued before an older store to its
+    /// bytes had its address, so it now waits for every older store's
+    /// address (Intel's memory disambiguation predictor).
+    mdp: Vec<bool>,
     d: u64,
     dcount: u32,
     fetch_block: u64,
@@ -314,6 +330,7 @@ impl OooCore {
             stores: vec![StoreEntry::default(); c.store_buffer.max(1) as usize],
             store_seq: 0,
             pred: Gshare::new(c.history_bits, c.predictor_bits),
+            mdp: vec![false; MDP],
             d: 0,
             dcount: 0,
             fetch_block: 0,
@@ -511,6 +528,9 @@ impl OooCore {
         for &src in op.sources() {
             r = r.max(self.values.get(src));
         }
+        if ct.load && op.aux != 0 && !ct.per_lane && self.mdp[op.aux as usize % MDP] {
+            r = r.max(self.older_store_addresses(r));
+        }
         let mut first = u64::MAX;
         let mut last = 0;
         let mut extra_occ = 0;
@@ -562,8 +582,15 @@ impl OooCore {
         if ct.load {
             let lo = op.addr.0;
             let hi = lo + u64::from(op.bytes);
-            if let Some((data, whole)) = self.forwarding(lo, hi, first) {
-                done = first.max(data) + self.sf_latency;
+            if let Some((st, whole)) = self.forwarding(lo, hi, first) {
+                if op.aux != 0 && st.addr > first {
+                    // Issued before the store's address was known: a
+                    // memory-ordering machine clear; the site now waits.
+                    self.mdp[op.aux as usize % MDP] = true;
+                    self.fetch_block = self.fetch_block.max(st.addr + self.penalty);
+                    s.ordering_clears += u64::from(counted);
+                }
+                done = first.max(st.data).max(st.addr) + self.sf_latency;
                 if whole {
                     s.forwarded += u64::from(counted);
                 } else {
@@ -589,17 +616,16 @@ impl OooCore {
             }
         } else if ct.store {
             mem.access(self.core, op.addr.0, true, op.mem, first);
-            let data = op
-                .sources()
-                .iter()
-                .map(|v| self.values.get(*v))
-                .max()
-                .unwrap_or(0);
+            let split = usize::from(op.has_addr_src());
+            let ready = |vs: &[isa::ValId]| vs.iter().map(|v| self.values.get(*v)).max();
+            let addr = ready(&op.sources()[..split]).unwrap_or(0).max(d + 1);
+            let data = ready(&op.sources()[split..]).unwrap_or(0).max(d + 1);
             let k = self.store_seq % self.stores.len();
             self.stores[k] = StoreEntry {
                 lo: op.addr.0,
                 hi: op.addr.0 + u64::from(op.bytes),
-                data: data.max(d + 1),
+                addr,
+                data,
                 ret: u64::MAX - 1,
             };
             self.store_seq += 1;
@@ -608,11 +634,11 @@ impl OooCore {
     }
 
     /// The youngest store still in the buffer when a load of bytes
-    /// `lo..hi` executes at `at` that overlaps it: its data time and whether
-    /// it holds every byte of the load (else forwarding fails). Entries
-    /// retire in program order, so the search stops at the first retired one.
+    /// `lo..hi` executes at `at` that overlaps it, and whether it holds
+    /// every byte of the load (else forwarding fails). Entries retire in
+    /// program order, so the search stops at the first retired one.
     #[inline(always)]
-    fn forwarding(&self, lo: u64, hi: u64, at: u64) -> Option<(u64, bool)> {
+    fn forwarding(&self, lo: u64, hi: u64, at: u64) -> Option<(StoreEntry, bool)> {
         let n = self.stores.len();
         let held = self.store_seq.min(n);
         for j in 1..=held {
@@ -621,10 +647,25 @@ impl OooCore {
                 return None;
             }
             if st.lo < hi && lo < st.hi {
-                return Some((st.data, st.lo <= lo && hi <= st.hi));
+                return Some((*st, st.lo <= lo && hi <= st.hi));
             }
         }
         None
+    }
+
+    /// The latest time an older store still in the buffer at `at` has its
+    /// address known (what a load predicted to depend on a store waits for).
+    fn older_store_addresses(&self, at: u64) -> u64 {
+        let n = self.stores.len();
+        let mut latest = 0;
+        for j in 1..=self.store_seq.min(n) {
+            let st = &self.stores[(self.store_seq - j) % n];
+            if st.ret < at {
+                break;
+            }
+            latest = latest.max(st.addr);
+        }
+        latest
     }
 
     /// Predict a branch, update the predictor; a mispredict blocks fetch

@@ -74,6 +74,9 @@ pub struct Stats {
     pub forwarded: u64,
     /// Loads that overlapped an older store but could not forward from it.
     pub forward_fails: u64,
+    /// Memory-ordering machine clears: a sited load read an older store's
+    /// bytes before the store's address was known.
+    pub ordering_clears: u64,
     /// Cache level counters.
     pub levels: Vec<LevelStats>,
     /// Cache level names.
@@ -137,6 +140,7 @@ impl Stats {
         self.active_lanes += o.active_lanes;
         self.forwarded += o.forwarded;
         self.forward_fails += o.forward_fails;
+        self.ordering_clears += o.ordering_clears;
     }
 }
 

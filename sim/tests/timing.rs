@@ -424,3 +424,36 @@ fn a_narrow_operand_takes_its_own_timing() {
     // A class without a narrow timing keeps its own: vfma 5.
     assert_eq!(cycles(&m, "%1 = vfma w=16\n"), 6);
 }
+
+#[test]
+fn a_load_that_passed_an_aliasing_store_clears_and_its_site_then_waits() {
+    let m = hsw();
+    // The store's address comes from a divide (known at 22); the load of
+    // its bytes issues at once (cycle 1 or 2), before the address is known.
+    let first = "%1 = vdiv\n%2 = alu\nstore %2 @d+0x40:8 addr=%1\n%3 = load @d+0x40:8 site=1\n";
+    // Without a site the load is disambiguated perfectly: it gets the
+    // store's bytes once its address is known, 22 + 5 = 27, and the alu
+    // after it runs at once.
+    let perfect = cycles(&m, &format!("{}%4 = alu\n", first.replace(" site=1", "")));
+    assert_eq!(perfect, 27);
+    // With a site, a machine clear: fetch resumes at 22 + 15 = 37; the alu
+    // dispatches 37, issues 38, done 39.
+    assert_eq!(cycles(&m, &format!("{first}%4 = alu\n")), 39);
+    // The site is now predicted dependent: a later load from it waits for
+    // every older store's address even where it reads other bytes. The
+    // second divide issues when %4 is ready (39), done 60; the load then
+    // issues at 60 (an L1 hit, 4): done 64, its alu 65. A load from
+    // another site issues at once; the store, issued when its address is
+    // known (60), ends the run at 61.
+    let second = |site: u32| {
+        format!(
+            "{first}%4 = alu\n%5 = vdiv %4\nstore %2 @d+0x50:8 addr=%5\n\
+             %6 = load @d+0x48:8 site={site}\n%7 = alu %6\n"
+        )
+    };
+    assert_eq!(cycles(&m, &second(1)), 65);
+    assert_eq!(cycles(&m, &second(2)), 61);
+    let t = trace(&m.isa, &second(1));
+    let s = simulate(&m, &[&t], &SimOptions::default()).unwrap();
+    assert_eq!(s.ordering_clears, 1);
+}

@@ -40,6 +40,9 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
     rows.push(Row::new("lane_utilisation", s.lane_utilisation()));
     rows.push(Row::new("branches", s.branches as f64));
     rows.push(Row::new("mispredicts", s.mispredicts as f64));
+    rows.push(Row::new("loads_forwarded", s.forwarded as f64));
+    rows.push(Row::new("forward_fails", s.forward_fails as f64));
+    rows.push(Row::new("ordering_clears", s.ordering_clears as f64));
     for (l, name) in s.levels.iter().zip(&s.level_names) {
         rows.push(Row::new("hits", l.total_hits() as f64).key("level", name));
         rows.push(Row::new("misses", l.total_misses() as f64).key("level", name));

@@ -414,6 +414,12 @@ impl MachineConfig {
                 ));
             };
             let f = format!("classes.{}", class.name());
+            if t.uops.len() > crate::ooo::MAX_UOPS {
+                return Err((
+                    format!("{f}.uops"),
+                    format!("at most {} uops", crate::ooo::MAX_UOPS),
+                ));
+            }
             if t.uops.is_empty() && !matches!(class, OpClass::Branch) && t.fused > 0 {
                 // Branches may be fused away; everything else executes somewhere.
                 return Err((format!("{f}.uops"), "needs at least one uop".into()));

@@ -215,7 +215,7 @@ fn estimate(
             if i < opt.warmup_ops {
                 continue;
             }
-            for &mask in &ct.uops {
+            for &mask in ct.uops.iter() {
                 let p = (0..ports)
                     .filter(|p| mask >> p & 1 == 1)
                     .min_by_key(|&p| busy[p])

@@ -60,7 +60,10 @@ const MDP: usize = 4096;
 /// is ready when its sources are (the branch it fuses with executes it).
 const FUSED_CMP: ClassT = ClassT {
     lat: 0,
-    uops: Vec::new(),
+    uops: Uops {
+        masks: [0; MAX_UOPS],
+        n: 0,
+    },
     occ: 1,
     fused: 0,
     per_line: 0,
@@ -70,11 +73,46 @@ const FUSED_CMP: ClassT = ClassT {
     vector: false,
 };
 
+/// Most unfused uops one class may have (a config with more is rejected).
+pub const MAX_UOPS: usize = 16;
+
+/// A class's uops as port masks, inline (no pointer to chase per op).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Uops {
+    masks: [u32; MAX_UOPS],
+    n: u8,
+}
+
+impl std::ops::Deref for Uops {
+    type Target = [u32];
+    #[inline(always)]
+    fn deref(&self) -> &[u32] {
+        &self.masks[..self.n as usize]
+    }
+}
+
+impl Uops {
+    fn of(ports: &[Vec<u32>]) -> Uops {
+        assert!(
+            ports.len() <= MAX_UOPS,
+            "validated: at most {MAX_UOPS} uops"
+        );
+        let mut masks = [0; MAX_UOPS];
+        for (m, p) in masks.iter_mut().zip(ports) {
+            *m = p.iter().fold(0u32, |a, p| a | 1 << p);
+        }
+        Uops {
+            masks,
+            n: ports.len() as u8,
+        }
+    }
+}
+
 /// A class's timing, prepared for the hot loop.
 #[derive(Clone, Debug)]
 pub(crate) struct ClassT {
     pub lat: u64,
-    pub uops: Vec<u32>,
+    pub uops: Uops,
     pub occ: u64,
     pub fused: u32,
     pub per_line: u64,
@@ -101,11 +139,7 @@ fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
             };
             ClassT {
                 lat: u64::from(lat),
-                uops: t
-                    .uops
-                    .iter()
-                    .map(|ports| ports.iter().fold(0u32, |a, p| a | 1 << p))
-                    .collect(),
+                uops: Uops::of(&t.uops),
                 occ: u64::from(occ),
                 fused: t.fused,
                 per_line: u64::from(t.per_line),
@@ -219,20 +253,26 @@ impl Calendar {
 
 /// Ready times of values, by id modulo the ring size.
 pub(crate) struct Values {
-    ids: Vec<u32>,
-    at: Vec<u64>,
+    ids: Box<[u32; VALUES]>,
+    at: Box<[u64; VALUES]>,
 }
 
 impl Values {
     pub fn new() -> Values {
         Values {
-            ids: vec![0; VALUES],
-            at: vec![0; VALUES],
+            ids: vec![0u32; VALUES]
+                .into_boxed_slice()
+                .try_into()
+                .expect("VALUES entries"),
+            at: vec![0u64; VALUES]
+                .into_boxed_slice()
+                .try_into()
+                .expect("VALUES entries"),
         }
     }
     #[inline]
     pub fn get(&self, v: ValId) -> u64 {
-        let i = v.0 as usize % VALUES;
+        let i = v.0 as usize & (VALUES - 1);
         if self.ids[i] == v.0 {
             self.at[i]
         } else {
@@ -241,7 +281,7 @@ impl Values {
     }
     #[inline]
     pub fn set(&mut self, v: ValId, t: u64) {
-        let i = v.0 as usize % VALUES;
+        let i = v.0 as usize & (VALUES - 1);
         self.ids[i] = v.0;
         self.at[i] = t;
     }
@@ -279,7 +319,7 @@ pub struct OooCore {
     rob_seq: usize,
     /// Uops in the scheduler that issue in each cycle (mod [`WINDOW`]),
     /// for cycles after `rs_cursor`.
-    rs_count: Vec<u16>,
+    rs_count: Box<[u16; WINDOW as usize]>,
     /// Uops held in the scheduler at cycle `rs_cursor` (issuing later).
     rs_held: usize,
     /// Every uop issuing at or before this cycle has left the scheduler.
@@ -323,7 +363,10 @@ impl OooCore {
             values: Values::new(),
             rob_ring: vec![0; c.rob as usize],
             rob_seq: 0,
-            rs_count: vec![0; WINDOW as usize],
+            rs_count: vec![0u16; WINDOW as usize]
+                .into_boxed_slice()
+                .try_into()
+                .expect("WINDOW entries"),
             rs_held: 0,
             rs_cursor: 0,
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
@@ -453,8 +496,8 @@ impl OooCore {
             return;
         }
         for c in self.rs_cursor + 1..=to {
-            let k = (c % WINDOW) as usize;
-            self.rs_held -= self.rs_count[k] as usize;
+            let k = (c & (WINDOW - 1)) as usize;
+            self.rs_held -= usize::from(self.rs_count[k]);
             self.rs_count[k] = 0;
         }
         self.rs_cursor = to;
@@ -556,7 +599,7 @@ impl OooCore {
             first = first.min(c);
             last = last.max(c);
             debug_assert!(c > self.rs_cursor && c - self.rs_cursor < WINDOW);
-            self.rs_count[(c % WINDOW) as usize] += 1;
+            self.rs_count[(c & (WINDOW - 1)) as usize] += 1;
             self.rs_held += 1;
         }
         if nuops == 0 {

@@ -14,7 +14,9 @@
 //!   the load; a load that store does not contain (wider, or spanning two
 //!   stores) cannot forward and pays `store_forward_fail_penalty`;
 //! - retire: in order, `retire_width` per cycle; a store holds its store
-//!   buffer entry until it retires.
+//!   buffer entry until it retires. A two-uop store that names its address
+//!   source (`addr=`) issues its address uop when the address is ready and
+//!   its data uop when the data is (each frees its scheduler entry then).
 //!
 //! A compare whose value only the next op, a branch, reads is macro-fused
 //! with it (`macro_fusion`): the pair is one uop, dispatched once and
@@ -593,9 +595,24 @@ impl OooCore {
                 gather_lat = gather_lat.max(sv.latency.saturating_sub(self.l1_latency));
             }
         }
+        // A two-uop store that names its address source issues its address
+        // uop when the address is ready and its data uop when the data is.
+        let split = ct.store && nuops == 2 && op.has_addr_src();
+        let (r_addr, r_data) = if split {
+            let at = |vs: &[ValId]| vs.iter().map(|v| self.values.get(*v)).max().unwrap_or(0);
+            let srcs = op.sources();
+            ((d + 1).max(at(&srcs[..1])), (d + 1).max(at(&srcs[1..])))
+        } else {
+            (r, r)
+        };
         for (k, &mask) in ct.uops.iter().enumerate() {
             let occ = ct.occ + if k == 0 { extra_occ } else { 0 };
-            let c = self.cal.book(mask, r, occ);
+            let ready = match (split, k) {
+                (false, _) => r,
+                (true, 0) => r_addr,
+                (true, _) => r_data,
+            };
+            let c = self.cal.book(mask, ready, occ);
             first = first.min(c);
             last = last.max(c);
             debug_assert!(c > self.rs_cursor && c - self.rs_cursor < WINDOW);

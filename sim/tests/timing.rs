@@ -457,3 +457,22 @@ fn a_load_that_passed_an_aliasing_store_clears_and_its_site_then_waits() {
     let s = simulate(&m, &[&t], &SimOptions::default()).unwrap();
     assert_eq!(s.ordering_clears, 1);
 }
+
+#[test]
+fn a_stores_address_uop_issues_before_its_data() {
+    // A 2-entry scheduler; a store whose data is a divide (done 22) and whose
+    // address is ready at 2, then a chain of 30 alus.
+    let mut body = String::from("%1 = vdiv\n%2 = alu\nstore %1 @d+0x40:8 addr=%2\n%3 = alu\n");
+    for i in 4..33 {
+        body.push_str(&format!("%{i} = alu %{}\n", i - 1));
+    }
+    let m = hsw().with_sets(&["core.scheduler=2".into()]).unwrap();
+    // Split: the address uop issues at 2 and frees its entry, so the chain
+    // takes the other entry from cycle 2: its 30 alus end at 33 (the store
+    // retires at 23 behind the divide).
+    assert_eq!(cycles(&m, &body), 33);
+    // Without an address source both uops wait for the data (22) and hold
+    // both entries until then: the chain starts at 22 and ends at 53.
+    let unnamed = body.replace("store %1 @d+0x40:8 addr=%2", "store %1 %2 @d+0x40:8");
+    assert_eq!(cycles(&m, &unnamed), 53);
+}

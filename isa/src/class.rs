@@ -121,6 +121,12 @@ op_classes! {
     /// Three-component address arithmetic (`lea r, [b + i*s + d]`); a
     /// two-component LEA is `alu`.
     Lea3 = "lea3",
+    /// A register-to-register move (mov r, r; vmovaps x, x), which
+    /// renamers since Ivy Bridge and Zen eliminate.
+    Mov = "mov",
+    /// A zeroing idiom (xor r, r; vxorps x, x, x): no sources; renamers
+    /// recognise it and need no execution unit.
+    Zero = "zero",
 }
 
 impl OpClass {
@@ -184,6 +190,8 @@ impl OpClass {
                 | OpClass::LoadFold
                 | OpClass::Div
                 | OpClass::Lea3
+                | OpClass::Mov
+                | OpClass::Zero
                 | OpClass::Store
                 | OpClass::Branch
                 | OpClass::MovMsk

@@ -420,8 +420,10 @@ impl MachineConfig {
                     format!("at most {} uops", crate::ooo::MAX_UOPS),
                 ));
             }
-            if t.uops.is_empty() && !matches!(class, OpClass::Branch) && t.fused > 0 {
-                // Branches may be fused away; everything else executes somewhere.
+            let renamed = matches!(class, OpClass::Branch | OpClass::Mov | OpClass::Zero);
+            if t.uops.is_empty() && !renamed && t.fused > 0 {
+                // Branches may be fused away, moves and zero idioms done at
+                // rename; everything else executes somewhere.
                 return Err((format!("{f}.uops"), "needs at least one uop".into()));
             }
             for u in &t.uops {
@@ -453,8 +455,11 @@ impl MachineConfig {
                     ));
                 }
             }
-            if t.lat == 0 || t.lat > 10_000 {
-                return Err((format!("{f}.lat"), "must be 1 to 10000 cycles".into()));
+            if (t.lat == 0 && !t.uops.is_empty()) || t.lat > 10_000 {
+                return Err((
+                    format!("{f}.lat"),
+                    "must be 1 to 10000 cycles (0 only for a class with no uops)".into(),
+                ));
             }
         }
         if let Some(k) = self

@@ -416,6 +416,10 @@ impl OooCore {
             let (first, last, gather_lat) = self.issue(t, op, ct, d, mem);
             let mut done = if fused {
                 first
+            } else if ct.uops.is_empty() {
+                // Done at rename (an eliminated move, a zero idiom): ready
+                // when its sources are, plus its latency (0).
+                first + ct.lat
             } else {
                 (first + ct.lat).max(last + 1)
             };

@@ -476,3 +476,23 @@ fn a_stores_address_uop_issues_before_its_data() {
     let unnamed = body.replace("store %1 @d+0x40:8 addr=%2", "store %1 %2 @d+0x40:8");
     assert_eq!(cycles(&m, &unnamed), 53);
 }
+
+#[test]
+fn moves_and_zero_idioms_are_done_at_rename_on_haswell() {
+    let (hsw, nhm) = (hsw(), MachineConfig::load("nehalem-x5550").unwrap());
+    // imul (3), an eliminated move (0), imul (3): 1 + 3 + 3.
+    let chain = "%1 = imul\n%2 = mov %1\n%3 = imul %2\n";
+    assert_eq!(cycles(&hsw, chain), 7);
+    // Nehalem executes the move on an ALU: one cycle more.
+    let t = isa::trace_text::parse(&format!(".trace 1\n.isa sse4\n{chain}")).unwrap();
+    let s = simulate(&nhm, &[&t], &SimOptions::default()).unwrap();
+    assert_eq!(s.cycles, 8);
+    // A zero idiom is ready at once: the imul reading it issues in cycle 1.
+    assert_eq!(cycles(&hsw, "%1 = zero\n%2 = imul %1\n"), 4);
+    assert_eq!(cycles(&hsw, "%1 = alu\n%2 = imul %1\n"), 5);
+    // No port: eight moves and zeroings take only dispatch slots (2 cycles
+    // of 4) and retire at once.
+    let t = trace(&hsw.isa, "%1 = zero\n%2 = zero\n%3 = mov %1\n%4 = mov %2\n%5 = zero\n%6 = mov %5\n%7 = zero\n%8 = mov %7\n");
+    let s = simulate(&hsw, &[&t], &SimOptions::default()).unwrap();
+    assert_eq!((s.uops, s.cycles), (0, 2));
+}

@@ -70,6 +70,9 @@ fn one() -> u32 {
     1
 }
 
+/// Most unfused uops one class may have (a config with more is rejected).
+pub const MAX_UOPS: usize = 16;
+
 /// Timing of one op class.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -414,10 +417,10 @@ impl MachineConfig {
                 ));
             };
             let f = format!("classes.{}", class.name());
-            if t.uops.len() > crate::ooo::MAX_UOPS {
+            if t.uops.len() > MAX_UOPS {
                 return Err((
                     format!("{f}.uops"),
-                    format!("at most {} uops", crate::ooo::MAX_UOPS),
+                    format!("at most {} uops", MAX_UOPS),
                 ));
             }
             let renamed = matches!(class, OpClass::Branch | OpClass::Mov | OpClass::Zero);

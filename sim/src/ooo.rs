@@ -32,7 +32,7 @@
 //! kernels record) are disambiguated perfectly: they never wait needlessly
 //! and never clear.
 
-use crate::config::MachineConfig;
+use crate::config::{MachineConfig, MAX_UOPS};
 use crate::memory::Hierarchy;
 use crate::predictor::Gshare;
 use crate::stats::{Stall, Stats};
@@ -74,9 +74,6 @@ const FUSED_CMP: ClassT = ClassT {
     per_lane: false,
     vector: false,
 };
-
-/// Most unfused uops one class may have (a config with more is rejected).
-pub const MAX_UOPS: usize = 16;
 
 /// A class's uops as port masks, inline (no pointer to chase per op).
 #[derive(Clone, Copy, Debug)]

@@ -418,10 +418,7 @@ impl MachineConfig {
             };
             let f = format!("classes.{}", class.name());
             if t.uops.len() > MAX_UOPS {
-                return Err((
-                    format!("{f}.uops"),
-                    format!("at most {} uops", MAX_UOPS),
-                ));
+                return Err((format!("{f}.uops"), format!("at most {MAX_UOPS} uops")));
             }
             let renamed = matches!(class, OpClass::Branch | OpClass::Mov | OpClass::Zero);
             if t.uops.is_empty() && !renamed && t.fused > 0 {

@@ -413,11 +413,9 @@ impl OooCore {
             let (first, last, gather_lat) = self.issue(t, op, ct, d, mem);
             let mut done = if fused {
                 first
-            } else if ct.uops.is_empty() {
-                // Done at rename (an eliminated move, a zero idiom): ready
-                // when its sources are, plus its latency (0).
-                first + ct.lat
             } else {
+                // (An op with no uops — an eliminated move, a zero idiom —
+                // has `last` one before `first`: done at `first + lat`.)
                 (first + ct.lat).max(last + 1)
             };
             if ct.per_lane {
@@ -598,8 +596,7 @@ impl OooCore {
         }
         // A two-uop store that names its address source issues its address
         // uop when the address is ready and its data uop when the data is.
-        let split = ct.store && nuops == 2 && op.has_addr_src();
-        let (r_addr, r_data) = if split {
+        let (r_first, r_rest) = if ct.store && nuops == 2 && op.has_addr_src() {
             let at = |vs: &[ValId]| vs.iter().map(|v| self.values.get(*v)).max().unwrap_or(0);
             let srcs = op.sources();
             ((d + 1).max(at(&srcs[..1])), (d + 1).max(at(&srcs[1..])))
@@ -607,11 +604,10 @@ impl OooCore {
             (r, r)
         };
         for (k, &mask) in ct.uops.iter().enumerate() {
-            let occ = ct.occ + if k == 0 { extra_occ } else { 0 };
-            let ready = match (split, k) {
-                (false, _) => r,
-                (true, 0) => r_addr,
-                (true, _) => r_data,
+            let (occ, ready) = if k == 0 {
+                (ct.occ + extra_occ, r_first)
+            } else {
+                (ct.occ, r_rest)
             };
             let c = self.cal.book(mask, ready, occ);
             first = first.min(c);
@@ -621,8 +617,9 @@ impl OooCore {
             self.rs_held += 1;
         }
         if nuops == 0 {
+            // Done at rename: ready when its sources are, plus its latency.
             first = r;
-            last = r;
+            last = r - 1;
         }
         (first, last, gather_lat)
     }

@@ -166,6 +166,12 @@ impl OpClass {
                 | OpClass::Store
         )
     }
+    /// Whether the op is a memory operand folded into the op reading it
+    /// (`vloadfold`, `loadfold`): part of that instruction, not one of its own.
+    #[must_use]
+    pub fn is_folded(self) -> bool {
+        matches!(self, OpClass::VLoadFold | OpClass::LoadFold)
+    }
     /// Whether the op touches memory at all.
     #[must_use]
     pub fn is_mem(self) -> bool {

@@ -167,13 +167,17 @@ pub fn sim_report(
         let (h, th) = run(half)?;
         ops += th.ops.len() as u64;
         notes.push(format!(
-            "cycles_per_iteration is the loop's steady state: (cycles of {iterations} iterations              - cycles of {half}) / {}; the first iterations' cold misses and pipeline fill cancel.              cycles_per_iteration_all is the mean over all {iterations}, warm-up included.",
+            "cycles_per_iteration is the loop's steady state: (cycles of {iterations} iterations \
+             - cycles of {half}) / {}; the first iterations' cold misses and pipeline fill \
+             cancel. cycles_per_iteration_all is the mean over all {iterations}, warm-up \
+             included.",
             iterations - half
         ));
         s.cycles.saturating_sub(h.cycles) as f64 / (iterations - half) as f64
     } else {
         notes.push(
-            "one iteration: cycles_per_iteration is its cycles from cold, not a steady state              (give --iterations 2 or more)"
+            "one iteration: cycles_per_iteration is its cycles from cold, not a steady state \
+             (give --iterations 2 or more)"
                 .into(),
         );
         mean

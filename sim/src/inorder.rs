@@ -296,7 +296,7 @@ impl Core {
                 mshr.hold(j, start + sv.latency);
             }
             done = start + sv.latency;
-            if matches!(op.class, OpClass::VLoadFold | OpClass::LoadFold) {
+            if op.class.is_folded() {
                 // A memory operand is read in the pipeline stages before
                 // execute: an L1 hit adds nothing to the op that reads it.
                 done = done.saturating_sub(l1).max(cycle);

@@ -18,7 +18,7 @@
 //!   source (`addr=`) issues its address uop when the address is ready and
 //!   its data uop when the data is (each frees its scheduler entry then).
 //!
-//! A compare whose value only the next op, a branch, reads is macro-fused
+//! A compare immediately followed by a branch on its value is macro-fused
 //! with it (`macro_fusion`): the pair is one uop, dispatched once and
 //! executed once on the branch's ports as soon as the compare's sources are
 //! ready.
@@ -572,7 +572,7 @@ impl OooCore {
         for &src in op.sources() {
             r = r.max(self.values.get(src));
         }
-        if ct.load && op.aux != 0 && !ct.per_lane && self.mdp[op.aux as usize % MDP] {
+        if ct.load && op.aux != 0 && !ct.per_lane && self.mdp[mdp_slot(op)] {
             r = r.max(self.older_store_addresses(r));
         }
         let mut first = u64::MAX;
@@ -597,9 +597,7 @@ impl OooCore {
         // A two-uop store that names its address source issues its address
         // uop when the address is ready and its data uop when the data is.
         let (r_first, r_rest) = if ct.store && nuops == 2 && op.has_addr_src() {
-            let at = |vs: &[ValId]| vs.iter().map(|v| self.values.get(*v)).max().unwrap_or(0);
-            let srcs = op.sources();
-            ((d + 1).max(at(&srcs[..1])), (d + 1).max(at(&srcs[1..])))
+            self.store_ready(op, d)
         } else {
             (r, r)
         };
@@ -644,7 +642,7 @@ impl OooCore {
                 if op.aux != 0 && st.addr > first {
                     // Issued before the store's address was known: a
                     // memory-ordering machine clear; the site now waits.
-                    self.mdp[op.aux as usize % MDP] = true;
+                    self.mdp[mdp_slot(op)] = true;
                     self.fetch_block = self.fetch_block.max(st.addr + self.penalty);
                     s.ordering_clears += u64::from(counted);
                 }
@@ -674,10 +672,7 @@ impl OooCore {
             }
         } else if ct.store {
             mem.access(self.core, op.addr.0, true, op.mem, first);
-            let split = usize::from(op.has_addr_src());
-            let ready = |vs: &[isa::ValId]| vs.iter().map(|v| self.values.get(*v)).max();
-            let addr = ready(&op.sources()[..split]).unwrap_or(0).max(d + 1);
-            let data = ready(&op.sources()[split..]).unwrap_or(0).max(d + 1);
+            let (addr, data) = self.store_ready(op, d);
             let k = self.store_seq % self.stores.len();
             self.stores[k] = StoreEntry {
                 lo: op.addr.0,
@@ -691,39 +686,41 @@ impl OooCore {
         done
     }
 
-    /// The youngest store still in the buffer when a load of bytes
-    /// `lo..hi` executes at `at` that overlaps it, and whether it holds
-    /// every byte of the load (else forwarding fails). Entries retire in
-    /// program order, so the search stops at the first retired one.
+    /// When a store's address is known and when its data is ready (each at
+    /// least a cycle after its dispatch `d`): its first source is the
+    /// address if it names one ([`Op::has_addr_src`]), the rest its data.
+    #[inline(always)]
+    fn store_ready(&self, op: &Op, d: u64) -> (u64, u64) {
+        let (addr, data) = op.sources().split_at(usize::from(op.has_addr_src()));
+        let at = |vs: &[ValId]| vs.iter().map(|v| self.values.get(*v)).fold(d + 1, u64::max);
+        (at(addr), at(data))
+    }
+
+    /// The stores still in the buffer at cycle `at`, youngest first.
+    /// Entries retire in program order, so the walk stops at the first
+    /// retired one.
+    #[inline(always)]
+    fn buffered(&self, at: u64) -> impl Iterator<Item = &StoreEntry> {
+        let n = self.stores.len();
+        (1..=self.store_seq.min(n))
+            .map(move |j| &self.stores[(self.store_seq - j) % n])
+            .take_while(move |st| st.ret >= at)
+    }
+
+    /// The youngest store in the buffer when a load of bytes `lo..hi`
+    /// executes at `at` that overlaps it, and whether it holds every byte
+    /// of the load (else forwarding fails).
     #[inline(always)]
     fn forwarding(&self, lo: u64, hi: u64, at: u64) -> Option<(StoreEntry, bool)> {
-        let n = self.stores.len();
-        let held = self.store_seq.min(n);
-        for j in 1..=held {
-            let st = &self.stores[(self.store_seq - j) % n];
-            if st.ret < at {
-                return None;
-            }
-            if st.lo < hi && lo < st.hi {
-                return Some((*st, st.lo <= lo && hi <= st.hi));
-            }
-        }
-        None
+        self.buffered(at)
+            .find(|st| st.lo < hi && lo < st.hi)
+            .map(|st| (*st, st.lo <= lo && hi <= st.hi))
     }
 
     /// The latest time an older store still in the buffer at `at` has its
     /// address known (what a load predicted to depend on a store waits for).
     fn older_store_addresses(&self, at: u64) -> u64 {
-        let n = self.stores.len();
-        let mut latest = 0;
-        for j in 1..=self.store_seq.min(n) {
-            let st = &self.stores[(self.store_seq - j) % n];
-            if st.ret < at {
-                break;
-            }
-            latest = latest.max(st.addr);
-        }
-        latest
+        self.buffered(at).map(|st| st.addr).max().unwrap_or(0)
     }
 
     /// Predict a branch, update the predictor; a mispredict blocks fetch
@@ -759,6 +756,12 @@ impl OooCore {
         }
         ret
     }
+}
+
+/// The memory-dependence predictor entry of a load's site.
+#[inline(always)]
+fn mdp_slot(op: &Op) -> usize {
+    op.aux as usize % MDP
 }
 
 /// Whether compare `cmp` macro-fuses with `next`: a branch on its value.

@@ -196,8 +196,5 @@ impl PerRay {
 #[inline(always)]
 #[must_use]
 pub fn instructions(class: isa::OpClass) -> u64 {
-    u64::from(!matches!(
-        class,
-        isa::OpClass::VLoadFold | isa::OpClass::LoadFold
-    ))
+    u64::from(!class.is_folded())
 }

@@ -251,23 +251,27 @@ fn larrabee_folded_operand_takes_no_issue_slot() {
     assert_eq!(threads(&m, &[&separate]), base + 4 * (4 - 1));
 }
 
+/// Eight pairs of a `load` of `bytes` (an L1 hit, after [`warm`]) and the
+/// `op` reading it.
+fn load_op_pairs(load: &str, bytes: u32, op: &str) -> String {
+    warm(
+        &(1..=8)
+            .map(|k| {
+                format!(
+                    "%{a} = {load} @d+0x0:{bytes}\n%{b} = {op} %{a}\n",
+                    a = 2 * k,
+                    b = 2 * k + 1
+                )
+            })
+            .collect::<String>(),
+    )
+}
+
 #[test]
 fn haswell_folded_load_is_micro_fused() {
     let m = hsw();
     // Eight FMAs, each with its own load (two load ports, 4 cycles L1).
-    let pairs = |class: &str| {
-        warm(
-            &(1..=8)
-                .map(|k| {
-                    format!(
-                        "%{a} = {class} @d+0x0:32\n%{b} = vfma %{a}\n",
-                        a = 2 * k,
-                        b = 2 * k + 1
-                    )
-                })
-                .collect::<String>(),
-        )
-    };
+    let pairs = |class: &str| load_op_pairs(class, 32, "vfma");
     let folded = cycles(&m, &pairs("vloadfold"));
     let separate = cycles(&m, &pairs("vload"));
     // The same uops and ports; folded, the 16 ops dispatch in 8 slots, not 16.
@@ -388,19 +392,7 @@ fn a_three_component_lea_is_slow_and_on_one_port() {
 fn haswell_scalar_load_op_is_micro_fused() {
     let m = hsw();
     // Eight alus, each reading its own memory operand (an L1 hit).
-    let pairs = |class: &str| {
-        warm(
-            &(1..=8)
-                .map(|k| {
-                    format!(
-                        "%{a} = {class} @d+0x0:8\n%{b} = alu %{a}\n",
-                        a = 2 * k,
-                        b = 2 * k + 1
-                    )
-                })
-                .collect::<String>(),
-        )
-    };
+    let pairs = |class: &str| load_op_pairs(class, 8, "alu");
     let (folded, separate) = (cycles(&m, &pairs("loadfold")), cycles(&m, &pairs("load")));
     // The same uops on the same ports; folded, the 16 ops take 8 dispatch
     // slots (2 cycles), not 16 (4 cycles): the loads issue, two a cycle,

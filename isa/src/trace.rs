@@ -272,8 +272,9 @@ std::thread_local! {
         const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// Buffers kept for reuse per host thread (a frame's step holds a few units).
-const POOL_SIZE: usize = 8;
+/// Buffers kept for reuse per host thread (a DRS step holds 12 units: 4
+/// cores' primary, bounce and shadow streams).
+const POOL_SIZE: usize = 16;
 
 /// Give `t`'s buffers back for the next unit [`crate::Traced::take`] records
 /// on this host thread. A frame's units are recorded and dropped by the
@@ -292,7 +293,14 @@ pub fn recycle(t: Trace) {
     });
 }
 
-/// Empty buffers for a trace: recycled ones if this host thread has any.
+/// Empty buffers for a trace: the largest recycled ones if this host thread
+/// has any (a small shadow stream's buffer would be grown again, and grown
+/// pages are fresh pages the OS zeroes).
 pub(crate) fn pooled_buffers() -> (Vec<Op>, Vec<Addr>) {
-    POOL.with(|p| p.borrow_mut().pop()).unwrap_or_default()
+    POOL.with(|p| {
+        let mut p = p.borrow_mut();
+        let largest = (0..p.len()).max_by_key(|&i| p[i].0.capacity())?;
+        Some(p.swap_remove(largest))
+    })
+    .unwrap_or_default()
 }

@@ -15,6 +15,7 @@
 //! names one block; the paper's Embree leaves are triangle4 lists.
 
 use isa::{Buf, Machine, MemKind};
+use rayon::prelude::*;
 use scene::bvh::{Bvh2, Bvh4, EMPTY_SLOT, LEAF};
 use scene::mesh::Mesh;
 
@@ -44,13 +45,13 @@ pub fn lay_out_bvh4<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) ->
     for i in 0..b4.nodes.len() {
         node_words.extend_from_slice(&b4.record(i));
     }
-    let block_words = blocks(mesh, b2, &b4.leaves, false);
+    let block_bytes = blocks(mesh, b2, &b4.leaves, false);
     let nodes = m
         .space()
         .alloc_u32(MemKind::Nodes, "bvh4-nodes", &node_words, 64);
     let tris = m
         .space()
-        .alloc_u32(MemKind::Triangles, "tri-blocks", &block_words, 64);
+        .alloc_bytes(MemKind::Triangles, "tri-blocks", block_bytes, 64);
     Bvh4Bufs {
         nodes,
         tris,
@@ -60,39 +61,56 @@ pub fn lay_out_bvh4<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) ->
 
 /// Triangle blocks of `leaves` ((first, count) into `b2.prims`): one per
 /// leaf, or with `multi` as many consecutive blocks as a leaf needs (the
-/// last one padded).
-fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u32> {
-    let mut block_words: Vec<u32> = Vec::with_capacity(leaves.len() * 80);
-    let chunks = leaves.iter().flat_map(|&[first, count]| {
-        assert!(
-            multi || count as usize <= BLOCK,
-            "leaf of {count} triangles: build with max_leaf <= 8"
-        );
-        let n = count.div_ceil(BLOCK as u32).max(1);
-        (0..n).map(move |i| {
-            let f = first + BLOCK as u32 * i;
-            (f, (count - BLOCK as u32 * i).min(BLOCK as u32))
+/// last one padded); little-endian bytes, filled in parallel (a paper-size
+/// scene's blocks are most of a gigabyte).
+fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u8> {
+    let chunks: Vec<(u32, u32)> = leaves
+        .iter()
+        .flat_map(|&[first, count]| {
+            assert!(
+                multi || count as usize <= BLOCK,
+                "leaf of {count} triangles: build with max_leaf <= 8"
+            );
+            let n = count.div_ceil(BLOCK as u32).max(1);
+            (0..n).map(move |i| {
+                let f = first + BLOCK as u32 * i;
+                (f, (count - BLOCK as u32 * i).min(BLOCK as u32))
+            })
         })
-    });
-    for (first, count) in chunks {
-        let mut w = [0u32; 80];
-        for k in 0..BLOCK {
-            if (k as u32) < count {
-                let p = b2.prims[(first + k as u32) as usize];
-                let [v0, v1, v2] = mesh.tri(p as usize);
-                for a in 0..3 {
-                    w[a * 8 + k] = v0[a].to_bits();
-                    w[(3 + a) * 8 + k] = (v1[a] - v0[a]).to_bits();
-                    w[(6 + a) * 8 + k] = (v2[a] - v0[a]).to_bits();
-                }
-                w[72 + k] = p;
-            } else {
-                w[72 + k] = u32::MAX; // -1: no triangle
+        .collect();
+    let mut bytes = vec![0u8; chunks.len() * BLOCK_BYTES];
+    bytes
+        .par_chunks_mut(BLOCK_BYTES)
+        .zip(&chunks)
+        .for_each(|(out, &(first, count))| {
+            let w = block(mesh, b2, first, count);
+            for (o, x) in out.chunks_exact_mut(4).zip(w) {
+                o.copy_from_slice(&x.to_le_bytes());
             }
+        });
+    bytes
+}
+
+/// One block's words: `count` triangles from `b2.prims[first..]` as v0,
+/// e1 = v1 - v0, e2 = v2 - v0 (8 lanes of each component), then the
+/// primitive ids (-1 for an empty slot).
+fn block(mesh: &Mesh, b2: &Bvh2, first: u32, count: u32) -> [u32; 80] {
+    let mut w = [0u32; 80];
+    for k in 0..BLOCK {
+        if (k as u32) < count {
+            let p = b2.prims[(first + k as u32) as usize];
+            let [v0, v1, v2] = mesh.tri(p as usize);
+            for a in 0..3 {
+                w[a * 8 + k] = v0[a].to_bits();
+                w[(3 + a) * 8 + k] = (v1[a] - v0[a]).to_bits();
+                w[(6 + a) * 8 + k] = (v2[a] - v0[a]).to_bits();
+            }
+            w[72 + k] = p;
+        } else {
+            w[72 + k] = u32::MAX; // -1: no triangle
         }
-        block_words.extend_from_slice(&w);
     }
-    block_words
+    w
 }
 
 /// A BVH2 laid into a machine's memory ([`scene::bvh::Bvh2Layout`] nodes,
@@ -133,10 +151,10 @@ fn lay_out_bvh2_with<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, multi: bool)
     let nodes = m
         .space()
         .alloc_u32(MemKind::Nodes, "bvh2-nodes", &words, 64);
-    let tris = m.space().alloc_u32(
+    let tris = m.space().alloc_bytes(
         MemKind::Triangles,
         "tri-blocks",
-        &blocks(mesh, b2, &lay.leaves, multi),
+        blocks(mesh, b2, &lay.leaves, multi),
         64,
     );
     let leaf_boxes = multi.then(|| {
@@ -299,7 +317,11 @@ mod tests {
         assert_eq!(lay.root & LEAF, LEAF);
         assert_eq!((lay.root & !LEAF) >> LEAF_BLOCKS_SHIFT, 2, "3 blocks");
         assert_eq!(lay.root & LEAF_FIRST_MASK, 0);
-        let words = blocks(&m, &b, &lay.leaves, true);
+        let bytes = blocks(&m, &b, &lay.leaves, true);
+        let words: Vec<u32> = bytes
+            .chunks_exact(4)
+            .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect();
         assert_eq!(words.len(), 3 * 80);
         let prims: Vec<u32> = (0..3)
             .flat_map(|k| words[80 * k + 72..80 * k + 80].to_vec())

@@ -56,13 +56,19 @@ pub fn build_in(d: &Path, mesh: &Mesh, cfg: &BuildConfig) -> Result<(Bvh2, Sourc
         return Ok((b, Source::Cache));
     }
     let b = Bvh2::build(mesh, cfg)?;
-    // A cache that cannot be written is no error: the tree is built.
+    store(d, &path, &encode(&b));
+    Ok((b, Source::Built))
+}
+
+/// Write `bytes` to `path` in cache directory `d` by a temporary name and a
+/// rename, so a concurrent reader never sees half a file. A cache that
+/// cannot be written is no error: the caller has what it built.
+pub(crate) fn store(d: &Path, path: &Path, bytes: &[u8]) {
     let _ = std::fs::create_dir_all(d).and_then(|()| {
         let tmp = d.join(format!(".{}.{}.tmp", std::process::id(), unique()));
-        std::fs::write(&tmp, encode(&b))?;
-        std::fs::rename(&tmp, &path)
+        std::fs::write(&tmp, bytes)?;
+        std::fs::rename(&tmp, path)
     });
-    Ok((b, Source::Built))
 }
 
 /// A name no other writer in this process uses.
@@ -80,17 +86,23 @@ fn key(mesh: &Mesh, cfg: &BuildConfig) -> String {
     h.update(&(cfg.max_leaf as u64).to_le_bytes());
     h.update(&cfg.c_trav.to_bits().to_le_bytes());
     h.update(&(mesh.positions.len() as u64).to_le_bytes());
-    for p in &mesh.positions {
-        for c in p {
-            h.update(&c.to_bits().to_le_bytes());
-        }
-    }
-    for t in &mesh.tris {
-        for i in t {
-            h.update(&i.to_le_bytes());
-        }
-    }
+    hash_words(&mut h, mesh.positions.iter().flatten().map(|c| c.to_bits()));
+    hash_words(&mut h, mesh.tris.iter().flatten().copied());
     h.finalize().to_hex()[..32].to_string()
+}
+
+/// Feed words to `h` as little-endian bytes, a block at a time (one
+/// `update` per word cost more than the hashing).
+pub(crate) fn hash_words(h: &mut blake3::Hasher, words: impl Iterator<Item = u32>) {
+    let mut block = Vec::with_capacity(1 << 16);
+    for w in words {
+        block.extend_from_slice(&w.to_le_bytes());
+        if block.len() == block.capacity() {
+            h.update(&block);
+            block.clear();
+        }
+    }
+    h.update(&block);
 }
 
 /// Words: format, node count, prim count, then 9 words per node (tag,

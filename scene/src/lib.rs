@@ -15,6 +15,7 @@ pub mod bvh_cache;
 pub mod hit;
 pub mod loaded;
 pub mod mesh;
+pub mod mesh_cache;
 pub mod reference;
 pub mod refine;
 pub mod scene;

@@ -514,9 +514,34 @@ fn forest(m: &mut Mesh, seed: u64, trees: u32, leaves: u32, half: f32) {
     }
 }
 
+/// Materials by tag byte in the mesh cache.
+const MATERIALS: [Material; 3] = [Material::Diffuse, Material::Glossy, Material::Mirror];
+
+/// [`placed_mesh_built`] through the mesh cache ([`crate::mesh_cache`]),
+/// keyed by what the build reads: the source, scale, materials, `large` and
+/// `refine` as written, and a source file's bytes.
+fn placed_mesh(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
+    let what = format!(
+        "{:?} {:?} {:?} {:?} {:?}",
+        p.source, p.scale, p.material, p.large, p.refine
+    );
+    let file = match p.source {
+        Source::File(ref f) => crate::mesh_cache::file_digest(&resolve(f))?,
+        _ => [0; 32],
+    };
+    let tag = |m: &Material| MATERIALS.iter().position(|x| x == m).unwrap_or(0) as u8;
+    let (mesh, tags) =
+        crate::mesh_cache::cached(&[what.as_bytes(), &file], MATERIALS.len() as u8, || {
+            let (m, mats) = placed_mesh_built(p)?;
+            Ok((m, mats.iter().map(tag).collect()))
+        })?;
+    let mats = tags.iter().map(|&t| MATERIALS[t as usize]).collect();
+    Ok((mesh, mats))
+}
+
 /// A placed mesh before its transform, and its triangles' materials: the
 /// `large` triangles split off, the rest refined to `refine` triangles.
-fn placed_mesh(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
+fn placed_mesh_built(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
     let mut m = build_source(&p.source)?;
     let mut mats = vec![p.material; m.len()];
     if let Some((min_area, mat)) = p.large {

@@ -15,7 +15,6 @@
 //! names one block; the paper's Embree leaves are triangle4 lists.
 
 use isa::{Buf, Machine, MemKind};
-use rayon::prelude::*;
 use scene::bvh::{Bvh2, Bvh4, EMPTY_SLOT, LEAF};
 use scene::mesh::Mesh;
 
@@ -61,8 +60,11 @@ pub fn lay_out_bvh4<M: Machine>(m: &mut M, mesh: &Mesh, b2: &Bvh2, b4: &Bvh4) ->
 
 /// Triangle blocks of `leaves` ((first, count) into `b2.prims`): one per
 /// leaf, or with `multi` as many consecutive blocks as a leaf needs (the
-/// last one padded); little-endian bytes, filled in parallel (a paper-size
-/// scene's blocks are most of a gigabyte).
+/// last one padded); little-endian bytes, written once (a paper-size
+/// scene's blocks are most of a gigabyte). Sequential on purpose: layouts
+/// are made inside a method's task under a `OnceLock`, where a parallel
+/// loop's waiting thread could steal another method's task that waits on
+/// the same lock.
 fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u8> {
     let chunks: Vec<(u32, u32)> = leaves
         .iter()
@@ -80,7 +82,7 @@ fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u8> {
         .collect();
     let mut bytes = vec![0u8; chunks.len() * BLOCK_BYTES];
     bytes
-        .par_chunks_mut(BLOCK_BYTES)
+        .chunks_exact_mut(BLOCK_BYTES)
         .zip(&chunks)
         .for_each(|(out, &(first, count))| {
             let w = block(mesh, b2, first, count);

@@ -156,6 +156,88 @@ pub fn mismatches_for(
     })
 }
 
+/// Whether a shadow ray's answer `h` agrees with the reference, given the
+/// reference's any-hit `want` over the ray's interval.
+fn shadow_agrees_with(test: F32Test, refi: &Reference, ray: &Ray, want: bool, h: Hit) -> bool {
+    let got = h.is_hit();
+    want == got
+        || (want && refi.all(ray).iter().all(|a| may_skip(test, refi, ray, a)))
+        || (got && {
+            let mut longer = *ray;
+            longer.tmax *= 1.0 + 1e-4;
+            refi.any(&longer) || h.prim.is_some_and(|p| near_hit(test, refi, ray, p, None))
+        })
+}
+
+/// The reference's answer for each ray of a stream, computed once and
+/// shared by every method checked on the stream (a report's methods trace
+/// the same rays: asking the reference again per method cost more than the
+/// checks themselves).
+#[derive(Clone, Debug)]
+pub enum Expected {
+    /// Closest hits of a closest-hit stream.
+    Closest(Vec<Option<RefHit>>),
+    /// Any-hit answers of a shadow stream.
+    Occluded(Vec<bool>),
+}
+
+impl Expected {
+    /// The reference's answers for `rays`, in parallel (call it outside
+    /// tasks that run methods: a waiting thread may steal one).
+    #[must_use]
+    pub fn of(refi: &Reference, rays: &RayStream) -> Expected {
+        let n = rays.len();
+        if rays.is_shadow() {
+            Expected::Occluded((0..n).into_par_iter().map(|i| refi.any(&rays.ray(i))).collect())
+        } else {
+            let closest = (0..n)
+                .into_par_iter()
+                .map(|i| refi.closest(&closest_ray(rays, i)))
+                .collect();
+            Expected::Closest(closest)
+        }
+    }
+}
+
+/// Ray `i` of a closest-hit stream as the checks see it: over (0, inf].
+fn closest_ray(rays: &RayStream, i: usize) -> Ray {
+    Ray::new(rays.org[i].map(f64::from), rays.dir[i].map(f64::from))
+}
+
+/// [`stream_mismatches`](crate::agreement) against answers computed once
+/// ([`Expected::of`] on the same stream), one ray after another: for the
+/// host thread that runs one method's units.
+#[must_use]
+pub fn mismatches_expected(
+    test: F32Test,
+    label: &str,
+    refi: &Reference,
+    rays: &RayStream,
+    want: &Expected,
+    out: &[Hit],
+) -> usize {
+    let ok: Vec<bool> = match want {
+        Expected::Closest(w) => (0..rays.len())
+            .map(|i| closest_agrees_with(test, refi, &closest_ray(rays, i), w[i], out[i]))
+            .collect(),
+        Expected::Occluded(w) => (0..rays.len())
+            .map(|i| shadow_agrees_with(test, refi, &rays.ray(i), w[i], out[i]))
+            .collect(),
+    };
+    report_bad(&ok, |i| {
+        let (k, r) = (out[i], rays.ray(i));
+        eprintln!(
+            "{label} ray {i}: kernel ({}, {:?}) reference {:?}",
+            k.t,
+            k.prim,
+            match want {
+                Expected::Closest(w) => format!("{:?}", w[i]),
+                Expected::Occluded(_) => format!("occluded {}", refi.any(&r)),
+            }
+        );
+    })
+}
+
 /// How many of `ok` are false; `say` prints the first three, in order.
 fn report_bad(ok: &[bool], say: impl Fn(usize)) -> usize {
     let bad: Vec<usize> = (0..ok.len()).filter(|&i| !ok[i]).collect();
@@ -168,7 +250,18 @@ fn report_bad(ok: &[bool], say: impl Fn(usize)) -> usize {
 /// Whether a kernel's closest hit `out` of a ray agrees with the reference's.
 fn closest_agrees(test: F32Test, refi: &Reference, org: [f32; 3], dir: [f32; 3], out: Hit) -> bool {
     let ray = Ray::new(org.map(f64::from), dir.map(f64::from));
-    let want = refi.closest(&ray);
+    closest_agrees_with(test, refi, &ray, refi.closest(&ray), out)
+}
+
+/// [`closest_agrees`] given the reference's closest hit `want` of `ray`.
+fn closest_agrees_with(
+    test: F32Test,
+    refi: &Reference,
+    ray: &Ray,
+    want: Option<RefHit>,
+    out: Hit,
+) -> bool {
+    let ray = *ray;
     let Hit { t, prim } = out;
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1.0);
     let kt = prim.map_or(f64::INFINITY, |_| f64::from(t));
@@ -225,15 +318,7 @@ pub fn shadow_mismatches_for(
         .enumerate()
         .map(|(i, h)| {
             let ray = rays.ray(i);
-            let want = refi.any(&ray);
-            let got = h.is_hit();
-            want == got
-                || (want && refi.all(&ray).iter().all(|h| may_skip(test, refi, &ray, h)))
-                || (got && {
-                    let mut longer = ray;
-                    longer.tmax *= 1.0 + 1e-4;
-                    refi.any(&longer) || h.prim.is_some_and(|p| near_hit(test, refi, &ray, p, None))
-                })
+            shadow_agrees_with(test, refi, &ray, refi.any(&ray), *h)
         })
         .collect();
     report_bad(&ok, |i| {

@@ -14,7 +14,7 @@
 //!   round warmed, the rest skipped;
 //! - `none`: no warming at all (state left by the previous timed round).
 
-use crate::measure::{measure_kernel, trace_streams, Acc, Round, Sample};
+use crate::measure::{measure_kernel, trace_streams, with_expected, Acc, Round, Sample};
 use drs_kernels::methods::Kernel;
 use repro::report::{Report, Row};
 use repro::sampling::ratio_ci;
@@ -174,7 +174,7 @@ pub fn fidelity_frame(m: &sim::MachineConfig, f: &FrameFidelity) -> AppResult<Re
     let refi = Reference::with_bvh(&ld.scene.mesh, &ld.b2);
     let rounds = window_rounds(&ld, f, smp.size, m.cores.max(1) as usize);
     let all: Vec<Round> = plan(Mode::Full, &rounds, f);
-    let streams = trace_streams(&ld, &all, &smp, f.seed);
+    let streams = with_expected(&refi, trace_streams(&ld, &all, &smp, f.seed));
     let mut results = BTreeMap::new();
     let mut ops_total = 0;
     // The scene laid out before any mode is timed, so none pays for it.

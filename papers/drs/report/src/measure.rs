@@ -2,13 +2,14 @@
 //! stand-in, every method traced over the same streams, each stream
 //! checked against the reference and timed on the machine.
 
-use drs_kernels::methods::{stream_mismatches, Kernel, Run};
+use drs_kernels::methods::{Kernel, Run};
 use isa::Region;
 use rayon::prelude::*;
 pub(crate) use repro::sampling::separates;
 use repro::sampling::{mix, paired_ratio, ratio_ci};
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::loaded::Loaded;
+use scene::agreement::{mismatches_expected, Expected, F32Test};
 use scene::reference::Reference;
 use scene::workload::{path_trace_tile, StreamKind, Tile};
 use std::collections::BTreeMap;
@@ -209,6 +210,7 @@ pub(crate) fn measure_loaded(
     let refi = Reference::with_bvh(&scene.mesh, b2);
     let plan = frame_plan(a, smp, ld, &refi);
     let streams = trace_streams(ld, &plan, smp, a.seed);
+    let streams = with_expected(&refi, streams);
     let units: usize = plan
         .iter()
         .flat_map(|r| &r.tiles)
@@ -228,6 +230,29 @@ pub(crate) fn measure_loaded(
 
 /// The ray streams of each tile (by column, row), in the order they are traced.
 pub(crate) type Streams = BTreeMap<(u32, u32), Vec<scene::workload::RayStream>>;
+
+/// The ray streams of each tile with the reference's answers for their rays.
+pub(crate) type Checked = BTreeMap<(u32, u32), Vec<(scene::workload::RayStream, Expected)>>;
+
+/// `streams` with the reference's answers, asked once for every method and
+/// in parallel here, outside the methods' tasks (a thread waiting inside
+/// one may steal another method's task, and with it hold a second
+/// method's traces).
+pub(crate) fn with_expected(refi: &Reference, streams: Streams) -> Checked {
+    streams
+        .into_iter()
+        .map(|(k, v)| {
+            let v = v
+                .into_iter()
+                .map(|s| {
+                    let e = Expected::of(refi, &s);
+                    (s, e)
+                })
+                .collect();
+            (k, v)
+        })
+        .collect()
+}
 
 /// The streams of every tile `plan` touches, path-traced once for all methods.
 pub(crate) fn trace_streams(ld: &Loaded, plan: &[Round], smp: &Sample, seed: u64) -> Streams {
@@ -364,11 +389,13 @@ fn block_tiles(
 
 /// Where a recorded stream belongs: its round, the core, whether it closes
 /// its step (the streams of one index across the round's cores).
-struct Slot {
+struct Slot<'a> {
     round: usize,
     core: usize,
     tile: Tile,
     last: bool,
+    /// The reference's answers for the stream's rays.
+    want: &'a Expected,
 }
 
 /// One method over a frame plan on a session of the machine.
@@ -376,7 +403,7 @@ pub(crate) fn measure_kernel(
     smp: &Sample,
     (ld, shared): (&Loaded, &drs_kernels::methods::SharedLayouts),
     refi: &Reference,
-    (plan, streams): (&[Round], &Streams),
+    (plan, streams): (&[Round], &Checked),
     k: Kernel,
     scene_name: &str,
 ) -> AppResult<(Acc, u64)> {
@@ -401,6 +428,7 @@ pub(crate) fn measure_kernel(
                     core: c,
                     tile: round.tiles[c],
                     last: n + 1 == cores.len(),
+                    want: &of(c)[j].1,
                 });
                 let detail = if round.timed {
                     isa::Detail::Timed
@@ -409,7 +437,7 @@ pub(crate) fn measure_kernel(
                 };
                 let unit = isa::Placed {
                     thread: c,
-                    unit: of(c)[j].clone(),
+                    unit: of(c)[j].0.clone(),
                 };
                 units.push((unit, detail));
             }
@@ -448,7 +476,8 @@ pub(crate) fn measure_kernel(
                 u.unit.kind,
                 k.name()
             );
-            ac.bad += stream_mismatches(&label, refi, &u.unit, &hits) as u64;
+            let (test, unit) = (F32Test::MollerTrumbore, &u.unit);
+            ac.bad += mismatches_expected(test, &label, refi, unit, slot.want, &hits) as u64;
             ops_total += t.ops.len() as u64;
             if detail == isa::Detail::Warmed {
                 session.warm(&[(slot.core, &t)]).map_err(AppError)?;

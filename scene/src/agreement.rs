@@ -188,7 +188,12 @@ impl Expected {
     pub fn of(refi: &Reference, rays: &RayStream) -> Expected {
         let n = rays.len();
         if rays.is_shadow() {
-            Expected::Occluded((0..n).into_par_iter().map(|i| refi.any(&rays.ray(i))).collect())
+            Expected::Occluded(
+                (0..n)
+                    .into_par_iter()
+                    .map(|i| refi.any(&rays.ray(i)))
+                    .collect(),
+            )
         } else {
             let closest = (0..n)
                 .into_par_iter()

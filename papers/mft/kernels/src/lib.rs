@@ -1553,6 +1553,19 @@ pub fn mismatches_of(
     sets: &[Frusta],
     out: &[Hit],
 ) -> usize {
+    let (sub, keep) = checked_rays(sets);
+    let o: Vec<Hit> = keep.iter().map(|&i| out[i]).collect();
+    if sub.is_shadow() {
+        scene::agreement::shadow_mismatches_for(test, label, refi, &sub, &o)
+    } else {
+        scene::agreement::mismatches_for(test, label, refi, &sub.org, &sub.dir, &o)
+    }
+}
+
+/// The rays of active frusta in `sets` as one stream, and their indices in
+/// [`rays_of`] order: what [`mismatches_of`] checks.
+#[must_use]
+pub fn checked_rays(sets: &[Frusta]) -> (scene::workload::RayStream, Vec<usize>) {
     let (st, act) = rays_of(sets);
     let keep: Vec<usize> = (0..st.len()).filter(|&i| act[i]).collect();
     let pick = |v: &[[f32; 3]]| keep.iter().map(|&i| v[i]).collect::<Vec<_>>();
@@ -1562,12 +1575,26 @@ pub fn mismatches_of(
         pick(&st.dir),
         keep.iter().map(|&i| st.tmax[i]).collect(),
     );
+    (sub, keep)
+}
+
+/// [`mismatches_of`] against the reference's answers computed once for
+/// every method tracing the same sets ([`checked_rays`], then
+/// [`scene::agreement::Expected::of`]), one ray after another.
+#[must_use]
+pub fn mismatches_expected(
+    test: scene::agreement::F32Test,
+    label: &str,
+    refi: &scene::reference::Reference,
+    (sub, keep, want): (
+        &scene::workload::RayStream,
+        &[usize],
+        &scene::agreement::Expected,
+    ),
+    out: &[Hit],
+) -> usize {
     let o: Vec<Hit> = keep.iter().map(|&i| out[i]).collect();
-    if sub.is_shadow() {
-        scene::agreement::shadow_mismatches_for(test, label, refi, &sub, &o)
-    } else {
-        scene::agreement::mismatches_for(test, label, refi, &sub.org, &sub.dir, &o)
-    }
+    scene::agreement::mismatches_expected(test, label, refi, sub, want, &o)
 }
 
 /// The 16-ray packet baseline over the same rays (one packet = one frustum's

@@ -144,6 +144,20 @@ impl Trace {
             lane_addrs: Vec::new(),
         }
     }
+    /// Append `next`'s ops (the same unit's next ops, recorded as their own
+    /// chunk): gathers' and scatters' lane-address indices move past this
+    /// trace's own.
+    pub fn append(&mut self, next: &Trace) {
+        let base = self.lane_addrs.len() as u32;
+        self.ops.extend(next.ops.iter().map(|o| {
+            let mut o = *o;
+            if o.class.is_per_lane_mem() {
+                o.aux += base;
+            }
+            o
+        }));
+        self.lane_addrs.extend_from_slice(&next.lane_addrs);
+    }
     /// The per-lane addresses of gather/scatter `op`.
     #[must_use]
     pub fn lanes_of(&self, op: &Op) -> &[Addr] {

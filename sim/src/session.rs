@@ -13,6 +13,13 @@ use crate::stats::Stats;
 use crate::{inorder, stats};
 use isa::Trace;
 
+/// Ops an out-of-order step runs of one unit before it looks again for
+/// the core furthest behind in simulated time.
+pub const PIECE: usize = 256;
+
+/// A unit's ops arriving in chunks ([`Session::timed_streams`]).
+pub type Chunks<'a> = &'a mut dyn Iterator<Item = Trace>;
+
 /// A machine's state between steps.
 pub struct Session {
     m: MachineConfig,
@@ -173,10 +180,10 @@ impl Session {
         for c in &mut self.ooo {
             c.advance_to(start);
         }
-        // The core furthest behind in simulated time runs next, a chunk at a
+        // The core furthest behind in simulated time runs next, a piece at a
         // time, so the shared levels and the DRAM queue see the cores' accesses
         // in about the order of their times.
-        const CHUNK: usize = 256;
+        const CHUNK: usize = PIECE;
         let mut cur: Vec<(usize, &Trace, usize)> = units.iter().map(|&(c, t)| (c, t, 0)).collect();
         let mut next = 0usize;
         loop {
@@ -197,6 +204,93 @@ impl Session {
             cur[k].2 = end;
         }
         units.iter().map(|u| self.ooo[u.0].now - start).collect()
+    }
+
+    /// [`Session::timed_each`] over units whose ops arrive in chunks while
+    /// they are timed (a recorder on another host thread: no unit's whole
+    /// trace is held). Each chunk is a trace of the unit's next ops with
+    /// lane-address indices of its own; every chunk but a unit's last holds
+    /// a multiple of [`PIECE`] ops. Cycles and statistics are exactly those
+    /// of [`Session::timed_each`] on the whole traces.
+    pub fn timed_streams(
+        &mut self,
+        units: &mut [(usize, Chunks<'_>)],
+    ) -> Result<(Stats, Vec<u64>), String> {
+        let mut firsts = Vec::with_capacity(units.len());
+        for (slot, it) in units.iter_mut() {
+            firsts.push((
+                *slot,
+                it.next()
+                    .unwrap_or_else(|| Trace::new(self.m.flavour(), "")),
+            ));
+        }
+        let step: Vec<(usize, &Trace)> = firsts.iter().map(|(c, t)| (*c, t)).collect();
+        self.check(&step)?;
+        if self.ooo.is_empty() {
+            // The in-order core takes whole traces: join the chunks.
+            let mut whole = firsts;
+            for ((_, t), (_, it)) in whole.iter_mut().zip(units.iter_mut()) {
+                for c in it {
+                    t.append(&c);
+                }
+            }
+            let step: Vec<(usize, &Trace)> = whole.iter().map(|(c, t)| (*c, t)).collect();
+            return self.timed_each(&step);
+        }
+        self.mem.reset_counters();
+        let mut s = Stats::new(self.m.flavour().lanes());
+        let own = self.timed_ooo_streams(firsts, units, &mut s)?;
+        s.cycles = own.iter().copied().max().unwrap_or(0);
+        self.mem_stats(&mut s);
+        Ok((s, own))
+    }
+
+    /// [`Session::timed_ooo`] with each unit's ops in chunks: the same
+    /// pieces of [`PIECE`] ops from each unit's start, in the same order.
+    fn timed_ooo_streams(
+        &mut self,
+        firsts: Vec<(usize, Trace)>,
+        units: &mut [(usize, Chunks<'_>)],
+        s: &mut Stats,
+    ) -> Result<Vec<u64>, String> {
+        let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
+        for c in &mut self.ooo {
+            c.advance_to(start);
+        }
+        let mut cur: Vec<(usize, Option<Trace>, usize)> =
+            firsts.into_iter().map(|(c, t)| (c, Some(t), 0)).collect();
+        loop {
+            for (u, (_, it)) in cur.iter_mut().zip(units.iter_mut()) {
+                while let Some(t) = u.1.as_ref().filter(|t| u.2 >= t.ops.len()) {
+                    let len = t.ops.len();
+                    u.1 = it.next();
+                    u.2 = 0;
+                    if let Some(n) = &u.1 {
+                        if len % PIECE != 0 {
+                            return Err(format!("a chunk of {len} ops is followed by another: chunks but the last hold a multiple of {PIECE} ops"));
+                        }
+                        if n.flavour != self.m.flavour() {
+                            return Err(format!(
+                                "a chunk is {} code but machine {} runs {} code",
+                                n.flavour, self.m.name, self.m.isa
+                            ));
+                        }
+                    }
+                }
+            }
+            let Some(k) = (0..cur.len())
+                .filter(|&k| cur[k].1.is_some())
+                .min_by_key(|&k| (self.ooo[cur[k].0].now, k))
+            else {
+                break;
+            };
+            let (slot, pos) = (cur[k].0, cur[k].2);
+            let t = cur[k].1.as_ref().expect("a unit with ops left");
+            let end = (pos + PIECE).min(t.ops.len());
+            self.ooo[slot].run(t, pos..end, &mut self.mem, s, 0);
+            cur[k].2 = end;
+        }
+        Ok(cur.iter().map(|u| self.ooo[u.0].now - start).collect())
     }
 
     /// Functional warming of `units` (slot, trace): caches, prefetchers and
@@ -251,6 +345,101 @@ mod tests {
             t.ops.push(op);
         }
         t
+    }
+
+    /// Loads in a chain, gathers, and compares fused with their branches,
+    /// `n` groups of them; `seed` varies the addresses.
+    fn mixed(n: u32, seed: u64) -> Trace {
+        let mut t = Trace::new(isa::FlavourId::Avx2, "test");
+        let mut v = 0u32;
+        let mut r = isa::rng::Rng::new(seed);
+        for i in 0..n {
+            let mut ld = Op::new(OpClass::Load, Region::CoreLoop);
+            ld.addr = Addr(0x10_0000 + 64 * u64::from(r.below(4096)));
+            ld.bytes = 8;
+            if v > 0 {
+                ld.push_src(ValId(v));
+            }
+            v += 1;
+            ld.dst = ValId(v);
+            let mut g = Op::new(OpClass::VGather, Region::CoreLoop);
+            g.mask = isa::LaneMask(0x5f);
+            g.bytes = 4;
+            g.aux = t.lane_addrs.len() as u32;
+            g.addr = Addr(0x80_0000);
+            for _ in 0..6 {
+                t.lane_addrs
+                    .push(Addr(0x80_0000 + 4 * u64::from(r.below(1 << 16))));
+            }
+            g.push_src(ValId(v));
+            v += 1;
+            g.dst = ValId(v);
+            let mut cmp = Op::new(OpClass::Cmp, Region::CoreLoop);
+            cmp.push_src(ValId(v));
+            v += 1;
+            cmp.dst = ValId(v);
+            let mut br = Op::new(OpClass::Branch, Region::CoreLoop);
+            br.push_src(ValId(v));
+            br.aux = 1 + i % 3;
+            br.flags = u8::from(r.below(4) == 0) * isa::trace::FLAG_TAKEN;
+            t.ops.extend([ld, g, cmp, br]);
+        }
+        t
+    }
+
+    /// `t` cut into traces of `size` ops, each with its own lane addresses.
+    fn chunks(t: &Trace, size: usize) -> Vec<Trace> {
+        let chunk = |ops: &[Op]| {
+            let mut c = Trace::new(t.flavour, "chunk");
+            for o in ops {
+                let mut o = *o;
+                if o.class.is_per_lane_mem() {
+                    let lanes = t.lanes_of(&o).to_vec();
+                    o.aux = c.lane_addrs.len() as u32;
+                    c.lane_addrs.extend(lanes);
+                }
+                c.ops.push(o);
+            }
+            c
+        };
+        t.ops.chunks(size).map(chunk).collect()
+    }
+
+    #[test]
+    fn units_timed_from_chunks_give_the_whole_traces_figures() {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let traces = [mixed(700, 1), mixed(129, 2), mixed(0, 3), mixed(400, 4)];
+        let whole: Vec<(usize, &Trace)> = traces.iter().enumerate().collect();
+        let mut a = Session::new(&m);
+        let mut b = Session::new(&m);
+        for step in 0..2 {
+            let want = a.timed_each(&whole).unwrap();
+            let mut cut: Vec<std::vec::IntoIter<Trace>> =
+                traces.iter().map(|t| chunks(t, 512).into_iter()).collect();
+            let mut units: Vec<(usize, Chunks<'_>)> = cut
+                .iter_mut()
+                .enumerate()
+                .map(|(k, c)| (k, c as Chunks<'_>))
+                .collect();
+            let got = b.timed_streams(&mut units).unwrap();
+            assert_eq!(got, want, "step {step}");
+        }
+        // Joined again, the chunks are the trace.
+        let parts = chunks(&traces[0], 300);
+        let mut joined = parts[0].clone();
+        for p in &parts[1..] {
+            joined.append(p);
+        }
+        assert_eq!(
+            (joined.ops, joined.lane_addrs),
+            (traces[0].ops.clone(), traces[0].lane_addrs.clone())
+        );
+        // A chunk that is not a whole number of pieces cannot be followed.
+        let mut cut = chunks(&traces[0], 300).into_iter();
+        let err = b
+            .timed_streams(&mut [(0, &mut cut as Chunks<'_>)])
+            .unwrap_err();
+        assert!(err.contains("multiple of 256"), "{err}");
     }
 
     #[test]

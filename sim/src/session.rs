@@ -355,7 +355,7 @@ mod tests {
         let mut r = isa::rng::Rng::new(seed);
         for i in 0..n {
             let mut ld = Op::new(OpClass::Load, Region::CoreLoop);
-            ld.addr = Addr(0x10_0000 + 64 * u64::from(r.below(4096)));
+            ld.addr = Addr(0x10_0000 + 64 * r.below(4096));
             ld.bytes = 8;
             if v > 0 {
                 ld.push_src(ValId(v));
@@ -368,8 +368,7 @@ mod tests {
             g.aux = t.lane_addrs.len() as u32;
             g.addr = Addr(0x80_0000);
             for _ in 0..6 {
-                t.lane_addrs
-                    .push(Addr(0x80_0000 + 4 * u64::from(r.below(1 << 16))));
+                t.lane_addrs.push(Addr(0x80_0000 + 4 * r.below(1 << 16)));
             }
             g.push_src(ValId(v));
             v += 1;

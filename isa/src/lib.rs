@@ -36,8 +36,9 @@ pub use machine::{Float, Int, Logic, Machine, SOp};
 pub use mem::{AddrSpace, At, Buf, MemRegion, SpaceMark};
 pub use native::Native;
 pub use program::{
-    record, record_units, run_native, run_units, Detail, Placed, Program, UnitProgram, THREAD_SPAN,
+    record, record_units, run_native, run_steps, run_units, Detail, Placed, Program, Step,
+    UnitProgram, THREAD_SPAN,
 };
 pub use trace::{Op, Trace, WarmEvent};
-pub use traced::Traced;
+pub use traced::{Traced, STREAM_CHUNK};
 pub use types::{Addr, LaneMask, LineAddr, MemId, MemKind, Region, Site, ValId};

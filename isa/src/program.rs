@@ -6,6 +6,7 @@ use crate::native::Native;
 use crate::trace::Trace;
 use crate::traced::Traced;
 use crate::{Avx2, Avx512, Lrb16, Sse4};
+use std::sync::mpsc::{sync_channel, Receiver};
 
 /// A kernel with its inputs: anything that can run on any [`Machine`].
 pub trait Program {
@@ -161,6 +162,159 @@ pub fn run_units<P: UnitProgram, E>(
     }
 }
 
+/// A step of [`run_steps`]: units that start together, one per simulated
+/// thread, all timed or all warmed.
+#[derive(Clone, Debug)]
+pub struct Step<U> {
+    /// The units, each on its own simulated thread.
+    pub units: Vec<Placed<U>>,
+    /// How they run.
+    pub detail: Detail,
+}
+
+/// Run `steps` of `p` in order. A warmed step's units run natively one
+/// after another, as [`run_units`] runs them, each going to `warm` with its
+/// log and output. A timed step's units are recorded at once, each on its
+/// simulated thread's own traced machine (a copy of the machine the data
+/// was laid out on) and its own host thread, their ops handed in chunks of
+/// [`crate::traced::STREAM_CHUNK`] to `timed`, which times them as they come
+/// (a recorder waits while its next chunks are not taken, so no unit's
+/// whole trace is held); `done` then gets the step's units, their outputs
+/// and what `timed` returned. Stops at the first error.
+///
+/// # Panics
+/// If a timed step has two units on one simulated thread.
+#[allow(clippy::type_complexity)]
+pub fn run_steps<P, E, T>(
+    p: &P,
+    flavour: FlavourId,
+    source: &str,
+    steps: impl IntoIterator<Item = Step<P::Unit>>,
+    mut warm: impl FnMut(&Placed<P::Unit>, Trace, P::Out) -> Result<(), E>,
+    mut timed: impl FnMut(&[Placed<P::Unit>], &mut [Receiver<Trace>]) -> Result<T, E>,
+    mut done: impl FnMut(&[Placed<P::Unit>], Vec<P::Out>, T) -> Result<(), E>,
+) -> Result<(), E>
+where
+    P: UnitProgram + Sync,
+    P::Laid: Sync,
+    P::Unit: Sync,
+    P::Out: Send,
+{
+    let mut h = Handlers {
+        warm: &mut warm,
+        timed: &mut timed,
+        done: &mut done,
+    };
+    match flavour {
+        FlavourId::Lrb16 => steps_on::<P, Lrb16, 16, E, T>(p, source, steps, &mut h),
+        FlavourId::Avx512 => steps_on::<P, Avx512, 16, E, T>(p, source, steps, &mut h),
+        FlavourId::Avx2 => steps_on::<P, Avx2, 8, E, T>(p, source, steps, &mut h),
+        FlavourId::Sse4 => steps_on::<P, Sse4, 4, E, T>(p, source, steps, &mut h),
+    }
+}
+
+/// [`run_steps`]'s three callbacks.
+#[allow(clippy::type_complexity)]
+struct Handlers<'a, U, O, E, T> {
+    warm: &'a mut dyn FnMut(&Placed<U>, Trace, O) -> Result<(), E>,
+    timed: &'a mut dyn FnMut(&[Placed<U>], &mut [Receiver<Trace>]) -> Result<T, E>,
+    done: &'a mut dyn FnMut(&[Placed<U>], Vec<O>, T) -> Result<(), E>,
+}
+
+/// [`run_steps`] on flavour `FL`.
+fn steps_on<P, FL, const N: usize, E, T>(
+    p: &P,
+    source: &str,
+    steps: impl IntoIterator<Item = Step<P::Unit>>,
+    h: &mut Handlers<'_, P::Unit, P::Out, E, T>,
+) -> Result<(), E>
+where
+    P: UnitProgram + Sync,
+    P::Laid: Sync,
+    P::Unit: Sync,
+    P::Out: Send,
+    FL: crate::Flavour<N> + Send + Sync,
+{
+    let mut traced = Traced::<FL, N>::new(source);
+    let laid = p.lay_out(&mut traced);
+    let _ = traced.take();
+    let mut native: Option<(Native<FL, N>, P::Laid)> = None;
+    let mut recorders: Vec<Traced<FL, N>> = Vec::new();
+    for step in steps {
+        if step.detail == Detail::Warmed {
+            let (m, laid) = native.get_or_insert_with(|| {
+                let space = traced.space().clone();
+                (Native::<FL, N>::logging_in(space, source), laid.clone())
+            });
+            for u in &step.units {
+                let mark = m.space().mark();
+                m.space().skip(u.thread as u64 * THREAD_SPAN);
+                let out = p.unit(m, laid, &u.unit);
+                let t = m.take_log();
+                m.space().release(mark);
+                (h.warm)(u, t, out)?;
+            }
+            continue;
+        }
+        let need = step.units.iter().map(|u| u.thread + 1).max().unwrap_or(0);
+        while recorders.len() < need {
+            recorders.push(traced.clone());
+        }
+        let (r, outs) = record_step(p, &laid, &mut recorders, &step.units, &mut *h.timed);
+        (h.done)(&step.units, outs, r?)?;
+    }
+    Ok(())
+}
+
+/// Record `units` at once, each on its thread's machine of `recorders` on a
+/// host thread of its own, streaming to `timed`; (its result, the outputs).
+#[allow(clippy::type_complexity)]
+fn record_step<P, FL, const N: usize, E, T>(
+    p: &P,
+    laid: &P::Laid,
+    recorders: &mut [Traced<FL, N>],
+    units: &[Placed<P::Unit>],
+    timed: &mut dyn FnMut(&[Placed<P::Unit>], &mut [Receiver<Trace>]) -> Result<T, E>,
+) -> (Result<T, E>, Vec<P::Out>)
+where
+    P: UnitProgram + Sync,
+    P::Laid: Sync,
+    P::Unit: Sync,
+    P::Out: Send,
+    FL: crate::Flavour<N> + Send + Sync,
+{
+    let (txs, mut rxs): (Vec<_>, Vec<_>) = units.iter().map(|_| sync_channel(2)).unzip();
+    let mut machines: Vec<Option<&mut Traced<FL, N>>> = recorders.iter_mut().map(Some).collect();
+    std::thread::scope(|sc| {
+        let handles: Vec<_> = units
+            .iter()
+            .zip(txs)
+            .map(|(u, tx)| {
+                let m = machines[u.thread]
+                    .take()
+                    .expect("one unit per simulated thread in a timed step");
+                sc.spawn(move || {
+                    let mark = m.space().mark();
+                    m.space().skip(u.thread as u64 * THREAD_SPAN);
+                    m.stream_to(tx);
+                    let out = p.unit(m, laid, &u.unit);
+                    m.end_stream();
+                    m.space().release(mark);
+                    out
+                })
+            })
+            .collect();
+        let r = timed(units, &mut rxs);
+        // A recorder waiting on a full channel sees it closed and finishes.
+        drop(rxs);
+        let outs = handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)))
+            .collect();
+        (r, outs)
+    })
+}
+
 /// Run `p` natively with the semantics of `flavour`.
 pub fn run_native<P: Program>(p: &P, flavour: FlavourId) -> P::Out {
     match flavour {
@@ -255,6 +409,121 @@ mod tests {
                 assert_eq!(pair[0].2, pair[1].2, "{fl} unit {j}: same result");
                 assert!(pair[0].1.len() >= 12, "{fl} unit {j}");
                 assert_eq!(pair[0].1, pair[1].1, "{fl} unit {j} (mask {:#x})", masks[j]);
+            }
+        }
+    }
+
+    /// [`AllMemOps`]' unit `REPEAT` times: enough ops to cross chunks.
+    struct Repeated;
+    const REPEAT: usize = 1400;
+
+    impl UnitProgram for Repeated {
+        type Laid = Buf;
+        type Unit = u32;
+        type Out = i64;
+        fn lay_out<M: Machine>(&self, m: &mut M) -> Buf {
+            AllMemOps.lay_out(m)
+        }
+        fn unit<M: Machine>(&self, m: &mut M, data: &Buf, bits: &u32) -> i64 {
+            (0..REPEAT).map(|_| AllMemOps.unit(m, data, bits)).sum()
+        }
+    }
+
+    /// `t`'s ops with value ids numbered by first appearance (recorders on
+    /// different machines number their values apart).
+    fn canonical(t: &Trace) -> Vec<crate::trace::Op> {
+        let mut ids = std::collections::HashMap::new();
+        let mut name = |v: crate::ValId| {
+            if v.is_some() {
+                let n = ids.len() as u32 + 1;
+                crate::ValId(*ids.entry(v.0).or_insert(n))
+            } else {
+                v
+            }
+        };
+        t.ops
+            .iter()
+            .map(|o| {
+                let mut o = *o;
+                for s in &mut o.srcs[..o.nsrc as usize] {
+                    *s = name(*s);
+                }
+                o.dst = name(o.dst);
+                o
+            })
+            .collect()
+    }
+
+    #[test]
+    fn streamed_steps_record_what_one_machine_records() {
+        for fl in [FlavourId::Sse4, FlavourId::Avx2, FlavourId::Lrb16] {
+            let masks = [0b1011u32, 0xFFFF, 0x5A5A];
+            let placed = |j: usize| Placed {
+                thread: j,
+                unit: masks[j],
+            };
+            let mut want = Vec::new();
+            let units = (0..3).map(|j| (placed(j), Detail::Timed));
+            run_units(&Repeated, fl, "t", units, |_, _, t, out| {
+                want.push((canonical(&t), t.lane_addrs.clone(), out));
+                Ok::<(), ()>(())
+            })
+            .unwrap();
+            assert!(
+                want[0].0.len() > crate::traced::STREAM_CHUNK,
+                "{fl}: crosses a chunk"
+            );
+            let steps = [
+                Step {
+                    units: vec![placed(2)],
+                    detail: Detail::Warmed,
+                },
+                Step {
+                    units: (0..3).map(placed).collect(),
+                    detail: Detail::Timed,
+                },
+            ];
+            let mut got = Vec::new();
+            let mut warmed = 0;
+            run_steps(
+                &Repeated,
+                fl,
+                "t",
+                steps,
+                |_, _, _| {
+                    warmed += 1;
+                    Ok::<(), ()>(())
+                },
+                |_, rxs| {
+                    // Taken in turns, as a timing loop would.
+                    let mut whole: Vec<Option<Trace>> = vec![None; rxs.len()];
+                    let mut open = vec![true; rxs.len()];
+                    while open.iter().any(|&o| o) {
+                        for (k, rx) in rxs.iter_mut().enumerate() {
+                            match (open[k], rx.recv()) {
+                                (true, Ok(c)) => match &mut whole[k] {
+                                    Some(w) => w.append(&c),
+                                    w => *w = Some(c),
+                                },
+                                _ => open[k] = false,
+                            }
+                        }
+                    }
+                    Ok(whole)
+                },
+                |_, outs, whole| {
+                    for (t, out) in whole.into_iter().zip(outs) {
+                        let t = t.expect("a first chunk");
+                        got.push((canonical(&t), t.lane_addrs.clone(), out));
+                    }
+                    Ok(())
+                },
+            )
+            .unwrap();
+            assert_eq!(warmed, 1);
+            assert_eq!(got.len(), 3);
+            for (j, (g, w)) in got.iter().zip(&want).enumerate() {
+                assert!(g == w, "{fl} unit {j}: streamed differs from recorded");
             }
         }
     }

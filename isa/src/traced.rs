@@ -105,7 +105,31 @@ pub struct Traced<FL, const N: usize> {
     active: u32,
     /// The ISA's own lookup table region (compress-store permutations).
     lut: Option<Buf>,
+    /// Where full chunks of [`STREAM_CHUNK`] ops go while a unit is
+    /// streamed ([`Traced::stream_to`]); `None`: the trace keeps them.
+    sink: Option<std::sync::mpsc::SyncSender<Trace>>,
     _f: PhantomData<FL>,
+}
+
+/// Ops in each chunk a streamed unit hands over but its last: a whole
+/// number of the timing model's 256-op pieces (`sim::session::PIECE`).
+pub const STREAM_CHUNK: usize = 1 << 15;
+
+impl<FL, const N: usize> Clone for Traced<FL, N> {
+    /// The same machine state (address space, values, buffers shared)
+    /// with an empty trace and no sink: a second recorder of a frame's units.
+    fn clone(&self) -> Self {
+        Traced {
+            space: self.space.clone(),
+            trace: Trace::new(self.trace.flavour, &self.trace.source),
+            next: self.next,
+            region: self.region,
+            active: self.active,
+            lut: self.lut.clone(),
+            sink: None,
+            _f: PhantomData,
+        }
+    }
 }
 
 impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
@@ -121,7 +145,35 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
             next: 1,
             region: Region::Other,
             active: LaneMask::full(N).0,
+            sink: None,
             _f: PhantomData,
+        }
+    }
+
+    /// Hand the ops recorded from now on to `sink` in chunks of
+    /// [`STREAM_CHUNK`] (each a trace with lane-address indices of its own),
+    /// until [`Traced::end_stream`]. A closed sink is no error: the ops are
+    /// dropped (the consumer stopped early).
+    pub fn stream_to(&mut self, sink: std::sync::mpsc::SyncSender<Trace>) {
+        self.sink = Some(sink);
+    }
+
+    /// Send the last chunk (possibly empty) and close the stream.
+    pub fn end_stream(&mut self) {
+        self.flush_chunk();
+        self.sink = None;
+    }
+
+    /// Send the ops recorded so far as one chunk.
+    #[cold]
+    fn flush_chunk(&mut self) {
+        let Some(sink) = &self.sink else { return };
+        let mut c = Trace::new(FL::ID, &self.trace.source);
+        c.regions = self.space.regions().to_vec();
+        c.ops = std::mem::replace(&mut self.trace.ops, Vec::with_capacity(STREAM_CHUNK));
+        c.lane_addrs = std::mem::take(&mut self.trace.lane_addrs);
+        if sink.send(c).is_err() {
+            self.sink = None;
         }
     }
     /// Record a parameter in the trace header.
@@ -183,6 +235,9 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
             mask
         });
         let id = if dst { self.fresh() } else { ValId::NONE };
+        if self.trace.ops.len() >= STREAM_CHUNK && self.sink.is_some() {
+            self.flush_chunk();
+        }
         self.trace.ops.push(Op {
             class,
             region: self.region,
@@ -248,16 +303,20 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
         offs: &[usize],
         dst: bool,
     ) -> ValId {
-        let first = self.trace.lane_addrs.len() as u32;
         for &o in offs {
             assert!(
                 o + 4 <= buf.len(),
                 "{class} lane at offset {o} outside region {}",
                 buf.id().0
             );
+        }
+        // The op first: a streamed unit may start a chunk with it, and its
+        // lane addresses go with it.
+        let id = self.emit(class, srcs, mask, dst);
+        let first = self.trace.lane_addrs.len() as u32;
+        for &o in offs {
             self.trace.lane_addrs.push(buf.addr(o));
         }
-        let id = self.emit(class, srcs, mask, dst);
         let op = self.trace.ops.last_mut().expect("just pushed");
         op.mask = LaneMask(mask);
         op.addr = offs.first().map_or(Addr(0), |&o| buf.addr(o));

@@ -16,6 +16,10 @@ use isa::Trace;
 /// Ops an out-of-order step runs of one unit before it looks again for
 /// the core furthest behind in simulated time.
 pub const PIECE: usize = 256;
+const _: () = assert!(
+    isa::STREAM_CHUNK.is_multiple_of(PIECE),
+    "streamed chunks hold whole pieces"
+);
 
 /// A unit's ops arriving in chunks ([`Session::timed_streams`]).
 pub type Chunks<'a> = &'a mut dyn Iterator<Item = Trace>;
@@ -266,7 +270,7 @@ impl Session {
                     u.1 = it.next();
                     u.2 = 0;
                     if let Some(n) = &u.1 {
-                        if len % PIECE != 0 {
+                        if !len.is_multiple_of(PIECE) {
                             return Err(format!("a chunk of {len} ops is followed by another: chunks but the last hold a multiple of {PIECE} ops"));
                         }
                         if n.flavour != self.m.flavour() {

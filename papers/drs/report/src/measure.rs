@@ -46,23 +46,6 @@ pub(crate) struct Work {
 }
 
 impl Work {
-    /// What one timed unit adds: its rays, its trace's instructions (the
-    /// core loop's by region) and its test counts.
-    fn of(rays: u64, t: &isa::Trace, tests: &rt::stats::Tests) -> Work {
-        let core = t
-            .ops
-            .iter()
-            .filter(|o| o.region == Region::CoreLoop)
-            .map(|o| sim::stats::instructions(o.class))
-            .sum();
-        Work {
-            rays,
-            instructions: sim::session::instructions(t),
-            core_instructions: core,
-            node_tests: tests.node_tests(),
-            core_tests: tests.core_loop,
-        }
-    }
     fn add(&mut self, o: Work) {
         self.rays += o.rays;
         self.instructions += o.instructions;
@@ -387,18 +370,101 @@ fn block_tiles(
         .collect()
 }
 
-/// Where a recorded stream belongs: its round, the core, whether it closes
-/// its step (the streams of one index across the round's cores).
+/// Where a recorded stream belongs: its round, the core, its tile and the
+/// reference's answers for its rays.
 struct Slot<'a> {
     round: usize,
     core: usize,
     tile: Tile,
-    last: bool,
     /// The reference's answers for the stream's rays.
     want: &'a Expected,
 }
 
-/// One method over a frame plan on a session of the machine.
+/// Units in order, a step per round and stream index (the cores that have
+/// that stream, started together), with each unit's slot.
+fn frame_steps<'a>(
+    plan: &[Round],
+    streams: &'a Checked,
+) -> (Vec<isa::Step<scene::workload::RayStream>>, Vec<Slot<'a>>) {
+    let (mut steps, mut slots) = (Vec::new(), Vec::new());
+    for (ri, round) in plan.iter().enumerate() {
+        let of = |c: usize| &streams[&(round.tiles[c].x, round.tiles[c].y)];
+        let most = (0..round.tiles.len())
+            .map(|c| of(c).len())
+            .max()
+            .unwrap_or(0);
+        let detail = if round.timed {
+            isa::Detail::Timed
+        } else {
+            isa::Detail::Warmed
+        };
+        for j in 0..most {
+            let mut step = isa::Step {
+                units: Vec::new(),
+                detail,
+            };
+            for c in (0..round.tiles.len()).filter(|&c| j < of(c).len()) {
+                slots.push(Slot {
+                    round: ri,
+                    core: c,
+                    tile: round.tiles[c],
+                    want: &of(c)[j].1,
+                });
+                step.units.push(isa::Placed {
+                    thread: c,
+                    unit: of(c)[j].0.clone(),
+                });
+            }
+            steps.push(step);
+        }
+    }
+    (steps, slots)
+}
+
+/// What a timed unit's chunks held, tallied as they were timed.
+#[derive(Clone, Copy, Default)]
+struct Tally {
+    ops: u64,
+    instructions: u64,
+    core_instructions: u64,
+}
+
+impl Tally {
+    fn add(&mut self, t: &isa::Trace) {
+        self.ops += t.ops.len() as u64;
+        self.instructions += sim::session::instructions(t);
+        self.core_instructions += t
+            .ops
+            .iter()
+            .filter(|o| o.region == Region::CoreLoop)
+            .map(|o| sim::stats::instructions(o.class))
+            .sum::<u64>();
+    }
+}
+
+/// The stream kind's name in the report.
+fn kind_name(k: StreamKind) -> &'static str {
+    match k {
+        StreamKind::Primary => "primary",
+        StreamKind::Bounce(_) => "bounce",
+        StreamKind::Shadow(_) => "shadow",
+    }
+}
+
+/// One method's running sums over a frame plan.
+struct Measuring {
+    session: sim::Session,
+    ac: Acc,
+    ops_total: u64,
+    /// Per (sampled group, core): the observations of the confidence interval.
+    group_sums: BTreeMap<(usize, usize), (u64, u64)>,
+    /// Units handed over so far (the next unit's slot).
+    next: usize,
+}
+
+/// One method over a frame plan on a session of the machine: warmed units
+/// run natively and warm the session one by one; a timed step's units are
+/// recorded on their own host threads and timed as their ops arrive.
 pub(crate) fn measure_kernel(
     smp: &Sample,
     (ld, shared): (&Loaded, &drs_kernels::methods::SharedLayouts),
@@ -407,42 +473,8 @@ pub(crate) fn measure_kernel(
     k: Kernel,
     scene_name: &str,
 ) -> AppResult<(Acc, u64)> {
-    let mut ops_total = 0u64;
     let (scene, b2, b4) = (&ld.scene, &ld.b2, &ld.b4);
-    // Units in order: per round, per stream index, the cores that have one.
-    let mut slots = Vec::new();
-    let mut units = Vec::new();
-    for (ri, round) in plan.iter().enumerate() {
-        let of = |c: usize| &streams[&(round.tiles[c].x, round.tiles[c].y)];
-        let most = (0..round.tiles.len())
-            .map(|c| of(c).len())
-            .max()
-            .unwrap_or(0);
-        for j in 0..most {
-            let cores: Vec<usize> = (0..round.tiles.len())
-                .filter(|&c| j < of(c).len())
-                .collect();
-            for (n, &c) in cores.iter().enumerate() {
-                slots.push(Slot {
-                    round: ri,
-                    core: c,
-                    tile: round.tiles[c],
-                    last: n + 1 == cores.len(),
-                    want: &of(c)[j].1,
-                });
-                let detail = if round.timed {
-                    isa::Detail::Timed
-                } else {
-                    isa::Detail::Warmed
-                };
-                let unit = isa::Placed {
-                    thread: c,
-                    unit: of(c)[j].0.clone(),
-                };
-                units.push((unit, detail));
-            }
-        }
-    }
+    let (steps, slots) = frame_steps(plan, streams);
     let mut prog = Run::new(
         k,
         scene,
@@ -452,74 +484,97 @@ pub(crate) fn measure_kernel(
     );
     prog.packet_tile = Some((smp.size, smp.spp));
     prog.shared = Some(shared);
-    let mut session = sim::Session::new(&smp.m);
-    let mut ac = Acc::default();
-    // Per (sampled group, core): the observations of the confidence interval.
-    let mut group_sums: BTreeMap<(usize, usize), (u64, u64)> = BTreeMap::new();
-    let mut pending: Vec<(usize, isa::Trace, u64, &'static str)> = Vec::new();
-    let mut next = 0usize;
-    // Warmed rounds run natively, only their memory accesses and branches
-    // logged, and warm the caches and predictors as their traces would.
-    isa::run_units(
+    let st = std::cell::RefCell::new(Measuring {
+        session: sim::Session::new(&smp.m),
+        ac: Acc::default(),
+        ops_total: 0,
+        group_sums: BTreeMap::new(),
+        next: 0,
+    });
+    let check =
+        |m: &mut Measuring, slot: &Slot, u: &scene::workload::RayStream, hits: &[scene::Hit]| {
+            smp.progress.done(1);
+            let (x, y) = (slot.tile.x, slot.tile.y);
+            let label = format!("{scene_name} tile ({x}, {y}) {:?} {}", u.kind, k.name());
+            let test = F32Test::MollerTrumbore;
+            m.ac.bad += mismatches_expected(test, &label, refi, u, slot.want, hits) as u64;
+        };
+    isa::run_steps(
         &prog,
         smp.fl,
         k.name(),
-        units,
-        |u, detail, t, (hits, tests)| {
-            let slot = &slots[next];
-            next += 1;
-            smp.progress.done(1);
-            let label = format!(
-                "{scene_name} tile ({}, {}) {:?} {}",
-                slot.tile.x,
-                slot.tile.y,
-                u.unit.kind,
-                k.name()
-            );
-            let (test, unit) = (F32Test::MollerTrumbore, &u.unit);
-            ac.bad += mismatches_expected(test, &label, refi, unit, slot.want, &hits) as u64;
-            ops_total += t.ops.len() as u64;
-            if detail == isa::Detail::Warmed {
-                session.warm(&[(slot.core, &t)]).map_err(AppError)?;
-                isa::trace::recycle(t);
-                return Ok(());
-            }
-            let round = &plan[slot.round];
-            ac.core_tests += tests.core_loop;
-            ac.node_tests += tests.node_tests();
-            let work = Work::of(u.unit.len() as u64, &t, &tests);
-            let kind = match u.unit.kind {
-                StreamKind::Primary => "primary",
-                StreamKind::Bounce(_) => "bounce",
-                StreamKind::Shadow(_) => "shadow",
-            };
-            ac.kind_work.entry(kind).or_default().add(work);
-            pending.push((slot.core, t, u.unit.len() as u64, kind));
-            if !slot.last {
-                return Ok(());
-            }
-            let step: Vec<(usize, &isa::Trace)> = pending.iter().map(|p| (p.0, &p.1)).collect();
-            let (s, own) = session.timed_each(&step).map_err(AppError)?;
-            ac.ops += s.ops;
-            ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
-            ac.core_ops += s.region_ops[Region::CoreLoop as usize];
-            ac.dram += s.dram_read + s.dram_written;
-            for (p, &c) in pending.iter().zip(&own) {
-                ac.rays += p.2;
-                ac.cycles += c;
-                let e = ac.kinds.entry(p.3).or_default();
-                e.0 += p.2;
+        steps,
+        |u, t, (hits, _)| {
+            let m = &mut *st.borrow_mut();
+            let slot = &slots[m.next];
+            m.next += 1;
+            check(m, slot, &u.unit, &hits);
+            m.ops_total += t.ops.len() as u64;
+            m.session.warm(&[(slot.core, &t)]).map_err(AppError)?;
+            isa::trace::recycle(t);
+            Ok(())
+        },
+        |units, rxs| {
+            let m = &mut *st.borrow_mut();
+            let mut tallies = vec![Tally::default(); units.len()];
+            let mut chunks: Vec<_> = rxs
+                .iter_mut()
+                .zip(&mut tallies)
+                .map(|(rx, tally)| rx.iter().inspect(move |c| tally.add(c)))
+                .collect();
+            let mut step: Vec<(usize, sim::session::Chunks<'_>)> = units
+                .iter()
+                .zip(&mut chunks)
+                .map(|(u, c)| (u.thread, c as sim::session::Chunks<'_>))
+                .collect();
+            let timed = m.session.timed_streams(&mut step).map_err(AppError)?;
+            drop(step);
+            drop(chunks);
+            Ok((timed, tallies))
+        },
+        |units, outs, ((s, own), tallies)| {
+            let m = &mut *st.borrow_mut();
+            m.ac.ops += s.ops;
+            m.ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
+            m.ac.core_ops += s.region_ops[Region::CoreLoop as usize];
+            m.ac.dram += s.dram_read + s.dram_written;
+            for ((u, (hits, tests)), (&c, tally)) in
+                units.iter().zip(outs).zip(own.iter().zip(tallies))
+            {
+                let slot = &slots[m.next];
+                m.next += 1;
+                check(m, slot, &u.unit, &hits);
+                m.ops_total += tally.ops;
+                m.ac.core_tests += tests.core_loop;
+                m.ac.node_tests += tests.node_tests();
+                let rays = u.unit.len() as u64;
+                let work = Work {
+                    rays,
+                    instructions: tally.instructions,
+                    core_instructions: tally.core_instructions,
+                    node_tests: tests.node_tests(),
+                    core_tests: tests.core_loop,
+                };
+                let kind = kind_name(u.unit.kind);
+                m.ac.kind_work.entry(kind).or_default().add(work);
+                m.ac.rays += rays;
+                m.ac.cycles += c;
+                let e = m.ac.kinds.entry(kind).or_default();
+                e.0 += rays;
                 e.1 += c;
-                let g = group_sums.entry((round.group, p.0)).or_default();
-                g.0 += p.2;
+                let g = m
+                    .group_sums
+                    .entry((plan[slot.round].group, slot.core))
+                    .or_default();
+                g.0 += rays;
                 g.1 += c;
             }
-            pending.drain(..).for_each(|p| isa::trace::recycle(p.1));
             Ok::<(), AppError>(())
         },
     )?;
-    ac.tiles = group_sums.into_values().collect();
-    Ok((ac, ops_total))
+    let mut m = st.into_inner();
+    m.ac.tiles = m.group_sums.into_values().collect();
+    Ok((m.ac, m.ops_total))
 }
 
 /// Print (and with `--out`, write) a reproduce report; an error if any ray

@@ -182,6 +182,9 @@ pub struct Scene {
     pub mesh: Mesh,
     /// Material per triangle.
     pub materials: Vec<Material>,
+    /// [`Scene::bounds`], computed on first use (the path tracer asks per
+    /// tile, and a paper-size mesh has millions of vertices).
+    bounds: std::sync::OnceLock<Aabb>,
 }
 
 /// The scenes shipped in `configs/scenes/`.
@@ -305,6 +308,7 @@ impl Scene {
             config,
             mesh,
             materials,
+            bounds: std::sync::OnceLock::new(),
         })
     }
 
@@ -366,14 +370,18 @@ impl Scene {
             config,
             mesh,
             materials,
+            bounds: std::sync::OnceLock::new(),
         })
     }
 
-    /// Bounds of all triangles.
+    /// Bounds of all triangles (computed once: a scene's mesh does not
+    /// change after it is loaded).
     #[must_use]
     pub fn bounds(&self) -> Aabb {
-        let (lo, hi) = self.mesh.bounds();
-        Aabb { lo, hi }
+        *self.bounds.get_or_init(|| {
+            let (lo, hi) = self.mesh.bounds();
+            Aabb { lo, hi }
+        })
     }
 }
 

@@ -432,13 +432,13 @@ struct Tally {
 impl Tally {
     fn add(&mut self, t: &isa::Trace) {
         self.ops += t.ops.len() as u64;
-        self.instructions += sim::session::instructions(t);
-        self.core_instructions += t
-            .ops
-            .iter()
-            .filter(|o| o.region == Region::CoreLoop)
-            .map(|o| sim::stats::instructions(o.class))
-            .sum::<u64>();
+        for o in &t.ops {
+            let i = sim::stats::instructions(o.class);
+            self.instructions += i;
+            if o.region == Region::CoreLoop {
+                self.core_instructions += i;
+            }
+        }
     }
 }
 

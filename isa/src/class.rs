@@ -142,6 +142,7 @@ impl OpClass {
     }
     /// Whether the op reads memory.
     #[must_use]
+    #[inline]
     pub fn is_load(self) -> bool {
         matches!(
             self,
@@ -156,6 +157,7 @@ impl OpClass {
     }
     /// Whether the op writes memory.
     #[must_use]
+    #[inline]
     pub fn is_store(self) -> bool {
         matches!(
             self,
@@ -169,21 +171,25 @@ impl OpClass {
     /// Whether the op is a memory operand folded into the op reading it
     /// (`vloadfold`, `loadfold`): part of that instruction, not one of its own.
     #[must_use]
+    #[inline]
     pub fn is_folded(self) -> bool {
         matches!(self, OpClass::VLoadFold | OpClass::LoadFold)
     }
     /// Whether the op touches memory at all.
     #[must_use]
+    #[inline]
     pub fn is_mem(self) -> bool {
         self.is_load() || self.is_store()
     }
     /// Whether the op carries one address per active lane (gather, scatter).
     #[must_use]
+    #[inline]
     pub fn is_per_lane_mem(self) -> bool {
         matches!(self, OpClass::VGather | OpClass::VScatter)
     }
     /// Whether the op executes on the vector unit (counts toward SIMD utilisation).
     #[must_use]
+    #[inline]
     pub fn is_vector(self) -> bool {
         !matches!(
             self,

@@ -72,6 +72,7 @@ impl Op {
     }
     /// The sources.
     #[must_use]
+    #[inline]
     pub fn sources(&self) -> &[ValId] {
         &self.srcs[..self.nsrc as usize]
     }
@@ -85,16 +86,19 @@ impl Op {
     }
     /// Branch site (branches only).
     #[must_use]
+    #[inline]
     pub fn site(&self) -> Site {
         Site(self.aux)
     }
     /// Whether a branch was taken.
     #[must_use]
+    #[inline]
     pub fn taken(&self) -> bool {
         self.flags & FLAG_TAKEN != 0
     }
     /// Whether a store's first source is its address ([`FLAG_ADDR`]).
     #[must_use]
+    #[inline]
     pub fn has_addr_src(&self) -> bool {
         self.flags & FLAG_ADDR != 0
     }

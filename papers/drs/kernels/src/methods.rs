@@ -128,6 +128,14 @@ impl Kernel {
             Kernel::HybridBvh4 => "hybrid-bvh4",
         }
     }
+    /// Whether it reads the BVH2 (else the BVH4).
+    #[must_use]
+    pub fn reads_bvh2(self) -> bool {
+        matches!(
+            self,
+            Kernel::SingleBvh2 | Kernel::DrsBvh2 | Kernel::PacketBvh2
+        )
+    }
     /// Whether it runs on machines of `lanes` lanes.
     #[must_use]
     pub fn supports(self, lanes: usize) -> bool {
@@ -200,10 +208,7 @@ impl Run<'_> {
 
     /// Whether the kernel reads the BVH2 (else the BVH4).
     fn reads_bvh2(&self) -> bool {
-        matches!(
-            self.kernel,
-            Kernel::SingleBvh2 | Kernel::DrsBvh2 | Kernel::PacketBvh2
-        )
+        self.kernel.reads_bvh2()
     }
 
     /// [`Run::lay_out`] on `m` itself.

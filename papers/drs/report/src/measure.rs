@@ -167,20 +167,36 @@ pub(crate) fn load(scene_name: &str) -> AppResult<Loaded> {
     Loaded::load(scene_name, &drs_kernels::BVH).map_err(AppError)
 }
 
-/// Every kernel over the same sampled streams of one scene.
-pub(crate) fn measure(
-    a: &ReproduceArgs,
-    smp: &Sample,
-    scene_name: &str,
-    kernels: &[Kernel],
-    ops_total: &mut u64,
-) -> AppResult<Vec<Acc>> {
-    measure_loaded(a, smp, &load(scene_name)?, scene_name, kernels, ops_total)
+/// Scenes loaded one ahead: the next scene loads on a host thread of its
+/// own while the current one is measured (loading a paper-size scene is
+/// mostly reading cached files and first touches of memory, seconds in
+/// which the measuring threads would otherwise wait).
+#[derive(Default)]
+pub(crate) struct Loader {
+    next: Option<(String, std::thread::JoinHandle<AppResult<Loaded>>)>,
 }
 
-/// [`measure`] on a loaded scene: each method renders the sampled parts of
-/// one frame in render order on all the machine's cores ([`frame_plan`]), its
-/// scene laid out once and the machine's state carried from unit to unit.
+impl Loader {
+    /// Start loading `name` now.
+    pub(crate) fn ahead(&mut self, name: &str) {
+        let owned = name.to_string();
+        let h = std::thread::spawn(move || load(&owned));
+        self.next = Some((name.to_string(), h));
+    }
+
+    /// Scene `name`: the load started ahead, or one now.
+    pub(crate) fn get(&mut self, name: &str) -> AppResult<Loaded> {
+        match self.next.take() {
+            Some((n, h)) if n == name => h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)),
+            _ => load(name),
+        }
+    }
+}
+
+/// Every kernel over the same sampled streams of one loaded scene: each
+/// method renders the sampled parts of one frame in render order on all the
+/// machine's cores ([`frame_plan`]), its scene laid out once and the
+/// machine's state carried from unit to unit.
 pub(crate) fn measure_loaded(
     a: &ReproduceArgs,
     smp: &Sample,
@@ -201,8 +217,23 @@ pub(crate) fn measure_loaded(
         .sum();
     smp.progress.add_units((units * kernels.len()) as u64);
     // Methods are independent runs: one host thread each, results in order,
-    // the scene's two layouts shared.
+    // the scene's two layouts shared. The layouts are made first (both at
+    // once where the methods read both trees), so no method's thread waits
+    // on another's.
     let shared = drs_kernels::methods::SharedLayouts::default();
+    let lay = |k: Option<&Kernel>| {
+        if let Some(&k) = k {
+            let none =
+                scene::workload::RayStream::from_rays(StreamKind::Primary, vec![], vec![], vec![]);
+            let mut r = Run::new(k, &ld.scene, &ld.b2, &ld.b4, none);
+            r.shared = Some(&shared);
+            let _ = r.lay_out(&mut isa::Native::<isa::Sse4, 4>::new());
+        }
+    };
+    rayon::join(
+        || lay(kernels.iter().find(|k| k.reads_bvh2())),
+        || lay(kernels.iter().find(|k| !k.reads_bvh2())),
+    );
     let runs = kernels
         .par_iter()
         .map(|&k| measure_kernel(smp, (ld, &shared), &refi, (&plan, &streams), k, scene_name))

@@ -27,8 +27,14 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
     let mray = |cycles: u64, rays: u64| chip_mray(m, cycles, rays);
-    for (scene_name, paper, paper_trav, paper_share) in PAPER_TABLE1 {
-        let acc = measure(a, &smp, scene_name, &kernels, &mut ops_total)?;
+    let mut loader = Loader::default();
+    for (i, (scene_name, paper, paper_trav, paper_share)) in PAPER_TABLE1.into_iter().enumerate() {
+        let ld = loader.get(scene_name)?;
+        if let Some(next) = PAPER_TABLE1.get(i + 1) {
+            loader.ahead(next.0);
+        }
+        let acc = measure_loaded(a, &smp, &ld, scene_name, &kernels, &mut ops_total)?;
+        drop(ld);
         for (ki, &k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
             let row = |metric: &str, v: f64| {

@@ -15,8 +15,14 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
-    for (scene_name, paper) in PAPER_TABLE2 {
-        let acc = measure(a, &smp, scene_name, &kernels, &mut ops_total)?;
+    let mut loader = Loader::default();
+    for (i, (scene_name, paper)) in PAPER_TABLE2.into_iter().enumerate() {
+        let ld = loader.get(scene_name)?;
+        if let Some(next) = PAPER_TABLE2.get(i + 1) {
+            loader.ahead(next.0);
+        }
+        let acc = measure_loaded(a, &smp, &ld, scene_name, &kernels, &mut ops_total)?;
+        drop(ld);
         // s/Gray for the whole chip: per-core seconds per ray over the cores
         // (the paper measured 4 threads on 4 cores).
         let sgray = |cycles: u64, rays: u64| chip_sgray(m, cycles, rays);

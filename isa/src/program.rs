@@ -113,20 +113,6 @@ pub fn run_units<P: UnitProgram, E>(
     units: impl IntoIterator<Item = (Placed<P::Unit>, Detail)>,
     mut each: impl FnMut(&Placed<P::Unit>, Detail, Trace, P::Out) -> Result<(), E>,
 ) -> Result<(), E> {
-    fn unit<P: UnitProgram, M: Machine>(
-        p: &P,
-        m: &mut M,
-        laid: &P::Laid,
-        u: &Placed<P::Unit>,
-        take: fn(&mut M) -> Trace,
-    ) -> (Trace, P::Out) {
-        let mark = m.space().mark();
-        m.space().skip(u.thread as u64 * THREAD_SPAN);
-        let out = p.unit(m, laid, &u.unit);
-        let t = take(m);
-        m.space().release(mark);
-        (t, out)
-    }
     fn go<P: UnitProgram, FL: crate::Flavour<N>, const N: usize, E>(
         p: &P,
         source: &str,
@@ -141,13 +127,10 @@ pub fn run_units<P: UnitProgram, E>(
         let mut native: Option<(Native<FL, N>, P::Laid)> = None;
         for (u, d) in units {
             let (t, out) = match d {
-                Detail::Timed => unit(p, &mut traced, &laid, &u, Traced::take),
+                Detail::Timed => run_unit(p, &mut traced, &laid, &u, Traced::take),
                 Detail::Warmed => {
-                    let (m, laid) = native.get_or_insert_with(|| {
-                        let space = traced.space().clone();
-                        (Native::<FL, N>::logging_in(space, source), laid.clone())
-                    });
-                    unit(p, m, laid, &u, Native::take_log)
+                    let (m, laid) = warming(&mut native, &mut traced, &laid, source);
+                    run_unit(p, m, laid, &u, Native::take_log)
                 }
             };
             each(&u, d, t, out)?;
@@ -161,6 +144,42 @@ pub fn run_units<P: UnitProgram, E>(
         FlavourId::Sse4 => go::<P, Sse4, 4, E>(p, source, units, &mut each),
     }
 }
+
+/// Run unit `u` of `p` on `m` in its simulated thread's part of the address
+/// space (released after it), then `finish` the machine's record of it.
+fn run_unit<P: UnitProgram, M: Machine, R>(
+    p: &P,
+    m: &mut M,
+    laid: &P::Laid,
+    u: &Placed<P::Unit>,
+    finish: impl FnOnce(&mut M) -> R,
+) -> (R, P::Out) {
+    let mark = m.space().mark();
+    m.space().skip(u.thread as u64 * THREAD_SPAN);
+    let out = p.unit(m, laid, &u.unit);
+    let r = finish(m);
+    m.space().release(mark);
+    (r, out)
+}
+
+/// The warming machine: the traced one's address space and laid-out
+/// buffers (their bytes shared), made when the first warmed unit comes.
+fn warming<'a, FL: crate::Flavour<N>, const N: usize, L: Clone>(
+    native: &'a mut Option<(Native<FL, N>, L)>,
+    traced: &mut Traced<FL, N>,
+    laid: &L,
+    source: &str,
+) -> &'a mut (Native<FL, N>, L) {
+    native.get_or_insert_with(|| {
+        let space = traced.space().clone();
+        (Native::<FL, N>::logging_in(space, source), laid.clone())
+    })
+}
+
+/// A [`UnitProgram`] whose timed steps can be recorded on several host
+/// threads ([`run_steps`]).
+pub trait StepProgram: UnitProgram<Laid: Sync, Unit: Sync, Out: Send> + Sync {}
+impl<P: UnitProgram<Laid: Sync, Unit: Sync, Out: Send> + Sync> StepProgram for P {}
 
 /// A step of [`run_steps`]: units that start together, one per simulated
 /// thread, all timed or all warmed.
@@ -185,7 +204,7 @@ pub struct Step<U> {
 /// # Panics
 /// If a timed step has two units on one simulated thread.
 #[allow(clippy::type_complexity)]
-pub fn run_steps<P, E, T>(
+pub fn run_steps<P: StepProgram, E, T>(
     p: &P,
     flavour: FlavourId,
     source: &str,
@@ -193,13 +212,7 @@ pub fn run_steps<P, E, T>(
     mut warm: impl FnMut(&Placed<P::Unit>, Trace, P::Out) -> Result<(), E>,
     mut timed: impl FnMut(&[Placed<P::Unit>], &mut [Receiver<Trace>]) -> Result<T, E>,
     mut done: impl FnMut(&[Placed<P::Unit>], Vec<P::Out>, T) -> Result<(), E>,
-) -> Result<(), E>
-where
-    P: UnitProgram + Sync,
-    P::Laid: Sync,
-    P::Unit: Sync,
-    P::Out: Send,
-{
+) -> Result<(), E> {
     let mut h = Handlers {
         warm: &mut warm,
         timed: &mut timed,
@@ -222,19 +235,12 @@ struct Handlers<'a, U, O, E, T> {
 }
 
 /// [`run_steps`] on flavour `FL`.
-fn steps_on<P, FL, const N: usize, E, T>(
+fn steps_on<P: StepProgram, FL: crate::Flavour<N> + Send + Sync, const N: usize, E, T>(
     p: &P,
     source: &str,
     steps: impl IntoIterator<Item = Step<P::Unit>>,
     h: &mut Handlers<'_, P::Unit, P::Out, E, T>,
-) -> Result<(), E>
-where
-    P: UnitProgram + Sync,
-    P::Laid: Sync,
-    P::Unit: Sync,
-    P::Out: Send,
-    FL: crate::Flavour<N> + Send + Sync,
-{
+) -> Result<(), E> {
     let mut traced = Traced::<FL, N>::new(source);
     let laid = p.lay_out(&mut traced);
     let _ = traced.take();
@@ -242,16 +248,9 @@ where
     let mut recorders: Vec<Traced<FL, N>> = Vec::new();
     for step in steps {
         if step.detail == Detail::Warmed {
-            let (m, laid) = native.get_or_insert_with(|| {
-                let space = traced.space().clone();
-                (Native::<FL, N>::logging_in(space, source), laid.clone())
-            });
+            let (m, laid) = warming(&mut native, &mut traced, &laid, source);
             for u in &step.units {
-                let mark = m.space().mark();
-                m.space().skip(u.thread as u64 * THREAD_SPAN);
-                let out = p.unit(m, laid, &u.unit);
-                let t = m.take_log();
-                m.space().release(mark);
+                let (t, out) = run_unit(p, m, laid, u, Native::take_log);
                 (h.warm)(u, t, out)?;
             }
             continue;
@@ -269,20 +268,13 @@ where
 /// Record `units` at once, each on its thread's machine of `recorders` on a
 /// host thread of its own, streaming to `timed`; (its result, the outputs).
 #[allow(clippy::type_complexity)]
-fn record_step<P, FL, const N: usize, E, T>(
+fn record_step<P: StepProgram, FL: crate::Flavour<N> + Send + Sync, const N: usize, E, T>(
     p: &P,
     laid: &P::Laid,
     recorders: &mut [Traced<FL, N>],
     units: &[Placed<P::Unit>],
     timed: &mut dyn FnMut(&[Placed<P::Unit>], &mut [Receiver<Trace>]) -> Result<T, E>,
-) -> (Result<T, E>, Vec<P::Out>)
-where
-    P: UnitProgram + Sync,
-    P::Laid: Sync,
-    P::Unit: Sync,
-    P::Out: Send,
-    FL: crate::Flavour<N> + Send + Sync,
-{
+) -> (Result<T, E>, Vec<P::Out>) {
     let (txs, mut rxs): (Vec<_>, Vec<_>) = units.iter().map(|_| sync_channel(2)).unzip();
     let mut machines: Vec<Option<&mut Traced<FL, N>>> = recorders.iter_mut().map(Some).collect();
     std::thread::scope(|sc| {
@@ -294,13 +286,8 @@ where
                     .take()
                     .expect("one unit per simulated thread in a timed step");
                 sc.spawn(move || {
-                    let mark = m.space().mark();
-                    m.space().skip(u.thread as u64 * THREAD_SPAN);
                     m.stream_to(tx);
-                    let out = p.unit(m, laid, &u.unit);
-                    m.end_stream();
-                    m.space().release(mark);
-                    out
+                    run_unit(p, m, laid, u, Traced::end_stream).1
                 })
             })
             .collect();

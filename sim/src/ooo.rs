@@ -40,7 +40,6 @@ use isa::{Op, OpClass, Trace, ValId};
 
 /// Cycles the port calendars look ahead.
 const WINDOW: u64 = 1 << 16;
-const WORDS: usize = (WINDOW / 64) as usize;
 /// Value ready-time ring: values older than this many ids are long complete.
 const VALUES: usize = 1 << 16;
 /// A store buffer entry: the bytes a store writes, when its address is
@@ -151,69 +150,87 @@ fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
         .collect()
 }
 
-/// Per-port booking of future cycles: a ring of 64-cycle words per port, each
-/// tagged with the absolute block it holds, so stale words read as free
-/// without ever being cleared.
+/// Per-cycle booking of future ports: a ring of [`WINDOW`] cycles, each a
+/// bit set of the ports busy in it (at most 16 ports, as the config
+/// checks). Cycles the booking base passes are cleared as it passes them,
+/// so the ring only ever holds cycles in `base..base + WINDOW`. One read
+/// answers "which of these ports is free in this cycle" for every port of
+/// a uop at once.
 pub(crate) struct Calendar {
-    /// Per port, per ring word: (the block it holds, its busy bits) — side
-    /// by side, so a lookup reads one host cache line.
-    words: Vec<[(u64, u64); WORDS]>,
+    busy: Box<[u16; WINDOW as usize]>,
     base: u64,
-    uses: Vec<u64>,
+    uses: [u64; 16],
+}
+
+/// A cycle's slot in the ring.
+#[inline(always)]
+fn slot(c: u64) -> usize {
+    (c & (WINDOW - 1)) as usize
 }
 
 impl Calendar {
     pub fn new(ports: usize) -> Calendar {
+        assert!(ports <= 16, "validated: at most 16 ports");
         Calendar {
-            words: vec![[(u64::MAX, 0u64); WORDS]; ports],
+            busy: vec![0u16; WINDOW as usize]
+                .into_boxed_slice()
+                .try_into()
+                .expect("WINDOW entries"),
             base: 0,
-            uses: vec![0; ports],
+            uses: [0; 16],
         }
     }
 
-    /// Cycles before `to` will not be booked again.
+    /// Cycles before `to` will not be booked again (their slots are
+    /// cleared for the cycles a window later).
     #[inline]
     pub fn advance(&mut self, to: u64) {
-        self.base = self.base.max(to);
-    }
-
-    /// The busy bits of the 64-cycle block holding cycle `c` on port `p`.
-    #[inline]
-    fn word(&self, p: usize, c: u64) -> u64 {
-        let blk = c / 64;
-        let (tag, bits) = self.words[p][(blk as usize) % WORDS];
-        if tag == blk {
-            bits
-        } else {
-            0
+        if to <= self.base {
+            return;
         }
+        if to - self.base >= WINDOW {
+            self.busy.fill(0);
+        } else {
+            let mut c = self.base;
+            while c < to {
+                self.busy[slot(c)] = 0;
+                c += 1;
+            }
+        }
+        self.base = to;
     }
 
+    /// Whether port `p` is free in cycle `c`.
     #[inline]
     fn free(&self, p: usize, c: u64) -> bool {
-        self.word(p, c) >> (c % 64) & 1 == 0
+        self.busy[slot(c)] >> p & 1 == 0
     }
 
-    /// First cycle >= `t` with `occ` free cycles on port `p`.
-    #[inline]
-    fn find(&self, p: usize, t: u64, occ: u64) -> u64 {
-        let mut c = t.max(self.base);
-        let limit = self.base + WINDOW - occ;
-        loop {
-            if c >= limit {
-                return c;
-            }
-            // Skip the run of busy cycles starting at c (within this word).
-            let busy = (self.word(p, c) >> (c % 64)).trailing_ones();
-            if busy > 0 {
-                c += u64::from(busy);
-                continue;
-            }
-            if (1..occ).all(|k| self.free(p, c + k)) {
-                return c;
-            }
-            c += 1;
+    /// The ports of `mask` free for the `occ` cycles from `c`.
+    #[inline(always)]
+    fn free_ports(&self, mask: u32, c: u64, occ: u64) -> u32 {
+        let mut cand = mask & !u32::from(self.busy[slot(c)]);
+        let mut k = 1;
+        while cand != 0 && k < occ {
+            cand &= !u32::from(self.busy[slot(c + k)]);
+            k += 1;
         }
+        cand
+    }
+
+    /// Of ports `cand` (not empty), the least used (the lowest on a tie).
+    #[inline(always)]
+    fn least_used(&self, cand: u32) -> usize {
+        let mut best = cand.trailing_zeros() as usize;
+        let mut m = cand & (cand - 1);
+        while m != 0 {
+            let p = m.trailing_zeros() as usize;
+            m &= m - 1;
+            if self.uses[p] < self.uses[best] {
+                best = p;
+            }
+        }
+        best
     }
 
     #[inline]
@@ -222,25 +239,57 @@ impl Calendar {
             return;
         }
         for k in c..c + occ {
-            let blk = k / 64;
-            let word = &mut self.words[p][(blk as usize) % WORDS];
-            if word.0 != blk {
-                *word = (blk, 0);
-            }
-            word.1 |= 1 << (k % 64);
+            self.busy[slot(k)] |= 1 << p;
         }
         self.uses[p] += 1;
     }
 
-    /// Book the earliest slot >= `t` on any port in `mask`; returns the cycle.
+    /// Book the earliest slot >= `t` with `occ` free cycles on any port in
+    /// `mask` (on a tie, the least used port, then the lowest); returns the
+    /// cycle.
     #[inline]
     pub fn book(&mut self, mask: u32, t: u64, occ: u64) -> u64 {
+        let limit = self.base + WINDOW - occ;
+        let mut c = t.max(self.base);
+        while c < limit {
+            let cand = self.free_ports(mask, c, occ);
+            if cand != 0 {
+                let p = self.least_used(cand);
+                self.mark(p, c, occ);
+                return c;
+            }
+            c += 1;
+        }
+        self.book_beyond(mask, t, occ)
+    }
+
+    /// [`Calendar::book`] when no port of `mask` is free before the
+    /// window's end: each port gives the cycle its search stops at (a
+    /// search skips runs of busy cycles a 64-cycle block at a time and
+    /// stops at the first cycle past the window's end), the earliest wins.
+    #[cold]
+    fn book_beyond(&mut self, mask: u32, t: u64, occ: u64) -> u64 {
+        let limit = self.base + WINDOW - occ;
         let mut best = (u64::MAX, u64::MAX, 0usize);
         let mut m = mask;
         while m != 0 {
             let p = m.trailing_zeros() as usize;
             m &= m - 1;
-            let c = self.find(p, t, occ);
+            let mut c = t.max(self.base);
+            while c < limit {
+                let mut busy = 0;
+                while !self.free(p, c + busy) && (busy == 0 || (c + busy) % 64 != 0) {
+                    busy += 1;
+                }
+                if busy > 0 {
+                    c += busy;
+                    continue;
+                }
+                if (1..occ).all(|k| self.free(p, c + k)) {
+                    break;
+                }
+                c += 1;
+            }
             if (c, self.uses[p]) < (best.0, best.1) {
                 best = (c, self.uses[p], p);
             }
@@ -496,8 +545,10 @@ impl OooCore {
             self.rs_cursor = to;
             return;
         }
-        for c in self.rs_cursor + 1..=to {
-            let k = (c & (WINDOW - 1)) as usize;
+        let mut c = self.rs_cursor;
+        while c < to {
+            c += 1;
+            let k = slot(c);
             self.rs_held -= usize::from(self.rs_count[k]);
             self.rs_count[k] = 0;
         }

@@ -278,7 +278,7 @@ impl Calendar {
             let mut c = t.max(self.base);
             while c < limit {
                 let mut busy = 0;
-                while !self.free(p, c + busy) && (busy == 0 || (c + busy) % 64 != 0) {
+                while !self.free(p, c + busy) && (busy == 0 || !(c + busy).is_multiple_of(64)) {
                     busy += 1;
                 }
                 if busy > 0 {

@@ -283,19 +283,9 @@ impl Core {
             done += extra;
             missed = extra > 0;
         } else if op.class.is_load() {
-            let mut start = cycle;
-            let mut slot = None;
-            if !mem.in_l1(0, op.addr.0) {
-                let (j, free) = mshr.earliest();
-                start = start.max(free);
-                slot = Some(j);
-                missed = true;
-            }
-            let sv = mem.access(0, op.addr.0, false, op.mem, start);
-            if let Some(j) = slot {
-                mshr.hold(j, start + sv.latency);
-            }
-            done = start + sv.latency;
+            let (ready, l1_miss) = mem.load(0, op.addr.0, op.mem, cycle, mshr);
+            missed = l1_miss;
+            done = ready;
             if op.class.is_folded() {
                 // A memory operand is read in the pipeline stages before
                 // execute: an L1 hit adds nothing to the op that reads it.

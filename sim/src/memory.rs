@@ -183,8 +183,10 @@ pub struct Served {
 #[derive(Clone, Debug)]
 pub struct Hierarchy {
     cfg: Vec<CacheConfig>,
-    /// caches[core][level]; shared levels live in core 0's slot only.
-    caches: Vec<Vec<Option<Cache>>>,
+    /// Every cache, private and shared, once.
+    caches: Vec<Cache>,
+    /// Per core and level (`core * levels + level`): its cache in `caches`.
+    cache_of: Vec<usize>,
     line_shift: u32,
     dram_latency: u64,
     /// DRAM cycles per line transferred.
@@ -211,19 +213,24 @@ impl Hierarchy {
     /// The hierarchy of `m` for `cores` simulated cores.
     #[must_use]
     pub fn new(m: &MachineConfig, cores: usize) -> Hierarchy {
-        let caches = (0..cores)
-            .map(|c| {
-                m.caches
-                    .iter()
-                    .map(|l| (!l.shared || c == 0).then(|| Cache::new(l)))
-                    .collect()
-            })
-            .collect();
+        let mut caches = Vec::new();
+        let mut cache_of = vec![0; cores * m.caches.len()];
+        for c in 0..cores {
+            for (l, cfg) in m.caches.iter().enumerate() {
+                cache_of[c * m.caches.len() + l] = if cfg.shared && c > 0 {
+                    cache_of[l]
+                } else {
+                    caches.push(Cache::new(cfg));
+                    caches.len() - 1
+                };
+            }
+        }
         let line = m.caches[0].line;
         let bytes_per_cycle = m.dram.bandwidth_gbs / m.clock_ghz;
         Hierarchy {
             cfg: m.caches.clone(),
             caches,
+            cache_of,
             line_shift: line.trailing_zeros(),
             dram_latency: u64::from(m.dram.latency),
             dram_xfer: f64::from(line) / bytes_per_cycle,
@@ -284,9 +291,10 @@ impl Hierarchy {
         LineAddr(addr >> self.line_shift)
     }
 
+    #[inline]
     fn cache(&mut self, core: usize, level: usize) -> &mut Cache {
-        let c = if self.cfg[level].shared { 0 } else { core };
-        self.caches[c][level].as_mut().expect("cache present")
+        let i = self.cache_of[core * self.cfg.len() + level];
+        &mut self.caches[i]
     }
 
     fn dram(&mut self, now: u64, region: MemId) -> u64 {
@@ -323,14 +331,32 @@ impl Hierarchy {
         }
     }
 
-    /// Whether the line of `addr` is in `core`'s L1 (no side effects).
-    #[must_use]
-    pub fn in_l1(&self, core: usize, addr: u64) -> bool {
-        let c = if self.cfg[0].shared { 0 } else { core };
-        self.caches[c][0]
-            .as_ref()
-            .expect("cache present")
-            .contains(self.line_of(addr))
+    /// A load by `core` issuing at cycle `at`: an L1 miss first waits for
+    /// the earliest of `mshrs` (the access starts then and holds the slot
+    /// until its data arrives). The cycle the data is ready, and whether
+    /// it missed the L1.
+    #[inline]
+    pub fn load(
+        &mut self,
+        core: usize,
+        addr: u64,
+        region: MemId,
+        at: u64,
+        mshrs: &mut Mshrs,
+    ) -> (u64, bool) {
+        let line = self.line_of(addr);
+        if self.cache(core, 0).lookup(line, false) {
+            LevelStats::bump(&mut self.stats[0].hits, region);
+            let latency = u64::from(self.cfg[0].latency);
+            self.after(core, line, 0, region, at);
+            return (at + latency, false);
+        }
+        LevelStats::bump(&mut self.stats[0].misses, region);
+        let (j, free) = mshrs.earliest();
+        let start = at.max(free);
+        let sv = self.below_l1(core, line, false, region, start);
+        mshrs.hold(j, start + sv.latency);
+        (start + sv.latency, true)
     }
 
     /// A demand access by `core` at cycle `now` to the line of `addr`.
@@ -343,10 +369,32 @@ impl Hierarchy {
         now: u64,
     ) -> Served {
         let line = self.line_of(addr);
+        if self.cache(core, 0).lookup(line, write) {
+            LevelStats::bump(&mut self.stats[0].hits, region);
+            self.after(core, line, 0, region, now);
+            return Served {
+                level: 0,
+                latency: u64::from(self.cfg[0].latency),
+            };
+        }
+        LevelStats::bump(&mut self.stats[0].misses, region);
+        self.below_l1(core, line, write, region, now)
+    }
+
+    /// The rest of an access that missed the L1: the levels below, DRAM,
+    /// the fills on the way back and the prefetcher.
+    fn below_l1(
+        &mut self,
+        core: usize,
+        line: LineAddr,
+        write: bool,
+        region: MemId,
+        now: u64,
+    ) -> Served {
         let n = self.cfg.len();
         let mut hit_level = n;
-        for l in 0..n {
-            if self.cache(core, l).lookup(line, write && l == 0) {
+        for l in 1..n {
+            if self.cache(core, l).lookup(line, false) {
                 LevelStats::bump(&mut self.stats[l].hits, region);
                 hit_level = l;
                 break;
@@ -361,6 +409,17 @@ impl Hierarchy {
         for l in (0..hit_level).rev() {
             self.fill(core, l, line, write && l == 0);
         }
+        self.after(core, line, hit_level, region, now);
+        Served {
+            level: hit_level,
+            latency,
+        }
+    }
+
+    /// The prefetcher's part of a demand access to `line` served at
+    /// `hit_level`.
+    #[inline]
+    fn after(&mut self, core: usize, line: LineAddr, hit_level: usize, region: MemId, now: u64) {
         if let Some(lp) = self.last_private {
             match self.prefetch {
                 Prefetch::None => {}
@@ -386,10 +445,6 @@ impl Hierarchy {
                     }
                 }
             }
-        }
-        Served {
-            level: hit_level,
-            latency,
         }
     }
 

@@ -299,20 +299,16 @@ impl Calendar {
     }
 }
 
-/// Ready times of values, by id modulo the ring size.
+/// Ready times of values, by id modulo the ring size: each entry the id
+/// it holds and its ready cycle side by side (one host cache line read).
 pub(crate) struct Values {
-    ids: Box<[u32; VALUES]>,
-    at: Box<[u64; VALUES]>,
+    ring: Box<[(u32, u64); VALUES]>,
 }
 
 impl Values {
     pub fn new() -> Values {
         Values {
-            ids: vec![0u32; VALUES]
-                .into_boxed_slice()
-                .try_into()
-                .expect("VALUES entries"),
-            at: vec![0u64; VALUES]
+            ring: vec![(0u32, 0u64); VALUES]
                 .into_boxed_slice()
                 .try_into()
                 .expect("VALUES entries"),
@@ -320,18 +316,16 @@ impl Values {
     }
     #[inline]
     pub fn get(&self, v: ValId) -> u64 {
-        let i = v.0 as usize & (VALUES - 1);
-        if self.ids[i] == v.0 {
-            self.at[i]
+        let (id, at) = self.ring[v.0 as usize & (VALUES - 1)];
+        if id == v.0 {
+            at
         } else {
             0
         }
     }
     #[inline]
     pub fn set(&mut self, v: ValId, t: u64) {
-        let i = v.0 as usize & (VALUES - 1);
-        self.ids[i] = v.0;
-        self.at[i] = t;
+        self.ring[v.0 as usize & (VALUES - 1)] = (v.0, t);
     }
 }
 
@@ -707,19 +701,11 @@ impl OooCore {
                 }
             } else {
                 // An L1 miss first waits for a miss slot; the access starts then.
-                let mut start = first;
-                let mut slot = None;
-                if !mem.in_l1(self.core, lo) {
-                    let (j, free) = self.mshr.earliest();
-                    start = start.max(free);
-                    slot = Some(j);
+                let (ready, missed) = mem.load(self.core, lo, op.mem, first, &mut self.mshr);
+                if missed {
                     *why = Stall::Memory;
                 }
-                let sv = mem.access(self.core, lo, false, op.mem, start);
-                if let Some(j) = slot {
-                    self.mshr.hold(j, start + sv.latency);
-                }
-                done = start + sv.latency;
+                done = ready;
             }
         } else if ct.store {
             mem.access(self.core, op.addr.0, true, op.mem, first);

@@ -56,6 +56,8 @@ struct StoreEntry {
 
 /// Entries of the memory-dependence predictor (by load site).
 const MDP: usize = 4096;
+/// Slots of the store-granule filter ([`OooCore::store_near`]).
+const GRANULES: usize = 512;
 
 /// A macro-fused compare: no uop and no dispatch slot of its own; its value
 /// is ready when its sources are (the branch it fuses with executes it).
@@ -374,6 +376,9 @@ pub struct OooCore {
     /// bytes had its address, so it now waits for every older store's
     /// address (Intel's memory disambiguation predictor).
     mdp: Vec<bool>,
+    /// Per 8-byte granule (hashed): the youngest store to write it, as its
+    /// place in the store sequence plus one (0: none).
+    granules: Box<[usize; GRANULES]>,
     d: u64,
     dcount: u32,
     fetch_block: u64,
@@ -416,6 +421,7 @@ impl OooCore {
             store_seq: 0,
             pred: Gshare::new(c.history_bits, c.predictor_bits),
             mdp: vec![false; MDP],
+            granules: Box::new([0; GRANULES]),
             d: 0,
             dcount: 0,
             fetch_block: 0,
@@ -719,6 +725,10 @@ impl OooCore {
                 ret: u64::MAX - 1,
             };
             self.store_seq += 1;
+            let hi = op.addr.0 + u64::from(op.bytes);
+            for g in op.addr.0 >> 3..=(hi.max(op.addr.0 + 1) - 1) >> 3 {
+                self.granules[g as usize % GRANULES] = self.store_seq;
+            }
         }
         done
     }
@@ -749,9 +759,26 @@ impl OooCore {
     /// of the load (else forwarding fails).
     #[inline(always)]
     fn forwarding(&self, lo: u64, hi: u64, at: u64) -> Option<(StoreEntry, bool)> {
+        if !self.store_near(lo, hi) {
+            return None;
+        }
         self.buffered(at)
             .find(|st| st.lo < hi && lo < st.hi)
             .map(|st| (*st, st.lo <= lo && hi <= st.hi))
+    }
+
+    /// Whether a store the buffer may still hold wrote a granule (8 bytes,
+    /// hashed) of bytes `lo..hi`: if not, no buffered store overlaps them
+    /// and the walk is skipped. (A granule's slot holds the youngest store
+    /// to it or to a granule hashed alike; younger stores leave the buffer
+    /// later, so the slot is never older than an overlapping store.)
+    #[inline(always)]
+    fn store_near(&self, lo: u64, hi: u64) -> bool {
+        let oldest = self.store_seq.saturating_sub(self.stores.len());
+        (lo >> 3..=(hi.max(lo + 1) - 1) >> 3).any(|g| {
+            let v = self.granules[g as usize % GRANULES];
+            v > oldest
+        })
     }
 
     /// The latest time an older store still in the buffer at `at` has its

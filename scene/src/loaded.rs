@@ -7,6 +7,7 @@ use crate::reference::Reference;
 use crate::scene::Scene;
 
 /// A scene and its BVHs.
+#[derive(Clone)]
 pub struct Loaded {
     /// The scene.
     pub scene: Scene,

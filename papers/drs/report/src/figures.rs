@@ -4,6 +4,7 @@
 use crate::measure::*;
 use crate::paper::*;
 use drs_kernels::methods::Kernel;
+use rayon::prelude::*;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
@@ -16,14 +17,27 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     let sizes = [4u32, 8, 12, 16, 20, 24, 28];
     let (mut rows, mut notes, mut ops_total) = (Vec::new(), Vec::new(), 0u64);
     let (mut s_mray, mut s_bpr) = (Vec::new(), Vec::new());
-    for scene_name in DRS_SCENES {
-        let ld = load(scene_name)?;
+    let mut loader = Loader::default();
+    for (i, scene_name) in DRS_SCENES.into_iter().enumerate() {
+        let ld = loader.get(scene_name)?;
+        if let Some(next) = DRS_SCENES.get(i + 1) {
+            loader.ahead(next);
+        }
         let (mut pm, mut pb) = (Vec::new(), Vec::new());
-        for size in sizes {
-            let mut smp = base.clone();
-            smp.size = size;
-            smp.block = 16u32.div_ceil(size);
-            let acc = measure_loaded(a, &smp, &ld, scene_name, &[Kernel::DrsBvh4], &mut ops_total)?;
+        // The sizes are independent runs: one host thread each, in order.
+        let accs = sizes
+            .par_iter()
+            .map(|&size| {
+                let mut smp = base.clone();
+                smp.size = size;
+                smp.block = 16u32.div_ceil(size);
+                let mut ops = 0u64;
+                let acc = measure_loaded(a, &smp, &ld, scene_name, &[Kernel::DrsBvh4], &mut ops)?;
+                Ok((acc, ops))
+            })
+            .collect::<AppResult<Vec<_>>>()?;
+        for (&size, (acc, ops)) in sizes.iter().zip(accs) {
+            ops_total += ops;
             let ac = &acc[0];
             let row = |metric: &str, v: f64| {
                 Row::new(metric, v)
@@ -115,7 +129,7 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let kernels = [Kernel::DrsBvh4, Kernel::SingleBvh4, Kernel::HybridBvh4];
     let fovs = [8.0f32, 16.0, 24.0, 32.0, 40.0, 48.0, 56.0, 64.0];
     let scene_name = "dragon";
-    let mut ld = load(scene_name)?;
+    let ld = load(scene_name)?;
     let (mut rows, mut notes, mut ops_total) = (Vec::new(), Vec::new(), 0u64);
     let mut series: Vec<repro::plot::Series> = kernels
         .iter()
@@ -125,9 +139,25 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         })
         .collect();
     let mut hybrid_wins = Vec::new();
-    for fov in fovs {
-        ld.scene.config.camera.fov = fov;
-        let acc = measure_loaded(a, &base, &ld, scene_name, &kernels, &mut ops_total)?;
+    // The views are independent runs: as many at once as there are host
+    // threads, each on its own copy of the scene with its camera's field
+    // of view; results in order.
+    let mut accs = Vec::new();
+    for chunk in fovs.chunks(rayon::current_num_threads().max(1)) {
+        let part = chunk
+            .par_iter()
+            .map(|&fov| {
+                let mut view = ld.clone();
+                view.scene.config.camera.fov = fov;
+                let mut ops = 0u64;
+                let acc = measure_loaded(a, &base, &view, scene_name, &kernels, &mut ops)?;
+                Ok((acc, ops))
+            })
+            .collect::<AppResult<Vec<_>>>()?;
+        accs.extend(part);
+    }
+    for (&fov, (acc, ops)) in fovs.iter().zip(accs) {
+        ops_total += ops;
         for (ki, k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
             let (rate, ci) = ac.chip_mray_ci(&base.m);

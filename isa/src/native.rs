@@ -528,14 +528,17 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
         if n == N {
             return Vf(buf.f32s::<N>(off));
         }
-        let mut r = [0f32; N];
-        for (i, x) in r.iter_mut().take(n).enumerate() {
+        if n == 1 {
+            return Vf([buf.f32_at(off); N]);
+        }
+        // Each lane from the first n (not from the lane n before it: a
+        // chain of dependent copies through memory).
+        // (n divides N, a power of two: i mod n is i & (n - 1).)
+        let mut first = [0f32; N];
+        for (i, x) in first.iter_mut().take(n).enumerate() {
             *x = buf.f32_at(off + 4 * i);
         }
-        for i in n..N {
-            r[i] = r[i - n];
-        }
-        Vf(r)
+        Vf(std::array::from_fn(|i| first[i & (n - 1)]))
     }
     #[inline(always)]
     fn load_masked(&mut self, k: Vk<N>, src: Vf<N>, buf: &Buf, at: At<NS>) -> Vf<N> {

@@ -256,6 +256,7 @@ pub trait Machine {
     /// the machine prices: no issue slot on Larrabee, a micro-fused uop on
     /// Haswell), else a separate load as [`Machine::load_repeat`]. For
     /// operands read by one op only.
+    #[inline(always)]
     fn load_operand(&mut self, buf: &Buf, at: At<Self::S>, n: usize) -> Self::F {
         self.load_repeat(buf, at, n)
     }
@@ -344,99 +345,123 @@ pub trait Machine {
     // ---- conveniences (provided) ----
 
     /// a + b
+    #[inline(always)]
     fn add(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.bin(BinOp::Add, a, b)
     }
     /// a - b
+    #[inline(always)]
     fn sub(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.bin(BinOp::Sub, a, b)
     }
     /// a * b
+    #[inline(always)]
     fn mul(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.bin(BinOp::Mul, a, b)
     }
     /// a / b
+    #[inline(always)]
     fn div(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.bin(BinOp::Div, a, b)
     }
     /// x86 min
+    #[inline(always)]
     fn min(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.bin(BinOp::Min, a, b)
     }
     /// x86 max
+    #[inline(always)]
     fn max(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.bin(BinOp::Max, a, b)
     }
     /// a * b + c
+    #[inline(always)]
     fn fmadd(&mut self, a: Self::F, b: Self::F, c: Self::F) -> Self::F {
         self.fma(Fma::MAdd, a, b, c)
     }
     /// a * b - c
+    #[inline(always)]
     fn fmsub(&mut self, a: Self::F, b: Self::F, c: Self::F) -> Self::F {
         self.fma(Fma::MSub, a, b, c)
     }
     /// -(a * b) + c
+    #[inline(always)]
     fn fnmadd(&mut self, a: Self::F, b: Self::F, c: Self::F) -> Self::F {
         self.fma(Fma::NMAdd, a, b, c)
     }
     /// -(a * b) - c
+    #[inline(always)]
     fn fnmsub(&mut self, a: Self::F, b: Self::F, c: Self::F) -> Self::F {
         self.fma(Fma::NMSub, a, b, c)
     }
     /// a & b
+    #[inline(always)]
     fn and(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.logic(Logic::And, a, b)
     }
     /// a | b
+    #[inline(always)]
     fn or(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.logic(Logic::Or, a, b)
     }
     /// a ^ b
+    #[inline(always)]
     fn xor(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.logic(Logic::Xor, a, b)
     }
     /// !a & b
+    #[inline(always)]
     fn andnot(&mut self, a: Self::F, b: Self::F) -> Self::F {
         self.logic(Logic::AndNot, a, b)
     }
     /// Horizontal min.
+    #[inline(always)]
     fn hmin(&mut self, a: Self::F) -> Self::X {
         self.reduce(BinOp::Min, a)
     }
     /// Horizontal max.
+    #[inline(always)]
     fn hmax(&mut self, a: Self::F) -> Self::X {
         self.reduce(BinOp::Max, a)
     }
     /// Horizontal sum.
+    #[inline(always)]
     fn hsum(&mut self, a: Self::F) -> Self::X {
         self.reduce(BinOp::Add, a)
     }
     /// a & b (masks)
+    #[inline(always)]
     fn kand(&mut self, a: Self::K, b: Self::K) -> Self::K {
         self.klogic(Logic::And, a, b)
     }
     /// a | b (masks)
+    #[inline(always)]
     fn kor(&mut self, a: Self::K, b: Self::K) -> Self::K {
         self.klogic(Logic::Or, a, b)
     }
     /// a + b
+    #[inline(always)]
     fn s_add(&mut self, a: Self::S, b: Self::S) -> Self::S {
         self.s_op(SOp::Add, a, b)
     }
     /// a - b
+    #[inline(always)]
     fn s_sub(&mut self, a: Self::S, b: Self::S) -> Self::S {
         self.s_op(SOp::Sub, a, b)
     }
     /// a & b
+    #[inline(always)]
     fn s_and(&mut self, a: Self::S, b: Self::S) -> Self::S {
         self.s_op(SOp::And, a, b)
     }
     /// a + imm
+    #[inline(always)]
     fn s_addi(&mut self, a: Self::S, imm: i64) -> Self::S {
         let b = self.int(imm);
         self.s_op(SOp::Add, a, b)
     }
     /// Branch if `a p b`, compare and jump (macro-fused on x86).
+    #[inline(always)]
     fn branch_if(&mut self, site: Site, p: Cmp, a: Self::S, b: Self::S) -> bool {
         let c = self.s_cmp(p, a, b);
         self.branch(site, c)

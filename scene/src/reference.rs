@@ -308,16 +308,33 @@ impl<'a> Reference<'a> {
         };
         let slab = Slab::new(r);
         let mut tmax = r.tmax;
-        let mut stack: Vec<u32> = vec![0];
-        while let Some(n) = stack.pop() {
-            let node = &bvh.nodes[n as usize];
-            if slab.hit(node.bounds(), r.tmin, tmax).is_none() {
+        // (node, the near end of its box's overlap with the ray when pushed)
+        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
+        if let Some((near, _)) = slab.hit(bvh.nodes[0].bounds(), r.tmin, tmax) {
+            stack.push((0, near));
+        }
+        while let Some((n, near)) = stack.pop() {
+            // The box again against the tmax a hit may have shrunk since.
+            if near > tmax {
                 continue;
             }
-            match *node {
+            match bvh.nodes[n as usize] {
                 Node::Inner { left, right, .. } => {
-                    stack.push(right);
-                    stack.push(left);
+                    // Nearer child first: a closest hit found early culls
+                    // the rest. The answer does not depend on the order
+                    // (every triangle a box does not cull is tested), only
+                    // the work does.
+                    let at = |c: u32| {
+                        slab.hit(bvh.nodes[c as usize].bounds(), r.tmin, tmax)
+                            .map(|h| (c, h.0))
+                    };
+                    match (at(left), at(right)) {
+                        (Some(l), Some(rt)) if rt.1 < l.1 => stack.extend([l, rt]),
+                        (Some(l), Some(rt)) => stack.extend([rt, l]),
+                        (Some(l), None) => stack.push(l),
+                        (None, Some(rt)) => stack.push(rt),
+                        (None, None) => {}
+                    }
                 }
                 Node::Leaf { first, count, .. } => {
                     for &p in &bvh.prims[first as usize..(first + count) as usize] {

@@ -331,17 +331,6 @@ impl Values {
     }
 }
 
-/// `(a + b) mod n` for `a < n`, `b <= n`, without a divide.
-#[inline(always)]
-fn wrap(a: usize, b: usize, n: usize) -> usize {
-    let x = a + b;
-    if x >= n {
-        x - n
-    } else {
-        x
-    }
-}
-
 /// An out-of-order core's state between ops.
 pub struct OooCore {
     core: usize,
@@ -350,7 +339,7 @@ pub struct OooCore {
     narrow: Vec<ClassT>,
     width: u32,
     retire_width: u32,
-    rob: usize,
+    rob: u64,
     sched: usize,
     l1_latency: u64,
     sf_latency: u64,
@@ -359,8 +348,11 @@ pub struct OooCore {
     penalty: u64,
     cal: Calendar,
     values: Values,
+    /// Retire cycle of each fused uop by its place in program order,
+    /// modulo a power of two at least the ROB's size (so the entry `rob`
+    /// back is found with a mask, and a place not yet written reads 0).
     rob_ring: Vec<u64>,
-    rob_seq: usize,
+    rob_seq: u64,
     /// Uops in the scheduler that issue in each cycle (mod [`WINDOW`]),
     /// for cycles after `rs_cursor`.
     rs_count: Box<[u16; WINDOW as usize]>,
@@ -399,7 +391,7 @@ impl OooCore {
             narrow: class_table_of(m, true),
             width: c.width,
             retire_width: c.retire_width,
-            rob: c.rob as usize,
+            rob: u64::from(c.rob),
             sched: c.scheduler as usize,
             l1_latency: u64::from(m.caches[0].latency),
             sf_latency: u64::from(c.store_forward_latency),
@@ -408,7 +400,7 @@ impl OooCore {
             penalty: u64::from(c.mispredict_penalty),
             cal: Calendar::new(c.ports as usize),
             values: Values::new(),
-            rob_ring: vec![0; c.rob as usize],
+            rob_ring: vec![0; (c.rob as usize).next_power_of_two()],
             rob_seq: 0,
             rs_count: vec![0u16; WINDOW as usize]
                 .into_boxed_slice()
@@ -571,7 +563,8 @@ impl OooCore {
             why = Stall::Branch;
         }
         if f > 0 {
-            let need = self.rob_ring[wrap(self.rob_seq, f as usize - 1, self.rob)];
+            let back = (self.rob_seq + u64::from(f) - 1).wrapping_sub(self.rob);
+            let need = self.rob_ring[back as usize & (self.rob_ring.len() - 1)];
             if need > d {
                 d = need;
                 why = Stall::Resources;
@@ -815,8 +808,9 @@ impl OooCore {
         }
         self.ret_count += f;
         for _ in 0..f {
-            self.rob_ring[self.rob_seq] = ret;
-            self.rob_seq = wrap(self.rob_seq, 1, self.rob);
+            let k = self.rob_seq as usize & (self.rob_ring.len() - 1);
+            self.rob_ring[k] = ret;
+            self.rob_seq += 1;
         }
         ret
     }

@@ -128,7 +128,7 @@ pub fn run_queue(
             next += 1;
             t.t = q;
             t.pos = 0;
-            t.values = Values::new();
+            t.values.restart();
         }
         if th.iter().all(|t| t.pos >= t.t.ops.len()) {
             break;

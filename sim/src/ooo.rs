@@ -301,25 +301,34 @@ impl Calendar {
     }
 }
 
-/// Ready times of values, by id modulo the ring size: each entry the id
-/// it holds and its ready cycle side by side (one host cache line read).
+/// Ready times of values, by id modulo the ring size: each entry the tag
+/// it holds (the id, and the unit it belongs to) and its ready cycle side
+/// by side (one host cache line read).
 pub(crate) struct Values {
-    ring: Box<[(u32, u64); VALUES]>,
+    ring: Box<[(u64, u64); VALUES]>,
+    /// The current unit's tag bits (above the id's 32).
+    unit: u64,
 }
 
 impl Values {
     pub fn new() -> Values {
         Values {
-            ring: vec![(0u32, 0u64); VALUES]
+            ring: vec![(0u64, 0u64); VALUES]
                 .into_boxed_slice()
                 .try_into()
                 .expect("VALUES entries"),
+            unit: 0,
         }
+    }
+    /// Forget every value (a new unit numbers its values from 0 again):
+    /// entries of earlier units no longer match, without clearing the ring.
+    pub fn restart(&mut self) {
+        self.unit += 1 << 32;
     }
     #[inline]
     pub fn get(&self, v: ValId) -> u64 {
-        let (id, at) = self.ring[v.0 as usize & (VALUES - 1)];
-        if id == v.0 {
+        let (tag, at) = self.ring[v.0 as usize & (VALUES - 1)];
+        if tag == self.unit | u64::from(v.0) {
             at
         } else {
             0
@@ -327,7 +336,7 @@ impl Values {
     }
     #[inline]
     pub fn set(&mut self, v: ValId, t: u64) {
-        self.ring[v.0 as usize & (VALUES - 1)] = (v.0, t);
+        self.ring[v.0 as usize & (VALUES - 1)] = (self.unit | u64::from(v.0), t);
     }
 }
 

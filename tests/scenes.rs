@@ -44,7 +44,7 @@ fn every_scene_loads_and_its_bvhs_validate() {
     for n in ["conference", "fern", "saloon", "fairy", "layers", "sphere"] {
         assert!(get(n, "triangles").unwrap() > 1000.0, "{n}");
     }
-    for n in ["fern", "saloon", "fairy"] {
+    for n in ["fern", "saloon", "fairy", "conference"] {
         let r = get(n, "triangles_vs_paper").unwrap();
         assert!((0.75..=1.25).contains(&r), "{n}: {r} of the paper's count");
     }

@@ -3,7 +3,7 @@
 
 use crate::measure::*;
 use crate::paper::*;
-use drs_kernels::methods::Kernel;
+use drs_kernels::methods::{Kernel, SharedLayouts};
 use rayon::prelude::*;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
@@ -24,7 +24,9 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             loader.ahead(next);
         }
         let (mut pm, mut pb) = (Vec::new(), Vec::new());
-        // The sizes are independent runs: one host thread each, in order.
+        // The sizes are independent runs: one host thread each, in order,
+        // the scene laid out once for all of them.
+        let shared = SharedLayouts::default();
         let accs = sizes
             .par_iter()
             .map(|&size| {
@@ -32,7 +34,14 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                 smp.size = size;
                 smp.block = 16u32.div_ceil(size);
                 let mut ops = 0u64;
-                let acc = measure_loaded(a, &smp, &ld, scene_name, &[Kernel::DrsBvh4], &mut ops)?;
+                let acc = measure_loaded(
+                    a,
+                    &smp,
+                    (&ld, &shared),
+                    scene_name,
+                    &[Kernel::DrsBvh4],
+                    &mut ops,
+                )?;
                 Ok((acc, ops))
             })
             .collect::<AppResult<Vec<_>>>()?;
@@ -141,7 +150,9 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut hybrid_wins = Vec::new();
     // The views are independent runs: as many at once as there are host
     // threads, each on its own copy of the scene with its camera's field
-    // of view; results in order.
+    // of view; results in order. The layout does not depend on the camera:
+    // made once for every view.
+    let shared = SharedLayouts::default();
     let mut accs = Vec::new();
     for chunk in fovs.chunks(rayon::current_num_threads().max(1)) {
         let part = chunk
@@ -150,7 +161,8 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                 let mut view = ld.clone();
                 view.scene.config.camera.fov = fov;
                 let mut ops = 0u64;
-                let acc = measure_loaded(a, &base, &view, scene_name, &kernels, &mut ops)?;
+                let acc =
+                    measure_loaded(a, &base, (&view, &shared), scene_name, &kernels, &mut ops)?;
                 Ok((acc, ops))
             })
             .collect::<AppResult<Vec<_>>>()?;

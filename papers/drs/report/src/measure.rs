@@ -2,7 +2,7 @@
 //! stand-in, every method traced over the same streams, each stream
 //! checked against the reference and timed on the machine.
 
-use drs_kernels::methods::{Kernel, Run};
+use drs_kernels::methods::{Kernel, Run, SharedLayouts};
 use isa::Region;
 use rayon::prelude::*;
 pub(crate) use repro::sampling::separates;
@@ -195,12 +195,14 @@ impl Loader {
 
 /// Every kernel over the same sampled streams of one loaded scene: each
 /// method renders the sampled parts of one frame in render order on all the
-/// machine's cores ([`frame_plan`]), its scene laid out once and the
-/// machine's state carried from unit to unit.
+/// machine's cores ([`frame_plan`]), its scene laid out once (in `shared`,
+/// which every run over the same scene geometry may share: a layout does
+/// not depend on the camera or the sample) and the machine's state carried
+/// from unit to unit.
 pub(crate) fn measure_loaded(
     a: &ReproduceArgs,
     smp: &Sample,
-    ld: &Loaded,
+    (ld, shared): (&Loaded, &SharedLayouts),
     scene_name: &str,
     kernels: &[Kernel],
     ops_total: &mut u64,
@@ -220,13 +222,12 @@ pub(crate) fn measure_loaded(
     // the scene's two layouts shared. The layouts are made first (both at
     // once where the methods read both trees), so no method's thread waits
     // on another's.
-    let shared = drs_kernels::methods::SharedLayouts::default();
     let lay = |k: Option<&Kernel>| {
         if let Some(&k) = k {
             let none =
                 scene::workload::RayStream::from_rays(StreamKind::Primary, vec![], vec![], vec![]);
             let mut r = Run::new(k, &ld.scene, &ld.b2, &ld.b4, none);
-            r.shared = Some(&shared);
+            r.shared = Some(shared);
             let _ = r.lay_out(&mut isa::Native::<isa::Sse4, 4>::new());
         }
     };
@@ -236,7 +237,7 @@ pub(crate) fn measure_loaded(
     );
     let runs = kernels
         .par_iter()
-        .map(|&k| measure_kernel(smp, (ld, &shared), &refi, (&plan, &streams), k, scene_name))
+        .map(|&k| measure_kernel(smp, (ld, shared), &refi, (&plan, &streams), k, scene_name))
         .collect::<AppResult<Vec<(Acc, u64)>>>()?;
     *ops_total += runs.iter().map(|r| r.1).sum::<u64>();
     Ok(runs.into_iter().map(|r| r.0).collect())

@@ -3,6 +3,7 @@
 
 use crate::measure::*;
 use crate::paper::*;
+use drs_kernels::methods::SharedLayouts;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
@@ -33,7 +34,14 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
         if let Some(next) = PAPER_TABLE1.get(i + 1) {
             loader.ahead(next.0);
         }
-        let acc = measure_loaded(a, &smp, &ld, scene_name, &kernels, &mut ops_total)?;
+        let acc = measure_loaded(
+            a,
+            &smp,
+            (&ld, &SharedLayouts::default()),
+            scene_name,
+            &kernels,
+            &mut ops_total,
+        )?;
         drop(ld);
         for (ki, &k) in kernels.iter().enumerate() {
             let ac = &acc[ki];

@@ -3,7 +3,7 @@
 
 use crate::measure::*;
 use crate::paper::*;
-use drs_kernels::methods::Kernel;
+use drs_kernels::methods::{Kernel, SharedLayouts};
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use std::time::Instant;
 
@@ -21,7 +21,14 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
         if let Some(next) = PAPER_TABLE2.get(i + 1) {
             loader.ahead(next.0);
         }
-        let acc = measure_loaded(a, &smp, &ld, scene_name, &kernels, &mut ops_total)?;
+        let acc = measure_loaded(
+            a,
+            &smp,
+            (&ld, &SharedLayouts::default()),
+            scene_name,
+            &kernels,
+            &mut ops_total,
+        )?;
         drop(ld);
         // s/Gray for the whole chip: per-core seconds per ray over the cores
         // (the paper measured 4 threads on 4 cores).

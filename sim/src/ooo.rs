@@ -202,6 +202,14 @@ impl Calendar {
         self.base = to;
     }
 
+    /// The busy-port sets of the four cycles from ring slot `i` (at most
+    /// `WINDOW - 4`), one per 16-bit lane, the first lowest.
+    #[inline(always)]
+    fn four(&self, i: usize) -> u64 {
+        let b = &self.busy[i..i + 4];
+        u64::from(b[0]) | u64::from(b[1]) << 16 | u64::from(b[2]) << 32 | u64::from(b[3]) << 48
+    }
+
     /// Whether port `p` is free in cycle `c`.
     #[inline]
     fn free(&self, p: usize, c: u64) -> bool {
@@ -253,6 +261,25 @@ impl Calendar {
     pub fn book(&mut self, mask: u32, t: u64, occ: u64) -> u64 {
         let limit = self.base + WINDOW - occ;
         let mut c = t.max(self.base);
+        if occ == 1 {
+            // Four cycles per step: each 16-bit lane of `free` holds the
+            // mask's ports free in one cycle, the first non-zero lane is
+            // the first cycle with one (a step per cycle mispredicts its
+            // exit).
+            let m4 = u64::from(mask) * 0x0001_0001_0001_0001;
+            while c + 4 <= limit && slot(c) <= WINDOW as usize - 4 {
+                let free = (self.four(slot(c)) & m4) ^ m4;
+                if free != 0 {
+                    let k = free.trailing_zeros() / 16;
+                    let cand = (free >> (16 * k)) as u32 & 0xFFFF;
+                    let c = c + u64::from(k);
+                    let p = self.least_used(cand);
+                    self.mark(p, c, 1);
+                    return c;
+                }
+                c += 4;
+            }
+        }
         while c < limit {
             let cand = self.free_ports(mask, c, occ);
             if cand != 0 {

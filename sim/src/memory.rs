@@ -487,6 +487,41 @@ mod tests {
         }
     }
 
+    /// LRU written plainly: per set a list of (line, dirty, last use).
+    #[test]
+    fn recency_ordered_sets_behave_as_plain_lru_on_seeded_accesses() {
+        let mut c = Cache::new(&cfg(4, 4)); // 16 sets of 4 ways
+        let mut plain: Vec<Vec<(u64, bool, u64)>> = vec![Vec::new(); 16];
+        let mut x = 0x2545_F491_4F6C_DD1Du64;
+        for clock in 0..50_000u64 {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            let line = x % 200; // 200 lines over 64 ways: hits and evictions
+            let write = x >> 40 & 3 == 0;
+            let set = &mut plain[(line % 16) as usize];
+            let hit = c.lookup(LineAddr(line), write);
+            if let Some(e) = set.iter_mut().find(|e| e.0 == line) {
+                assert!(hit, "access {clock}: line {line} should hit");
+                e.1 |= write;
+                e.2 = clock;
+                continue;
+            }
+            assert!(!hit, "access {clock}: line {line} should miss");
+            assert!(!c.contains(LineAddr(line)));
+            let evicted = c.insert(LineAddr(line), write);
+            let want = if set.len() == 4 {
+                let (i, _) = set.iter().enumerate().min_by_key(|(_, e)| e.2).unwrap();
+                let v = set.remove(i);
+                v.1.then_some(LineAddr(v.0))
+            } else {
+                None
+            };
+            assert_eq!(evicted, want, "access {clock}: victim");
+            set.push((line, write, clock));
+        }
+    }
+
     #[test]
     fn lru_evicts_the_oldest_and_reports_dirty_victims() {
         // 1 KiB, 2 ways, 64 B lines: 8 sets; lines 0, 8, 16 map to set 0.

@@ -878,3 +878,81 @@ fn count(s: &mut Stats, op: &Op, ct: &ClassT, why: Stall, delta: u64) {
         s.active_lanes += u64::from(op.mask.count());
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The calendar's rule, written plainly: per port a set of busy cycles;
+    /// the earliest cycle >= max(t, base) where some port of `mask` is free
+    /// for `occ` cycles, on a tie the least used port, then the lowest.
+    struct Plain {
+        busy: Vec<std::collections::BTreeSet<u64>>,
+        uses: Vec<u64>,
+        base: u64,
+    }
+
+    impl Plain {
+        fn book(&mut self, mask: u32, t: u64, occ: u64) -> u64 {
+            let mut c = t.max(self.base);
+            loop {
+                let free: Vec<usize> = (0..16)
+                    .filter(|&p| mask >> p & 1 != 0)
+                    .filter(|&p| (c..c + occ).all(|k| !self.busy[p].contains(&k)))
+                    .collect();
+                if let Some(&p) = free.iter().min_by_key(|&&p| (self.uses[p], p)) {
+                    self.busy[p].extend(c..c + occ);
+                    self.uses[p] += 1;
+                    return c;
+                }
+                c += 1;
+            }
+        }
+    }
+
+    #[test]
+    fn calendar_books_as_the_plain_rule_on_seeded_bookings() {
+        let mut cal = Calendar::new(8);
+        let mut plain = Plain {
+            busy: vec![Default::default(); 16],
+            uses: vec![0; 16],
+            base: 0,
+        };
+        let mut x = 0x9E37_79B9_7F4A_7C15u64;
+        let mut next = || {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            x
+        };
+        // Masks as machine configs have them: one port, two, four.
+        let masks = [
+            0b1,
+            0b10,
+            0b11,
+            0b1100_0011,
+            0b110_0011,
+            0b1000_0000,
+            0b1_0000,
+        ];
+        // Start near the ring's end, so bookings wrap around it.
+        let mut base = WINDOW - 1_500;
+        cal.advance(base);
+        plain.base = base;
+        for i in 0..20_000 {
+            if i % 7 == 0 {
+                base += next() % 3;
+                cal.advance(base);
+                plain.base = base;
+            }
+            let mask = masks[(next() % masks.len() as u64) as usize];
+            let t = base + next() % 12;
+            let occ = if next() % 10 == 0 { 1 + next() % 6 } else { 1 };
+            assert_eq!(
+                cal.book(mask, t, occ),
+                plain.book(mask, t, occ),
+                "booking {i}"
+            );
+        }
+    }
+}

@@ -43,16 +43,23 @@ impl Cache {
         }
     }
 
-    /// The ways of `line`'s set, most recent first.
+    /// Where `line`'s set lies in [`Cache::ways_of`].
     #[inline]
-    fn set(&mut self, line: LineAddr) -> &mut [u64] {
+    fn set_range(&self, line: LineAddr) -> std::ops::Range<usize> {
         let set = if self.sets.is_power_of_two() {
             line.0 & (self.sets - 1)
         } else {
             line.0 % self.sets
         };
         let s = set as usize * self.ways;
-        &mut self.ways_of[s..s + self.ways]
+        s..s + self.ways
+    }
+
+    /// The ways of `line`'s set, most recent first.
+    #[inline]
+    fn set(&mut self, line: LineAddr) -> &mut [u64] {
+        let r = self.set_range(line);
+        &mut self.ways_of[r]
     }
 
     /// Look up a line; on a hit, make it the most recent (and mark it
@@ -78,14 +85,8 @@ impl Cache {
     /// Whether a line is present (no LRU update).
     #[must_use]
     pub fn contains(&self, line: LineAddr) -> bool {
-        let set = if self.sets.is_power_of_two() {
-            line.0 & (self.sets - 1)
-        } else {
-            line.0 % self.sets
-        };
-        let s = set as usize * self.ways;
         let k = key(line);
-        for &e in &self.ways_of[s..s + self.ways] {
+        for &e in &self.ways_of[self.set_range(line)] {
             if e & !1 == k {
                 return true;
             }
@@ -345,13 +346,9 @@ impl Hierarchy {
         mshrs: &mut Mshrs,
     ) -> (u64, bool) {
         let line = self.line_of(addr);
-        if self.cache(core, 0).lookup(line, false) {
-            LevelStats::bump(&mut self.stats[0].hits, region);
-            let latency = u64::from(self.cfg[0].latency);
-            self.after(core, line, 0, region, at);
-            return (at + latency, false);
+        if self.l1(core, line, false, region, at) {
+            return (at + u64::from(self.cfg[0].latency), false);
         }
-        LevelStats::bump(&mut self.stats[0].misses, region);
         let (j, free) = mshrs.earliest();
         let start = at.max(free);
         let sv = self.below_l1(core, line, false, region, start);
@@ -369,16 +366,26 @@ impl Hierarchy {
         now: u64,
     ) -> Served {
         let line = self.line_of(addr);
-        if self.cache(core, 0).lookup(line, write) {
-            LevelStats::bump(&mut self.stats[0].hits, region);
-            self.after(core, line, 0, region, now);
+        if self.l1(core, line, write, region, now) {
             return Served {
                 level: 0,
                 latency: u64::from(self.cfg[0].latency),
             };
         }
-        LevelStats::bump(&mut self.stats[0].misses, region);
         self.below_l1(core, line, write, region, now)
+    }
+
+    /// An access's L1 step: the lookup, its counter, and on a hit the
+    /// prefetcher's part; whether it hit.
+    #[inline]
+    fn l1(&mut self, core: usize, line: LineAddr, write: bool, region: MemId, now: u64) -> bool {
+        let hit = self.cache(core, 0).lookup(line, write);
+        let l0 = &mut self.stats[0];
+        LevelStats::bump(if hit { &mut l0.hits } else { &mut l0.misses }, region);
+        if hit {
+            self.after(core, line, 0, region, now);
+        }
+        hit
     }
 
     /// The rest of an access that missed the L1: the levels below, DRAM,

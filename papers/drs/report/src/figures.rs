@@ -17,12 +17,8 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     let sizes = [4u32, 8, 12, 16, 20, 24, 28];
     let (mut rows, mut notes, mut ops_total) = (Vec::new(), Vec::new(), 0u64);
     let (mut s_mray, mut s_bpr) = (Vec::new(), Vec::new());
-    let mut loader = Loader::default();
-    for (i, scene_name) in DRS_SCENES.into_iter().enumerate() {
-        let ld = loader.get(scene_name)?;
-        if let Some(next) = DRS_SCENES.get(i + 1) {
-            loader.ahead(next);
-        }
+    for (scene_name, ld) in DRS_SCENES.into_iter().zip(LoadAhead::over(DRS_SCENES)) {
+        let ld = ld?;
         let (mut pm, mut pb) = (Vec::new(), Vec::new());
         // The sizes are independent runs: one host thread each, in order,
         // the scene laid out once for all of them.

@@ -167,30 +167,37 @@ pub(crate) fn load(scene_name: &str) -> AppResult<Loaded> {
     Loaded::load(scene_name, &drs_kernels::BVH).map_err(AppError)
 }
 
-/// Scenes loaded one ahead: the next scene loads on a host thread of its
-/// own while the current one is measured (loading a paper-size scene is
-/// mostly reading cached files and first touches of memory, seconds in
-/// which the measuring threads would otherwise wait).
-#[derive(Default)]
-pub(crate) struct Loader {
-    next: Option<(String, std::thread::JoinHandle<AppResult<Loaded>>)>,
+/// Scenes in order, loaded one ahead: taking a scene starts loading the
+/// next on a host thread of its own while the current one is measured
+/// (loading a paper-size scene is mostly reading cached files and first
+/// touches of memory, seconds in which the measuring threads would
+/// otherwise wait).
+pub(crate) struct LoadAhead {
+    names: std::vec::IntoIter<&'static str>,
+    next: Option<std::thread::JoinHandle<AppResult<Loaded>>>,
 }
 
-impl Loader {
-    /// Start loading `name` now.
-    pub(crate) fn ahead(&mut self, name: &str) {
-        let owned = name.to_string();
-        let h = std::thread::spawn(move || load(&owned));
-        self.next = Some((name.to_string(), h));
+impl LoadAhead {
+    /// The scenes `names`, the first loading from now.
+    pub(crate) fn over(names: impl IntoIterator<Item = &'static str>) -> LoadAhead {
+        let mut names = names.into_iter().collect::<Vec<_>>().into_iter();
+        let next = names.next().map(load_on_a_thread);
+        LoadAhead { names, next }
     }
+}
 
-    /// Scene `name`: the load started ahead, or one now.
-    pub(crate) fn get(&mut self, name: &str) -> AppResult<Loaded> {
-        match self.next.take() {
-            Some((n, h)) if n == name => h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)),
-            _ => load(name),
-        }
+impl Iterator for LoadAhead {
+    type Item = AppResult<Loaded>;
+    fn next(&mut self) -> Option<AppResult<Loaded>> {
+        let h = self.next.take()?;
+        let ld = h.join().unwrap_or_else(|e| std::panic::resume_unwind(e));
+        self.next = self.names.next().map(load_on_a_thread);
+        Some(ld)
     }
+}
+
+fn load_on_a_thread(name: &'static str) -> std::thread::JoinHandle<AppResult<Loaded>> {
+    std::thread::spawn(move || load(name))
 }
 
 /// Every kernel over the same sampled streams of one loaded scene: each

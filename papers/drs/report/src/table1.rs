@@ -28,12 +28,9 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
     let mray = |cycles: u64, rays: u64| chip_mray(m, cycles, rays);
-    let mut loader = Loader::default();
-    for (i, (scene_name, paper, paper_trav, paper_share)) in PAPER_TABLE1.into_iter().enumerate() {
-        let ld = loader.get(scene_name)?;
-        if let Some(next) = PAPER_TABLE1.get(i + 1) {
-            loader.ahead(next.0);
-        }
+    let scenes = LoadAhead::over(PAPER_TABLE1.map(|s| s.0));
+    for ((scene_name, paper, paper_trav, paper_share), ld) in PAPER_TABLE1.into_iter().zip(scenes) {
+        let ld = ld?;
         let acc = measure_loaded(
             a,
             &smp,

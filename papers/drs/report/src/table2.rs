@@ -15,12 +15,9 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
-    let mut loader = Loader::default();
-    for (i, (scene_name, paper)) in PAPER_TABLE2.into_iter().enumerate() {
-        let ld = loader.get(scene_name)?;
-        if let Some(next) = PAPER_TABLE2.get(i + 1) {
-            loader.ahead(next.0);
-        }
+    let scenes = LoadAhead::over(PAPER_TABLE2.map(|s| s.0));
+    for ((scene_name, paper), ld) in PAPER_TABLE2.into_iter().zip(scenes) {
+        let ld = ld?;
         let acc = measure_loaded(
             a,
             &smp,

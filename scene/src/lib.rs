@@ -14,6 +14,7 @@ pub mod bvh;
 pub mod bvh_cache;
 pub mod hit;
 pub mod loaded;
+pub mod mbvh;
 pub mod mesh;
 pub mod mesh_cache;
 pub mod reference;

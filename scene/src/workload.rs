@@ -362,9 +362,12 @@ pub struct Lens {
     pub focus: f64,
 }
 
-/// Distribution ray tracing of one tile, `paths` per pixel: streams of primary
-/// rays (thin lens), shadow rays from their hits, glossy reflection rays, and
-/// shadow rays from the reflections' hits.
+/// Distribution ray tracing of one tile, `paths` per pixel, to a maximum
+/// bounce depth of `bounces`: streams of primary rays (thin lens), shadow
+/// rays from their hits (`Shadow(0)`), glossy reflection rays off every hit
+/// (`Bounce(1)`), shadow rays from those hits (`Shadow(1)`), and so on to
+/// `Shadow(bounces)`, in the order they are traced. No attenuation: a path
+/// ends only when it leaves the scene or reaches the depth.
 #[must_use]
 pub fn distribution_tile(
     scene: &Scene,
@@ -372,6 +375,7 @@ pub fn distribution_tile(
     tile: Tile,
     paths: u32,
     lens: Lens,
+    bounces: u32,
     seed: u64,
 ) -> Vec<RayStream> {
     let (tx, ty, t) = (tile.x, tile.y, tile.size);
@@ -401,7 +405,7 @@ pub fn distribution_tile(
     });
     let mut out = vec![primary.clone()];
     let mut current = primary;
-    for bounce in 0..2 {
+    for bounce in 0..=bounces {
         let mut shadows = RayStream::new(StreamKind::Shadow(bounce));
         let mut glossy = RayStream::new(StreamKind::Bounce(bounce + 1));
         let mut next_rngs = Vec::new();
@@ -416,7 +420,7 @@ pub fn distribution_tile(
             if let Some(l) = light_point(scene, f64::from(r.f32()), f64::from(r.f32())) {
                 shadows.push(o, sub(l, o), 1.0 - 1e-4, current.path[i]);
             }
-            if bounce == 0 {
+            if bounce < bounces {
                 let d = norm(ray.dir);
                 let refl = sub(d, scale(n, 2.0 * dot(d, n)));
                 let g = lobe(refl, 20.0, r);
@@ -426,7 +430,7 @@ pub fn distribution_tile(
             }
         }
         out.push(shadows);
-        if bounce == 0 {
+        if bounce < bounces {
             out.push(glossy.clone());
         }
         current = glossy;
@@ -691,6 +695,39 @@ mod tests {
     }
 
     #[test]
+    fn distribution_tracing_bounces_to_the_depth_asked_with_shadows_at_each() {
+        let (s, b) = sphere_scene();
+        let lens = Lens {
+            aperture: 0.05,
+            focus: 4.0,
+        };
+        let tile = Tile {
+            x: 7,
+            y: 7,
+            size: 8,
+        };
+        let one = distribution_tile(&s, &b, tile, 4, lens, 1, 9);
+        let three = distribution_tile(&s, &b, tile, 4, lens, 3, 9);
+        let kinds: Vec<StreamKind> = three.iter().map(|r| r.kind).collect();
+        use StreamKind::{Bounce, Primary, Shadow};
+        let want = [
+            Primary,
+            Shadow(0),
+            Bounce(1),
+            Shadow(1),
+            Bounce(2),
+            Shadow(2),
+            Bounce(3),
+            Shadow(3),
+        ];
+        assert_eq!(kinds, want);
+        // The deeper render starts as the shallower one (same samples).
+        assert_eq!(one[..3], three[..3]);
+        // A bounce has no more rays than the hits before it.
+        assert!(three[4].len() <= three[2].len() && three[2].len() <= three[0].len());
+    }
+
+    #[test]
     fn distribution_tracing_has_16_paths_per_pixel_and_focuses() {
         let (s, b) = sphere_scene();
         let lens = Lens {
@@ -707,6 +744,7 @@ mod tests {
             },
             16,
             lens,
+            1,
             3,
         );
         assert_eq!(st[0].len(), 8 * 8 * 16);
@@ -722,6 +760,7 @@ mod tests {
                 },
                 16,
                 lens,
+                1,
                 3
             ),
             "deterministic"

@@ -218,6 +218,11 @@ pub trait Machine {
     fn icmp(&mut self, p: Cmp, a: Self::I, b: Self::I) -> Self::K;
     /// `k ? t : f`.
     fn iselect(&mut self, k: Self::K, t: Self::I, f: Self::I) -> Self::I;
+    /// `k ? a : 0` (`andps` with a compare's mask on SSE/AVX, a zero-masking
+    /// move on mask-register ISAs): one op, where a select is a blend.
+    fn keep(&mut self, k: Self::K, a: Self::F) -> Self::F;
+    /// `k ? a : 0` on integer lanes (`pand` with a mask; zero-masking move).
+    fn keep_i(&mut self, k: Self::K, a: Self::I) -> Self::I;
 
     // ---- masks ----
 

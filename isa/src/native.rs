@@ -465,6 +465,16 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     }
 
     #[inline(always)]
+    fn keep(&mut self, k: Vk<N>, a: Vf<N>) -> Vf<N> {
+        k.select(a, Vf([0.0; N]))
+    }
+
+    #[inline(always)]
+    fn keep_i(&mut self, k: Vk<N>, a: Vi<N>) -> Vi<N> {
+        k.select_i(a, Vi([0; N]))
+    }
+
+    #[inline(always)]
     fn klogic(&mut self, op: Logic, a: Vk<N>, b: Vk<N>) -> Vk<N> {
         a.zip(b, |x, y| op.eval_b(x, y))
     }

@@ -52,8 +52,26 @@ pub const PACKET: SiteBlock = SiteBlock::new("rt::packet", 60, 20);
 /// Multi-frusta traversal (`mft_kernels`).
 pub const MFT: SiteBlock = SiteBlock::new("mft_kernels", 80, 40);
 
+/// MBVH ray-stream traversal (`mbvh_kernels::stream`).
+pub const MBVH_RS: SiteBlock = SiteBlock::new("mbvh_kernels::stream", 120, 20);
+/// Single-ray MBVH traversal (`mbvh_kernels::single`).
+pub const MBVH_SINGLE: SiteBlock = SiteBlock::new("mbvh_kernels::single", 140, 10);
+/// Packet traversal of an MBVH (`mbvh_kernels::packet`).
+pub const MBVH_PACKET: SiteBlock = SiteBlock::new("mbvh_kernels::packet", 150, 20);
+
 /// Every block, in order.
-pub const PLAN: [SiteBlock; 7] = [MICRO, BOXTEST, SINGLE, DRS_BVH4, DRS_BVH2, PACKET, MFT];
+pub const PLAN: [SiteBlock; 10] = [
+    MICRO,
+    BOXTEST,
+    SINGLE,
+    DRS_BVH4,
+    DRS_BVH2,
+    PACKET,
+    MFT,
+    MBVH_RS,
+    MBVH_SINGLE,
+    MBVH_PACKET,
+];
 
 #[cfg(test)]
 mod tests {

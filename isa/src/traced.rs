@@ -797,6 +797,31 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         TK { v: Vk(r), id }
     }
     #[inline]
+    fn keep(&mut self, k: TK<N>, a: TF<N>) -> TF<N> {
+        let class = if FL::MASK_REGS {
+            OpClass::VMaskMov
+        } else {
+            OpClass::VLogic
+        };
+        let id = self.v(class, &[a.id, k.id]);
+        Self::tf(k.v.select(a.v, Vf([0.0; N])), id)
+    }
+
+    #[inline]
+    fn keep_i(&mut self, k: TK<N>, a: TI<N>) -> TI<N> {
+        let class = if FL::MASK_REGS {
+            OpClass::VMaskMov
+        } else {
+            OpClass::VILogic
+        };
+        let id = self.v(class, &[a.id, k.id]);
+        TI {
+            v: k.v.select_i(a.v, Vi([0; N])),
+            id,
+        }
+    }
+
+    #[inline]
     fn iselect(&mut self, k: TK<N>, t: TI<N>, f: TI<N>) -> TI<N> {
         let id = self.rec_select(k.id, t.id, f.id);
         TI {

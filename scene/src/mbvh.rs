@@ -156,7 +156,7 @@ fn open_children(b: &Bvh2, n: u32, width: usize) -> Vec<u32> {
         for (k, &c) in slots.iter().enumerate() {
             if let Node::Inner { bounds, .. } = b.nodes[c as usize] {
                 let a = bounds.area();
-                if best.map_or(true, |(_, ba)| a > ba) {
+                if best.is_none_or(|(_, ba)| a > ba) {
                     best = Some((k, a));
                 }
             }

@@ -17,6 +17,7 @@ fn reports() -> Vec<&'static ReportDef> {
     drs_report::REPORTS
         .iter()
         .chain(mft_report::REPORTS.iter())
+        .chain(mbvh_report::REPORTS.iter())
         .collect()
 }
 

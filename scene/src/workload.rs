@@ -157,10 +157,40 @@ fn for_each_sample(
     t: u32,
     spp: u32,
     seed: u64,
+    f: impl FnMut([f64; 3], [f64; 3], Rng, u32),
+) {
+    let raster = (0..t).flat_map(|py| (0..t).map(move |px| (px, py)));
+    for_each_sample_in(cam, (tx, ty, t), raster, spp, seed, f);
+}
+
+/// The tile's pixels in Morton (Z) order: every aligned run of 4^k pixels is
+/// a square of 2^k x 2^k (of 2^k x 2^(k+1) for odd powers), so a group of
+/// consecutive rays covers neighbouring pixels at any power-of-two size.
+fn morton_pixels(t: u32) -> Vec<(u32, u32)> {
+    let spread = |mut v: u32| {
+        let mut r = 0u64;
+        for b in 0..16 {
+            r |= u64::from(v & 1) << (2 * b);
+            v >>= 1;
+        }
+        r
+    };
+    let mut px: Vec<(u32, u32)> = (0..t).flat_map(|y| (0..t).map(move |x| (x, y))).collect();
+    px.sort_by_key(|&(x, y)| spread(x) | spread(y) << 1);
+    px
+}
+
+/// [`for_each_sample`] over pixels of the tile in the given order.
+fn for_each_sample_in(
+    cam: &Camera,
+    (tx, ty, t): (u32, u32, u32),
+    pixels: impl IntoIterator<Item = (u32, u32)>,
+    spp: u32,
+    seed: u64,
     mut f: impl FnMut([f64; 3], [f64; 3], Rng, u32),
 ) {
-    for py in 0..t {
-        for px in 0..t {
+    for (px, py) in pixels {
+        {
             let (x, y) = (tx * t + px, ty * t + py);
             if x >= cam.width || y >= cam.height {
                 continue;
@@ -367,7 +397,8 @@ pub struct Lens {
 /// rays from their hits (`Shadow(0)`), glossy reflection rays off every hit
 /// (`Bounce(1)`), shadow rays from those hits (`Shadow(1)`), and so on to
 /// `Shadow(bounces)`, in the order they are traced. No attenuation: a path
-/// ends only when it leaves the scene or reaches the depth.
+/// ends only when it leaves the scene or reaches the depth. The tile's
+/// pixels are visited in Morton order, each pixel's paths together.
 #[must_use]
 pub fn distribution_tile(
     scene: &Scene,
@@ -389,20 +420,30 @@ pub fn distribution_tile(
     let fwd = norm(centre);
     let right = norm(cross(fwd, cam.up.map(f64::from)));
     let up = cross(right, fwd);
-    for_each_sample(cam, tx, ty, t, paths, seed, |o, d, mut r, path| {
-        // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
-        let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
-        let (a, phi) = (
-            lens.aperture * f64::from(r.f32()).sqrt(),
-            2.0 * std::f64::consts::PI * f64::from(r.f32()),
-        );
-        let lo = add(
-            eye,
-            add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
-        );
-        primary.push(lo, sub(focal, lo), f32::INFINITY, path);
-        rngs.push(r);
-    });
+    // Pixels in Morton order: a ray group of any power-of-two size covers
+    // a compact block of pixels (the stream kernels group consecutive rays).
+    let pixels = morton_pixels(t);
+    for_each_sample_in(
+        cam,
+        (tx, ty, t),
+        pixels,
+        paths,
+        seed,
+        |o, d, mut r, path| {
+            // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
+            let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
+            let (a, phi) = (
+                lens.aperture * f64::from(r.f32()).sqrt(),
+                2.0 * std::f64::consts::PI * f64::from(r.f32()),
+            );
+            let lo = add(
+                eye,
+                add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
+            );
+            primary.push(lo, sub(focal, lo), f32::INFINITY, path);
+            rngs.push(r);
+        },
+    );
     let mut out = vec![primary.clone()];
     let mut current = primary;
     for bounce in 0..=bounces {

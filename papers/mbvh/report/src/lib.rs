@@ -1,0 +1,42 @@
+//! # mbvh-report
+//!
+//! The MBVH ray-stream paper's reports (Tsakok 2009, "Faster Incoherent
+//! Rays: Multi-BVH Ray Stream Tracing"): the traversal counters of its
+//! Figures 4-6 (box tests, box fetches and primitive tests per ray against
+//! glossy bounces) and the SIMD efficiency of primitive tests against the
+//! ray group size at 4 and 16 lanes (Figures 7 and 8), on the Conference
+//! stand-in traced by the paper's distribution ray tracer. The paper's own
+//! figures are data beside the code ([`paper`]).
+
+#![warn(missing_docs)]
+
+mod counters;
+mod frame;
+pub mod paper;
+
+use repro::{Opt, ReportDef};
+
+/// The machine the paper measured its single-core figures on.
+pub const MACHINE: &str = "core2-q6600";
+
+/// What the counter reports read: the sample, its seed, the output (the
+/// counters do not depend on a machine, so no `--machine` or `--set`).
+const COUNTER_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Res, Opt::Seed, Opt::Out];
+
+/// The MBVH paper's reports.
+pub const REPORTS: [ReportDef; 2] = [
+    ReportDef {
+        name: "mbvh-fig4-6",
+        about: "MBVH RS Figures 4-6: box tests, box fetches, primitive tests per ray vs glossy bounces (PNG in --out DIR)",
+        machine: MACHINE,
+        options: COUNTER_OPTIONS,
+        run: counters::mbvh_fig4_6,
+    },
+    ReportDef {
+        name: "mbvh-fig7-8",
+        about: "MBVH RS Figures 7-8: SIMD efficiency of primitive tests vs ray group size, 4 and 16 lanes (PNG in --out DIR)",
+        machine: MACHINE,
+        options: COUNTER_OPTIONS,
+        run: counters::mbvh_fig7_8,
+    },
+];

@@ -20,6 +20,7 @@ pub mod mesh_cache;
 pub mod reference;
 pub mod refine;
 pub mod scene;
+mod shapes;
 pub mod workload;
 
 pub use hit::{Hit, HitPolicy};

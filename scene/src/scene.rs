@@ -9,6 +9,7 @@
 
 use crate::bvh::Aabb;
 use crate::mesh::{self, Mesh, MeshError};
+use crate::shapes::{cuboid, quad};
 use isa::rng::Rng;
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -39,6 +40,11 @@ pub enum Source {
     Sphere(u32),
     /// A room with furniture-like boxes (Conference, Saloon): seed, items.
     Room(u64, u32),
+    /// A meeting room of tables and chairs whose legs and chair backs are
+    /// tessellated round (Conference): seed, tables (4 chairs each), segments
+    /// of a round part. Its triangles are in the furniture's curves; the
+    /// shell and table tops stay a few large triangles.
+    Meeting(u64, u32, u32),
     /// A forest of instanced leaves on trunks (Fern, Fairy Forest): seed, trees, leaves per tree.
     Forest(u64, u32, u32),
     /// A forest of finer leaves (dense plants, SANMIGUEL): seed, trees, leaves
@@ -385,37 +391,6 @@ impl Scene {
     }
 }
 
-fn quad(m: &mut Mesh, p: [f32; 3], u: [f32; 3], v: [f32; 3]) {
-    let b = m.positions.len() as u32;
-    let add = |a: [f32; 3], b: [f32; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
-    m.positions
-        .extend([p, add(p, u), add(add(p, u), v), add(p, v)]);
-    m.tris.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
-}
-
-/// A closed box of 12 triangles with shared corners.
-fn cuboid(m: &mut Mesh, lo: [f32; 3], hi: [f32; 3]) {
-    let b = m.positions.len() as u32;
-    for i in 0..8u32 {
-        m.positions.push([
-            if i & 1 == 0 { lo[0] } else { hi[0] },
-            if i & 2 == 0 { lo[1] } else { hi[1] },
-            if i & 4 == 0 { lo[2] } else { hi[2] },
-        ]);
-    }
-    for f in [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ] {
-        m.tris.push([b + f[0], b + f[1], b + f[2]]);
-        m.tris.push([b + f[0], b + f[2], b + f[3]]);
-    }
-}
-
 /// A closed icosphere of radius 1.
 #[must_use]
 pub fn icosphere(level: u32) -> Mesh {
@@ -636,6 +611,14 @@ pub fn build_source(s: &Source) -> Result<Mesh, String> {
                     );
                 }
             }
+        }
+        Source::Meeting(seed, tables, segments) => {
+            if !(3..=256).contains(&segments) || tables > 10_000 {
+                return Err(format!(
+                    "Meeting({seed}, {tables}, {segments}): segments 3 to 256, at most 10000 tables"
+                ));
+            }
+            crate::shapes::meeting_room(&mut m, seed, tables, segments);
         }
         Source::Forest(seed, trees, leaves) => forest(&mut m, seed, trees, leaves, 0.15),
         Source::Foliage(seed, trees, leaves, half) => {

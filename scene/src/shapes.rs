@@ -1,0 +1,203 @@
+//! Shapes the procedural scenes are made of: quads, boxes, round legs and
+//! curved chair backs, and the meeting room (the Conference stand-in) built
+//! from them.
+
+use crate::mesh::Mesh;
+use isa::rng::Rng;
+
+pub(crate) fn quad(m: &mut Mesh, p: [f32; 3], u: [f32; 3], v: [f32; 3]) {
+    let b = m.positions.len() as u32;
+    let add = |a: [f32; 3], b: [f32; 3]| [a[0] + b[0], a[1] + b[1], a[2] + b[2]];
+    m.positions
+        .extend([p, add(p, u), add(add(p, u), v), add(p, v)]);
+    m.tris.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+}
+
+/// A closed box of 12 triangles with shared corners.
+pub(crate) fn cuboid(m: &mut Mesh, lo: [f32; 3], hi: [f32; 3]) {
+    let b = m.positions.len() as u32;
+    for i in 0..8u32 {
+        m.positions.push([
+            if i & 1 == 0 { lo[0] } else { hi[0] },
+            if i & 2 == 0 { lo[1] } else { hi[1] },
+            if i & 4 == 0 { lo[2] } else { hi[2] },
+        ]);
+    }
+    for f in [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ] {
+        m.tris.push([b + f[0], b + f[1], b + f[2]]);
+        m.tris.push([b + f[0], b + f[2], b + f[3]]);
+    }
+}
+
+/// A closed round leg: an upright prism of `s` sides (2s side triangles,
+/// two fans of s - 2) on the base centre `c`.
+fn cylinder(m: &mut Mesh, c: [f32; 3], radius: f32, height: f32, s: u32) {
+    let b = m.positions.len() as u32;
+    for k in 0..s {
+        let a = std::f32::consts::TAU * k as f32 / s as f32;
+        let (x, z) = (c[0] + radius * a.cos(), c[2] + radius * a.sin());
+        m.positions.push([x, c[1], z]);
+        m.positions.push([x, c[1] + height, z]);
+    }
+    for k in 0..s {
+        let (i, j) = (b + 2 * k, b + 2 * ((k + 1) % s));
+        m.tris.push([i, j, j + 1]);
+        m.tris.push([i, j + 1, i + 1]);
+    }
+    for k in 1..s - 1 {
+        m.tris.push([b, b + 2 * (k + 1), b + 2 * k]);
+        m.tris.push([b + 1, b + 1 + 2 * k, b + 1 + 2 * (k + 1)]);
+    }
+}
+
+/// A chair back: a closed band `thick` deep, an arc of `s` segments of the
+/// circle of radius `r` about the vertical axis through `(cx, cz)`, spanning
+/// `half` radians either side of direction `dir` (+1: +z), from `y0` to
+/// `y1` (8s + 4 triangles).
+#[allow(clippy::too_many_arguments)]
+fn arc_band(
+    m: &mut Mesh,
+    (cx, cz): (f32, f32),
+    r: f32,
+    thick: f32,
+    dir: f32,
+    half: f32,
+    (y0, y1): (f32, f32),
+    s: u32,
+) {
+    let b = m.positions.len() as u32;
+    for k in 0..=s {
+        let a = -half + 2.0 * half * k as f32 / s as f32;
+        for rr in [r, r + thick] {
+            let (x, z) = (cx + rr * a.sin(), cz + dir * rr * a.cos());
+            m.positions.push([x, y0, z]);
+            m.positions.push([x, y1, z]);
+        }
+    }
+    // Vertex k*4 + (outer? 2: 0) + (top? 1: 0).
+    let v = |k: u32, outer: u32, top: u32| b + 4 * k + 2 * outer + top;
+    let mut quad_ix = |p: u32, q: u32, r: u32, t: u32| {
+        m.tris.push([p, q, r]);
+        m.tris.push([p, r, t]);
+    };
+    for k in 0..s {
+        quad_ix(v(k, 0, 0), v(k + 1, 0, 0), v(k + 1, 0, 1), v(k, 0, 1)); // inner face
+        quad_ix(v(k, 1, 0), v(k, 1, 1), v(k + 1, 1, 1), v(k + 1, 1, 0)); // outer face
+        quad_ix(v(k, 0, 1), v(k + 1, 0, 1), v(k + 1, 1, 1), v(k, 1, 1)); // top edge
+        quad_ix(v(k, 0, 0), v(k, 1, 0), v(k + 1, 1, 0), v(k + 1, 0, 0)); // bottom edge
+    }
+    for k in [0, s] {
+        quad_ix(v(k, 0, 0), v(k, 0, 1), v(k, 1, 1), v(k, 1, 0)); // ends
+    }
+}
+
+/// Triangles of one table with its 4 chairs at `s` segments.
+#[cfg(test)]
+fn meeting_set_triangles(s: u32) -> u32 {
+    112 * s - 4
+}
+
+/// The meeting room: the 20 x 6 x 14 room of `Room` (open toward +z, 10
+/// triangles) with `tables` tables on a seeded, jittered grid of up to 8 per
+/// row, each with 4 chairs (2 per long side, facing it, pulled out by a
+/// seeded amount). Table tops and seats are boxes; table and chair legs are
+/// round (`s` sides) and chair backs curved bands of `s` segments: the
+/// detail is in the furniture's curves, as in a modelled room, and flat
+/// surfaces stay large triangles.
+pub(crate) fn meeting_room(m: &mut Mesh, seed: u64, tables: u32, s: u32) {
+    let mut r = Rng::new(seed);
+    quad(m, [-10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [20.0, 0.0, 0.0]); // floor
+    quad(m, [-10.0, 6.0, -7.0], [20.0, 0.0, 0.0], [0.0, 0.0, 14.0]); // ceiling
+    quad(m, [-10.0, 0.0, -7.0], [20.0, 0.0, 0.0], [0.0, 6.0, 0.0]); // back wall
+    quad(m, [-10.0, 0.0, -7.0], [0.0, 6.0, 0.0], [0.0, 0.0, 14.0]); // left
+    quad(m, [10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [0.0, 6.0, 0.0]); // right
+    let cols = tables.clamp(1, 8);
+    let rows = tables.div_ceil(cols).max(1);
+    let (dx, dz) = (20.0 / cols as f32, 11.5 / rows as f32);
+    for t in 0..tables {
+        let (i, j) = (t % cols, t / cols);
+        let x = -10.0 + dx * (i as f32 + 0.5) + r.range(-0.1, 0.1);
+        let z = -6.0 + dz * (j as f32 + 0.5) + r.range(-0.1, 0.1);
+        let (w, d, h) = (r.range(0.65, 0.8), r.range(0.35, 0.42), 0.74);
+        cuboid(m, [x - w, h - 0.04, z - d], [x + w, h, z + d]);
+        for (lx, lz) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+            let c = [x + lx * (w - 0.08), 0.0, z + lz * (d - 0.08)];
+            cylinder(m, c, 0.03, h - 0.04, s);
+        }
+        for side in [-1.0f32, 1.0] {
+            for off in [-0.5f32, 0.5] {
+                let cx = x + off * w + r.range(-0.08, 0.08);
+                let cz = z + side * (d + 0.3 + r.range(0.0, 0.15));
+                chair(m, (cx, cz), -side, s);
+            }
+        }
+    }
+}
+
+/// A chair at `(cx, cz)` facing `face` (+1: +z): a seat, 4 round legs and
+/// a curved back behind the seat.
+fn chair(m: &mut Mesh, (cx, cz): (f32, f32), face: f32, s: u32) {
+    let (hw, hd, seat) = (0.22, 0.21, 0.44);
+    cuboid(m, [cx - hw, seat, cz - hd], [cx + hw, seat + 0.04, cz + hd]);
+    for (lx, lz) in [(-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)] {
+        let c = [cx + lx * (hw - 0.03), 0.0, cz + lz * (hd - 0.03)];
+        cylinder(m, c, 0.015, seat, s);
+    }
+    // The back's arc bulges away from the table: its circle's centre lies
+    // toward the table from the back's middle.
+    let radius = 0.6;
+    let back = cz - face * hd;
+    let centre = back + face * radius;
+    arc_band(
+        m,
+        (cx, centre),
+        radius,
+        0.02,
+        -face,
+        (hw / radius).asin(),
+        (seat + 0.04, seat + 0.5),
+        s,
+    );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_meeting_room_has_the_triangles_its_formula_says_and_closed_legs() {
+        for (tables, s) in [(1, 3), (3, 8), (40, 62)] {
+            let mut m = Mesh::default();
+            meeting_room(&mut m, 7, tables, s);
+            assert_eq!(m.len() as u32, 10 + tables * meeting_set_triangles(s));
+            assert!(m
+                .tris
+                .iter()
+                .flatten()
+                .all(|&v| (v as usize) < m.positions.len()));
+        }
+        let mut a = Mesh::default();
+        let mut b = Mesh::default();
+        meeting_room(&mut a, 7, 5, 6);
+        meeting_room(&mut b, 7, 5, 6);
+        assert_eq!(a.positions, b.positions, "seeded: the same room every time");
+        // A leg is closed: every edge is shared by exactly two triangles.
+        let mut leg = Mesh::default();
+        cylinder(&mut leg, [0.0; 3], 1.0, 2.0, 9);
+        let mut edges = std::collections::BTreeMap::new();
+        for t in &leg.tris {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+        assert!(edges.values().all(|&n| n == 2));
+    }
+}

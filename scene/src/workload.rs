@@ -396,8 +396,12 @@ pub struct Lens {
 /// bounce depth of `bounces`: streams of primary rays (thin lens), shadow
 /// rays from their hits (`Shadow(0)`), glossy reflection rays off every hit
 /// (`Bounce(1)`), shadow rays from those hits (`Shadow(1)`), and so on to
-/// `Shadow(bounces)`, in the order they are traced. No attenuation: a path
-/// ends only when it leaves the scene or reaches the depth. The tile's
+/// `Bounce(bounces)`, in the order they are traced: 2 n + 1 rays per path
+/// of n bounces that stays in the scene (the MBVH ray-stream paper's rays
+/// per frame: 12.6, 21, 29 and 38 M at 512x512 and 16 paths for 1-4
+/// bounces), the last bounce's hits lit without a shadow ray. No
+/// attenuation: a path ends only when it leaves the scene or reaches the
+/// depth. The tile's
 /// pixels are visited in Morton order, each pixel's paths together.
 #[must_use]
 pub fn distribution_tile(
@@ -446,7 +450,7 @@ pub fn distribution_tile(
     );
     let mut out = vec![primary.clone()];
     let mut current = primary;
-    for bounce in 0..=bounces {
+    for bounce in 0..bounces {
         let mut shadows = RayStream::new(StreamKind::Shadow(bounce));
         let mut glossy = RayStream::new(StreamKind::Bounce(bounce + 1));
         let mut next_rngs = Vec::new();
@@ -461,19 +465,15 @@ pub fn distribution_tile(
             if let Some(l) = light_point(scene, f64::from(r.f32()), f64::from(r.f32())) {
                 shadows.push(o, sub(l, o), 1.0 - 1e-4, current.path[i]);
             }
-            if bounce < bounces {
-                let d = norm(ray.dir);
-                let refl = sub(d, scale(n, 2.0 * dot(d, n)));
-                let g = lobe(refl, 20.0, r);
-                let gd = if dot(g, n) > 0.0 { g } else { refl };
-                glossy.push(o, gd, f32::INFINITY, current.path[i]);
-                next_rngs.push(r.clone());
-            }
+            let d = norm(ray.dir);
+            let refl = sub(d, scale(n, 2.0 * dot(d, n)));
+            let g = lobe(refl, 20.0, r);
+            let gd = if dot(g, n) > 0.0 { g } else { refl };
+            glossy.push(o, gd, f32::INFINITY, current.path[i]);
+            next_rngs.push(r.clone());
         }
         out.push(shadows);
-        if bounce < bounces {
-            out.push(glossy.clone());
-        }
+        out.push(glossy.clone());
         current = glossy;
         rngs = next_rngs;
     }
@@ -759,7 +759,6 @@ mod tests {
             Bounce(2),
             Shadow(2),
             Bounce(3),
-            Shadow(3),
         ];
         assert_eq!(kinds, want);
         // The deeper render starts as the shallower one (same samples).
@@ -813,7 +812,6 @@ mod tests {
                 StreamKind::Primary,
                 StreamKind::Shadow(0),
                 StreamKind::Bounce(1),
-                StreamKind::Shadow(1)
             ]
         );
         // Lens origins spread within the aperture around the eye.

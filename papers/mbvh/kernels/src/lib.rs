@@ -110,12 +110,10 @@ pub struct Run {
     pub rays: Arc<RayStream>,
 }
 
-impl Program for Run {
-    type Out = (Vec<Hit>, Counters);
-
-    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let t = self.trees.of_width(M::LANES);
-        let tree = layout::lay_out(m, &self.trees.mesh, &self.trees.b2, t);
+impl Run {
+    /// Trace the rays on `m` over `tree`, laid out there already (a
+    /// report's frame lays the scene out once for all its streams).
+    pub fn trace_on<M: Machine>(&self, m: &mut M, tree: &layout::MbvhBufs) -> (Vec<Hit>, Counters) {
         let r = &self.rays;
         let rays = (&r.org[..], &r.dir[..], &r.tmax[..]);
         let policy = r.policy();
@@ -123,22 +121,32 @@ impl Program for Run {
         let n = r.len();
         let hits = match self.kernel {
             Kernel::Stream(cfg) => {
-                let mut b = stream::StreamBufs::new(m, &tree, &cfg, rays);
-                stream::trace(m, &tree, &mut b, &cfg, policy, &mut c);
+                let mut b = stream::StreamBufs::new(m, tree, &cfg, rays);
+                stream::trace(m, tree, &mut b, &cfg, policy, &mut c);
                 (0..n).map(|i| b.hit(i)).collect()
             }
             Kernel::Single => {
-                let mut b = single::SingleBufs::new(m, &tree, rays);
-                single::trace(m, &tree, &mut b, policy, &mut c);
+                let mut b = single::SingleBufs::new(m, tree, rays);
+                single::trace(m, tree, &mut b, policy, &mut c);
                 (0..n).map(|i| b.hit(i)).collect()
             }
             Kernel::Packet => {
-                let mut b = packet::PacketBufs::new(m, &tree, rays);
-                packet::trace(m, &tree, &mut b, policy, &mut c);
+                let mut b = packet::PacketBufs::new(m, tree, rays);
+                packet::trace(m, tree, &mut b, policy, &mut c);
                 (0..n).map(|i| b.hit(i)).collect()
             }
         };
         (hits, c)
+    }
+}
+
+impl Program for Run {
+    type Out = (Vec<Hit>, Counters);
+
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        let t = self.trees.of_width(M::LANES);
+        let tree = layout::lay_out(m, &self.trees.mesh, &self.trees.b2, t);
+        self.trace_on(m, &tree)
     }
 
     fn params(&self) -> Vec<(String, String)> {

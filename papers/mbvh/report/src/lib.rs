@@ -13,6 +13,8 @@
 mod counters;
 mod frame;
 pub mod paper;
+mod rates;
+mod timing;
 
 use repro::{Opt, ReportDef};
 
@@ -23,8 +25,26 @@ pub const MACHINE: &str = "core2-q6600";
 /// counters do not depend on a machine, so no `--machine` or `--set`).
 const COUNTER_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Res, Opt::Seed, Opt::Out];
 
+/// What the frame-rate reports read.
+const RATE_OPTIONS: &[Opt] = &[
+    Opt::Quick,
+    Opt::Machine,
+    Opt::Set,
+    Opt::Tiles,
+    Opt::Res,
+    Opt::Seed,
+    Opt::Out,
+];
+
 /// The MBVH paper's reports.
-pub const REPORTS: [ReportDef; 2] = [
+pub const REPORTS: [ReportDef; 3] = [
+    ReportDef {
+        name: "mbvh-fig3",
+        about: "MBVH RS Figure 3: Conference Mrays/s on one Core 2 core, 1 to 7 bounces; ordering and ray layout measured (PNG in --out DIR)",
+        machine: MACHINE,
+        options: RATE_OPTIONS,
+        run: rates::mbvh_fig3,
+    },
     ReportDef {
         name: "mbvh-fig4-6",
         about: "MBVH RS Figures 4-6: box tests, box fetches, primitive tests per ray vs glossy bounces (PNG in --out DIR)",

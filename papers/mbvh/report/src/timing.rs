@@ -1,0 +1,233 @@
+//! Simulated frame rates: the distribution tracer's frame in render order
+//! (tiles in raster order, each tile's streams in the order they are
+//! traced) on one core of a machine, its caches, prefetchers and predictors
+//! carried from stream to stream; a stratified sample of runs of
+//! consecutive tiles timed in full detail after functional warming.
+
+use crate::frame::Prepared;
+use isa::{Detail, Machine, Placed, UnitProgram};
+use mbvh_kernels::layout::{lay_out, MbvhBufs};
+use mbvh_kernels::stats::Counters;
+use mbvh_kernels::{Kernel, Run, Trees};
+use rayon::prelude::*;
+use repro::progress::Progress;
+use repro::sampling::{mix, systematic_ratio_ci};
+use repro::{AppError, AppResult};
+use scene::agreement::{mismatches_expected, Expected, F32Test};
+use scene::reference::Reference;
+use scene::workload::{RayStream, Tile};
+use scene::Hit;
+use std::sync::Arc;
+
+/// Pixels per side of a tile: a tile's streams are the renderer's batches
+/// (16 x 16 pixels x 16 paths: 4096 primary rays, 16 groups of 2^8).
+pub(crate) const TILE: u32 = 16;
+
+/// One kernel over the frame's streams as units: the scene laid out once.
+struct Units {
+    kernel: Kernel,
+    trees: Arc<Trees>,
+}
+
+impl UnitProgram for Units {
+    type Laid = MbvhBufs;
+    type Unit = Arc<RayStream>;
+    type Out = (Vec<Hit>, Counters);
+
+    fn lay_out<M: Machine>(&self, m: &mut M) -> MbvhBufs {
+        let t = self.trees.of_width(M::LANES);
+        lay_out(m, &self.trees.mesh, &self.trees.b2, t)
+    }
+
+    fn unit<M: Machine>(&self, m: &mut M, laid: &MbvhBufs, u: &Arc<RayStream>) -> Self::Out {
+        let run = Run {
+            kernel: self.kernel,
+            trees: self.trees.clone(),
+            rays: u.clone(),
+        };
+        run.trace_on(m, laid)
+    }
+}
+
+/// What [`frame_rate`] measured.
+pub(crate) struct Rate {
+    /// Rays per frame (estimated from the sample; the primary rays exactly).
+    pub(crate) rays: f64,
+    /// Cycles per frame on one core.
+    pub(crate) cycles: f64,
+    /// Millions of rays per second on one core.
+    pub(crate) mrays: f64,
+    /// 95% CI half-width of `mrays`.
+    pub(crate) ci: Option<f64>,
+    /// Ops simulated (timed ops and warmed memory and branch ops).
+    pub(crate) ops: u64,
+    /// Rays that differed from the reference.
+    pub(crate) bad: usize,
+}
+
+/// The sample design [`frame_rate`] follows, for the report's header.
+pub(crate) fn design(groups: usize, per: usize) -> String {
+    format!(
+        "the frame's {TILE}x{TILE}-pixel tiles in raster order, each tile's streams (primary, shadow, reflection, shadow, ...) traced in turn in groups of rays on one core, its caches, prefetcher and predictors carried from stream to stream; {groups} runs of {per} consecutive tile(s), one at a seeded place in each of as many equal strata of the frame, timed in full detail after functional warming of their own streams (as the previous frame left them) and of the tile rendered just before; 95% CI over the runs (ratio estimator, successive differences)"
+    )
+}
+
+/// The tiles of a run and the tile before it (warmed), by group.
+fn plan(n_tiles: usize, groups: usize, per: usize, seed: u64) -> Vec<(Vec<usize>, Option<usize>)> {
+    let per = per.clamp(1, n_tiles);
+    let stride = (n_tiles / groups.max(1)).max(1);
+    (0..groups.min(n_tiles))
+        .map(|g| {
+            let r = mix(seed ^ mix(g as u64 + 1));
+            let offset = (r % (stride.saturating_sub(per) + 1) as u64) as usize;
+            let first = (offset + g * stride).min(n_tiles - per);
+            ((first..first + per).collect(), first.checked_sub(1))
+        })
+        .collect()
+}
+
+/// Rays per second of `kernel` over the frame of `pr` to `bounces` on one
+/// core of `m` (its `cores` set to 1 by the caller).
+pub(crate) fn frame_rate(
+    m: &sim::MachineConfig,
+    pr: &Prepared,
+    kernel: Kernel,
+    (bounces, groups, per): (u32, usize, usize),
+    (seed, progress): (u64, &Progress),
+) -> AppResult<Rate> {
+    let per_row = pr.res / TILE;
+    let n_tiles = (per_row * per_row) as usize;
+    let tile = |k: usize| Tile {
+        x: k as u32 % per_row,
+        y: k as u32 / per_row,
+        size: TILE,
+    };
+    let groups_plan = plan(n_tiles, groups, per, seed);
+    // Every tile the sample touches, its streams and (timed tiles) the
+    // reference's answers, in parallel.
+    let mut need: Vec<(usize, bool)> = Vec::new();
+    for (run, before) in &groups_plan {
+        need.extend(run.iter().map(|&k| (k, true)));
+        need.extend(before.map(|k| (k, false)));
+    }
+    let refi = Reference::with_bvh(&pr.trees.mesh, &pr.trees.b2);
+    let prepared: Vec<Vec<(Arc<RayStream>, Option<Expected>)>> = need
+        .par_iter()
+        .map(|&(k, timed)| {
+            pr.streams(tile(k), bounces, seed)
+                .into_iter()
+                .filter(|s| !s.is_empty())
+                .map(|s| {
+                    let want = timed.then(|| Expected::of(&refi, &s));
+                    (Arc::new(s), want)
+                })
+                .collect()
+        })
+        .collect();
+    let mut units = Vec::new();
+    // Per unit: (timed?, last unit of its group?, index into `prepared`).
+    let mut roles = Vec::new();
+    let mut at = 0;
+    for (run, before) in &groups_plan {
+        let n_units: usize = (0..run.len() + usize::from(before.is_some()))
+            .map(|j| prepared[at + j].len())
+            .sum();
+        let mut j = 0;
+        for t in 0..run.len() + usize::from(before.is_some()) {
+            let timed = t < run.len();
+            for (s, (stream, _)) in prepared[at + t].iter().enumerate() {
+                j += 1;
+                let d = if timed { Detail::Timed } else { Detail::Warmed };
+                units.push((
+                    Placed {
+                        thread: 0,
+                        unit: stream.clone(),
+                    },
+                    d,
+                ));
+                roles.push((timed, j == n_units, at + t, s));
+            }
+        }
+        at += run.len() + usize::from(before.is_some());
+    }
+    progress.add_units(units.len() as u64);
+    let prog = Units {
+        kernel,
+        trees: pr.trees.clone(),
+    };
+    let mut session = sim::Session::new(m);
+    let mut out = Rate {
+        rays: 0.0,
+        cycles: 0.0,
+        mrays: 0.0,
+        ci: None,
+        ops: 0,
+        bad: 0,
+    };
+    let (mut timed, mut pairs, mut rays_timed) = (Vec::new(), Vec::new(), 0u64);
+    let mut next = 0;
+    isa::run_units(&prog, m.flavour(), "mbvh", units, |_, _, t, (hits, c)| {
+        let (is_timed, last, k, s) = roles[next];
+        next += 1;
+        progress.done(1);
+        out.ops += t.ops.len() as u64;
+        session.warm(&[(0, &t)]).map_err(AppError)?;
+        if is_timed {
+            let (stream, want) = &prepared[k][s];
+            let want = want.as_ref().expect("timed streams have answers");
+            let label = format!("{} {} {:?}", pr.name, kernel.name(), stream.kind);
+            out.bad +=
+                mismatches_expected(F32Test::MollerTrumbore, &label, &refi, stream, want, &hits);
+            rays_timed += c.rays;
+            timed.push(t);
+        } else {
+            isa::trace::recycle(t);
+        }
+        if last {
+            let queue: Vec<&isa::Trace> = timed.iter().collect();
+            let st = session.timed_queue(&queue).map_err(AppError)?;
+            pairs.push((st.cycles as f64, rays_timed as f64));
+            timed.drain(..).for_each(isa::trace::recycle);
+            rays_timed = 0;
+        }
+        Ok::<(), AppError>(())
+    })?;
+    let tiles_timed = groups_plan.iter().map(|g| g.0.len()).sum::<usize>() as f64;
+    let (cyc, rays) = pairs
+        .iter()
+        .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
+    let hz = m.clock_ghz * 1e9;
+    out.rays = rays / tiles_timed * n_tiles as f64;
+    out.cycles = cyc / tiles_timed * n_tiles as f64;
+    out.mrays = rays / (cyc / hz) / 1e6;
+    // Rays per cycle per run, as a ratio of sums; its CI scaled to Mray/s.
+    let per_cycle: Vec<(f64, f64)> = pairs.iter().map(|&(c, r)| (r, c)).collect();
+    out.ci = systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6);
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_fall_in_their_strata_and_stay_in_the_frame() {
+        for (n, g, per) in [(1024, 24, 1), (1024, 64, 2), (10, 24, 1), (5, 2, 3)] {
+            let p = plan(n, g, per, 7);
+            assert_eq!(p.len(), g.min(n));
+            for (i, (run, before)) in p.iter().enumerate() {
+                assert!(run.iter().all(|&k| k < n) && !run.is_empty());
+                assert_eq!(*before, run[0].checked_sub(1));
+                if n >= g * per {
+                    let stride = n / g;
+                    assert!(
+                        run[0] >= i * stride && run[0] < (i + 1) * stride,
+                        "{n} {g} {i}"
+                    );
+                }
+            }
+        }
+        assert_eq!(plan(1024, 24, 1, 7), plan(1024, 24, 1, 7));
+        assert_ne!(plan(1024, 24, 1, 7), plan(1024, 24, 1, 8));
+    }
+}

@@ -34,16 +34,12 @@ fn sample_size(a: &ReproduceArgs) -> (usize, usize) {
     (g, 1)
 }
 
+/// The report around `rows`: `ctx` is (machine, options, resolution, start),
+/// `body` (input, ops simulated, rows, notes).
 fn header(
     name: &str,
-    m: &sim::MachineConfig,
-    a: &ReproduceArgs,
-    res: u32,
-    start: Instant,
-    input: String,
-    ops: u64,
-    rows: Vec<Row>,
-    notes: Vec<String>,
+    (m, a, res, start): (&sim::MachineConfig, &ReproduceArgs, u32, Instant),
+    (input, ops, rows, notes): (String, u64, Vec<Row>, Vec<String>),
 ) -> Report {
     let (g, per) = sample_size(a);
     let mut s = BTreeMap::new();

@@ -171,14 +171,8 @@ pub fn mbvh_fig3(a: &ReproduceArgs) -> AppResult<Produced> {
     Ok(Produced {
         report: header(
             name,
-            &m,
-            a,
-            res,
-            start,
-            "conference".into(),
-            ops,
-            rows,
-            notes,
+            (&m, a, res, start),
+            ("conference".into(), ops, rows, notes),
         ),
         mismatches: bad as f64,
     })

@@ -28,6 +28,7 @@ fn every_scene_loads_and_its_bvhs_validate() {
         "layers",
         "sphere",
         "bmw",
+        "ferrari",
     ];
     let mut args = vec!["list", "scenes"];
     args.extend(small);
@@ -50,7 +51,11 @@ fn every_scene_loads_and_its_bvhs_validate() {
     }
     if shared() {
         assert_eq!(get("trex", "triangles"), Some(69_453.0));
-        assert!(get("bmw", "triangles").is_some());
+        // The MBVH paper's cars at its counts (simplified from the BMW M6).
+        for n in ["bmw", "ferrari"] {
+            let r = get(n, "triangles_vs_paper").unwrap();
+            assert!((0.95..=1.05).contains(&r), "{n}: {r} of the paper's count");
+        }
         assert!(rows
             .iter()
             .any(|r| r["metric"] == "bvh2_sah_cost" && r["value"].as_f64().unwrap() > 1.0));

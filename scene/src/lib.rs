@@ -21,6 +21,7 @@ pub mod reference;
 pub mod refine;
 pub mod scene;
 mod shapes;
+pub mod simplify;
 pub mod workload;
 
 pub use hit::{Hit, HitPolicy};

@@ -45,6 +45,10 @@ pub enum Source {
     /// of a round part. Its triangles are in the furniture's curves; the
     /// shell and table tops stay a few large triangles.
     Meeting(u64, u32, u32),
+    /// Water: a square plane at y = 0 of half-size `half`, subdivided into
+    /// cells x cells squares, its vertices raised by a seeded height map of
+    /// amplitude `amp` (Ferrari's sea): seed, cells, half, amp.
+    Water(u64, u32, f32, f32),
     /// A forest of instanced leaves on trunks (Fern, Fairy Forest): seed, trees, leaves per tree.
     Forest(u64, u32, u32),
     /// A forest of finer leaves (dense plants, SANMIGUEL): seed, trees, leaves
@@ -76,6 +80,15 @@ pub struct Placed {
     /// material: the studio (floor, backdrop) merged into a model's file.
     #[serde(default)]
     pub large: Option<(f32, Material)>,
+    /// Drop the `large` triangles (a studio's floor and backdrop, where the
+    /// scene puts its own ground).
+    #[serde(default)]
+    pub drop_large: bool,
+    /// Simplify the mesh's other triangles (not the `large` ones) to this
+    /// many triangles in all by quadric edge collapse ([`crate::simplify`]):
+    /// a real model brought down to the size of the paper's.
+    #[serde(default)]
+    pub simplify: Option<u32>,
     /// Refine the mesh's other triangles (not the `large` ones) in place to
     /// this many triangles in all, largest first ([`crate::refine`]): a real
     /// scan brought to the size of the paper's scene.
@@ -207,6 +220,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "conference",
         include_str!("../../configs/scenes/conference.ron"),
     ),
+    ("ferrari", include_str!("../../configs/scenes/ferrari.ron")),
     ("trex", include_str!("../../configs/scenes/trex.ron")),
     ("fern", include_str!("../../configs/scenes/fern.ron")),
     ("saloon", include_str!("../../configs/scenes/saloon.ron")),
@@ -354,6 +368,8 @@ impl Scene {
                 translate: [0.0; 3],
                 material: Material::Diffuse,
                 large: None,
+                drop_large: false,
+                simplify: None,
                 refine: None,
             }],
             camera: Camera {
@@ -508,6 +524,12 @@ fn placed_mesh(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
         "{:?} {:?} {:?} {:?} {:?}",
         p.source, p.scale, p.material, p.large, p.refine
     );
+    // Appended only when used, so the keys of existing scenes stay as they were.
+    let what = if p.drop_large || p.simplify.is_some() {
+        format!("{what} drop {} simplify {:?}", p.drop_large, p.simplify)
+    } else {
+        what
+    };
     let file = match p.source {
         Source::File(ref f) => crate::mesh_cache::file_digest(&resolve(f))?,
         _ => [0; 32],
@@ -537,6 +559,34 @@ fn placed_mesh_built(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
                 mats[k] = mat;
             }
         }
+    }
+    if p.drop_large {
+        let keep: Vec<bool> = mats.iter().map(|&x| x == p.material).collect();
+        let mut k = keep.iter();
+        m.tris.retain(|_| *k.next().unwrap_or(&true));
+        mats.retain(|&x| x == p.material);
+    }
+    if let Some(target) = p.simplify {
+        if target as usize > m.len() || target == 0 {
+            return Err(format!(
+                "simplify: {target} is not between 1 and the mesh's {} triangles",
+                m.len()
+            ));
+        }
+        let eligible: Vec<bool> = mats.iter().map(|&x| x == p.material).collect();
+        let others: Vec<Material> = mats.iter().copied().filter(|&x| x != p.material).collect();
+        let from = crate::simplify::simplify(&mut m, target as usize, &eligible)?;
+        let mut o = others.into_iter();
+        mats = from
+            .iter()
+            .map(|&e| {
+                if e {
+                    p.material
+                } else {
+                    o.next().unwrap_or(p.material)
+                }
+            })
+            .collect();
     }
     if let Some(target) = p.refine {
         if (target as usize) < m.len() || target > 50_000_000 {
@@ -619,6 +669,15 @@ pub fn build_source(s: &Source) -> Result<Mesh, String> {
                 ));
             }
             crate::shapes::meeting_room(&mut m, seed, tables, segments);
+        }
+        Source::Water(seed, cells, half, amp) => {
+            if !(1..=4096).contains(&cells) || !(half > 0.0 && half.is_finite() && amp.is_finite())
+            {
+                return Err(format!(
+                    "Water({seed}, {cells}, {half}, {amp}): cells 1 to 4096, a positive size, a finite amplitude"
+                ));
+            }
+            crate::shapes::water(&mut m, seed, cells, half, amp);
         }
         Source::Forest(seed, trees, leaves) => forest(&mut m, seed, trees, leaves, 0.15),
         Source::Foliage(seed, trees, leaves, half) => {

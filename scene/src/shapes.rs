@@ -167,6 +167,47 @@ fn chair(m: &mut Mesh, (cx, cz): (f32, f32), face: f32, s: u32) {
     );
 }
 
+/// A water surface: a plane at y = 0 over [-half, half]^2 of cells x cells
+/// squares (two triangles each), each vertex raised by a height map: four
+/// seeded travelling-wave components (wavelengths a tenth to a half of the
+/// plane, random directions and phases), summed and scaled to `amp`.
+pub(crate) fn water(m: &mut Mesh, seed: u64, cells: u32, half: f32, amp: f32) {
+    let mut r = Rng::new(seed);
+    let waves: Vec<(f32, f32, f32, f32)> = (0..4)
+        .map(|_| {
+            let a = r.range(0.0, std::f32::consts::TAU);
+            let k = std::f32::consts::TAU / (2.0 * half * r.range(0.1, 0.5));
+            (
+                k * a.cos(),
+                k * a.sin(),
+                r.range(0.0, std::f32::consts::TAU),
+                r.range(0.5, 1.0),
+            )
+        })
+        .collect();
+    let norm: f32 = waves.iter().map(|w| w.3).sum();
+    let b = m.positions.len() as u32;
+    for j in 0..=cells {
+        for i in 0..=cells {
+            let x = -half + 2.0 * half * i as f32 / cells as f32;
+            let z = -half + 2.0 * half * j as f32 / cells as f32;
+            let h: f32 = waves
+                .iter()
+                .map(|&(kx, kz, ph, w)| w * (kx * x + kz * z + ph).sin())
+                .sum();
+            m.positions.push([x, amp * h / norm, z]);
+        }
+    }
+    for j in 0..cells {
+        for i in 0..cells {
+            let a = b + j * (cells + 1) + i;
+            let c = a + cells + 1;
+            m.tris.push([a, c, a + 1]);
+            m.tris.push([a + 1, c, c + 1]);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -199,5 +240,20 @@ mod tests {
             }
         }
         assert!(edges.values().all(|&n| n == 2));
+    }
+
+    #[test]
+    fn water_is_a_seeded_grid_within_its_amplitude() {
+        let mut m = Mesh::default();
+        water(&mut m, 3, 16, 10.0, 0.2);
+        assert_eq!((m.len(), m.positions.len()), (2 * 16 * 16, 17 * 17));
+        assert!(m
+            .positions
+            .iter()
+            .all(|p| p[1].abs() <= 0.2 + 1e-6 && p[0].abs() <= 10.0));
+        assert!(m.positions.iter().any(|p| p[1].abs() > 0.02), "perturbed");
+        let mut n = Mesh::default();
+        water(&mut n, 3, 16, 10.0, 0.2);
+        assert_eq!(m.positions, n.positions);
     }
 }

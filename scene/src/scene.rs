@@ -671,8 +671,7 @@ pub fn build_source(s: &Source) -> Result<Mesh, String> {
             crate::shapes::meeting_room(&mut m, seed, tables, segments);
         }
         Source::Water(seed, cells, half, amp) => {
-            if !(1..=4096).contains(&cells) || !(half > 0.0 && half.is_finite() && amp.is_finite())
-            {
+            if !((1..=4096).contains(&cells) && half > 0.0 && half.is_finite() && amp.is_finite()) {
                 return Err(format!(
                     "Water({seed}, {cells}, {half}, {amp}): cells 1 to 4096, a positive size, a finite amplitude"
                 ));

@@ -6,12 +6,14 @@ use common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 6] = [
+const MACHINES: [&str; 8] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",
     "core2-q6600",
     "nehalem-x5550",
+    "nehalem-w5580",
+    "dunnington-x7460",
     "zen3",
 ];
 

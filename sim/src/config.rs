@@ -227,6 +227,14 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "nehalem-x5550",
         include_str!("../../configs/machines/nehalem-x5550.ron"),
     ),
+    (
+        "nehalem-w5580",
+        include_str!("../../configs/machines/nehalem-w5580.ron"),
+    ),
+    (
+        "dunnington-x7460",
+        include_str!("../../configs/machines/dunnington-x7460.ron"),
+    ),
     ("zen3", include_str!("../../configs/machines/zen3.ron")),
 ];
 

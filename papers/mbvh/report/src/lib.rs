@@ -36,8 +36,18 @@ const RATE_OPTIONS: &[Opt] = &[
     Opt::Out,
 ];
 
+/// What the whole-machine tables read (their machines are the paper's two).
+const TABLE_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Seed, Opt::Out];
+
 /// The MBVH paper's reports.
-pub const REPORTS: [ReportDef; 3] = [
+pub const REPORTS: [ReportDef; 5] = [
+    ReportDef {
+        name: "mbvh-fig2",
+        about: "MBVH RS Figure 2: Mrays/s per scene (BMW, Conference, Ferrari) on one Core 2 core, 1-4 bounces (PNG in --out DIR)",
+        machine: MACHINE,
+        options: RATE_OPTIONS,
+        run: rates::mbvh_fig2,
+    },
     ReportDef {
         name: "mbvh-fig3",
         about: "MBVH RS Figure 3: Conference Mrays/s on one Core 2 core, 1 to 7 bounces; ordering and ray layout measured (PNG in --out DIR)",
@@ -58,5 +68,12 @@ pub const REPORTS: [ReportDef; 3] = [
         machine: MACHINE,
         options: COUNTER_OPTIONS,
         run: counters::mbvh_fig7_8,
+    },
+    ReportDef {
+        name: "mbvh-table1-2",
+        about: "MBVH RS Tables 1-2: frames per second at 512x512, 16 paths, 1-4 bounces, on the 24-core Dunnington and 8-core Core i7 models",
+        machine: "dunnington-x7460",
+        options: TABLE_OPTIONS,
+        run: rates::mbvh_table1_2,
     },
 ];

@@ -24,3 +24,16 @@ pub const I7_RAYS_PER_CORE_4_BOUNCES: f64 = 4.0e6;
 /// Tables 1 and 2: millions of rays per 512x512 frame at 16 paths per
 /// pixel, for 1 to 4 bounces.
 pub const RAYS_PER_FRAME_M: [f64; 4] = [12.6, 21.0, 29.0, 38.0];
+
+/// Table 1: frames per second on the 24-core Dunnington, 1-4 bounces.
+pub const TABLE1_FPS: [(&str, [f64; 4]); 3] = [
+    ("bmw", [5.3, 3.3, 2.4, 1.8]),
+    ("conference", [4.8, 2.7, 1.8, 1.3]),
+    ("ferrari", [4.3, 2.6, 1.8, 1.3]),
+];
+/// Table 2: frames per second on the 8-core Core i7 with hyper-threading.
+pub const TABLE2_FPS: [(&str, [f64; 4]); 3] = [
+    ("bmw", [3.4, 2.1, 1.5, 1.1]),
+    ("conference", [3.1, 1.8, 1.2, 0.9]),
+    ("ferrari", [2.7, 1.7, 1.2, 0.9]),
+];

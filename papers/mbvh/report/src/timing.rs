@@ -15,7 +15,7 @@ use repro::sampling::{mix, systematic_ratio_ci};
 use repro::{AppError, AppResult};
 use scene::agreement::{mismatches_expected, Expected, F32Test};
 use scene::reference::Reference;
-use scene::workload::{RayStream, Tile};
+use scene::workload::{RayStream, StreamKind, Tile};
 use scene::Hit;
 use std::sync::Arc;
 
@@ -59,9 +59,10 @@ pub(crate) struct Rate {
     pub(crate) mrays: f64,
     /// 95% CI half-width of `mrays`.
     pub(crate) ci: Option<f64>,
-    /// Ops simulated (timed ops and warmed memory and branch ops).
+    /// Ops simulated for the whole sample (timed ops and warmed memory and
+    /// branch ops; the same for every depth of one sample).
     pub(crate) ops: u64,
-    /// Rays that differed from the reference.
+    /// Rays that differed from the reference, over the whole sample.
     pub(crate) bad: usize,
 }
 
@@ -86,15 +87,29 @@ fn plan(n_tiles: usize, groups: usize, per: usize, seed: u64) -> Vec<(Vec<usize>
         .collect()
 }
 
-/// Rays per second of `kernel` over the frame of `pr` to `bounces` on one
-/// core of `m` (its `cores` set to 1 by the caller).
-pub(crate) fn frame_rate(
+/// The smallest bounce depth whose frame traces a stream of `kind`.
+fn frame_depth(kind: StreamKind) -> u32 {
+    match kind {
+        StreamKind::Primary => 1,
+        StreamKind::Shadow(k) => k + 1,
+        StreamKind::Bounce(k) => k,
+    }
+}
+
+/// Rays per second of `kernel` over the frames of `pr` to 1, 2, ...,
+/// `bounces` bounces on one core of `m` (its `cores` set to 1 by the
+/// caller), from one sampled frame to `bounces`: a depth-b frame's streams
+/// are the first of the deeper frame's in every tile, each timed on its own
+/// in render order, so its rate is theirs (the deeper streams between tiles
+/// are in the caches, which a depth-b frame would not have: the last depth's
+/// figure is exact, the others an approximation `mbvh-fig3` checks).
+pub(crate) fn frame_rates(
     m: &sim::MachineConfig,
     pr: &Prepared,
     kernel: Kernel,
     (bounces, groups, per): (u32, usize, usize),
     (seed, progress): (u64, &Progress),
-) -> AppResult<Rate> {
+) -> AppResult<Vec<Rate>> {
     let per_row = pr.res / TILE;
     let n_tiles = (per_row * per_row) as usize;
     let tile = |k: usize| Tile {
@@ -156,54 +171,68 @@ pub(crate) fn frame_rate(
         trees: pr.trees.clone(),
     };
     let mut session = sim::Session::new(m);
-    let mut out = Rate {
-        rays: 0.0,
-        cycles: 0.0,
-        mrays: 0.0,
-        ci: None,
-        ops: 0,
-        bad: 0,
-    };
-    let (mut timed, mut pairs, mut rays_timed) = (Vec::new(), Vec::new(), 0u64);
+    let (mut ops, mut bad) = (0u64, 0usize);
+    let depths = bounces as usize;
+    // Per depth, per group: (cycles, rays) of the frame to that depth.
+    let mut pairs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); depths];
+    // The group's timed traces and each one's (frame depth, rays).
+    let (mut timed, mut timed_of) = (Vec::new(), Vec::new());
     let mut next = 0;
     isa::run_units(&prog, m.flavour(), "mbvh", units, |_, _, t, (hits, c)| {
         let (is_timed, last, k, s) = roles[next];
         next += 1;
         progress.done(1);
-        out.ops += t.ops.len() as u64;
+        ops += t.ops.len() as u64;
         session.warm(&[(0, &t)]).map_err(AppError)?;
         if is_timed {
             let (stream, want) = &prepared[k][s];
             let want = want.as_ref().expect("timed streams have answers");
             let label = format!("{} {} {:?}", pr.name, kernel.name(), stream.kind);
-            out.bad +=
-                mismatches_expected(F32Test::MollerTrumbore, &label, &refi, stream, want, &hits);
-            rays_timed += c.rays;
+            bad += mismatches_expected(F32Test::MollerTrumbore, &label, &refi, stream, want, &hits);
+            timed_of.push((frame_depth(stream.kind), c.rays));
             timed.push(t);
         } else {
             isa::trace::recycle(t);
         }
         if last {
-            let queue: Vec<&isa::Trace> = timed.iter().collect();
-            let st = session.timed_queue(&queue).map_err(AppError)?;
-            pairs.push((st.cycles as f64, rays_timed as f64));
+            let mut per = vec![(0.0, 0.0); depths];
+            for (t, &(d, rays)) in timed.iter().zip(&timed_of) {
+                let cyc = session.timed_queue(&[t]).map_err(AppError)?.cycles as f64;
+                for (b, p) in per.iter_mut().enumerate() {
+                    if d as usize <= b + 1 {
+                        p.0 += cyc;
+                        p.1 += rays as f64;
+                    }
+                }
+            }
+            for (b, p) in per.into_iter().enumerate() {
+                pairs[b].push(p);
+            }
             timed.drain(..).for_each(isa::trace::recycle);
-            rays_timed = 0;
+            timed_of.clear();
         }
         Ok::<(), AppError>(())
     })?;
     let tiles_timed = groups_plan.iter().map(|g| g.0.len()).sum::<usize>() as f64;
-    let (cyc, rays) = pairs
-        .iter()
-        .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
     let hz = m.clock_ghz * 1e9;
-    out.rays = rays / tiles_timed * n_tiles as f64;
-    out.cycles = cyc / tiles_timed * n_tiles as f64;
-    out.mrays = rays / (cyc / hz) / 1e6;
-    // Rays per cycle per run, as a ratio of sums; its CI scaled to Mray/s.
-    let per_cycle: Vec<(f64, f64)> = pairs.iter().map(|&(c, r)| (r, c)).collect();
-    out.ci = systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6);
-    Ok(out)
+    Ok(pairs
+        .iter()
+        .map(|pairs| {
+            let (cyc, rays) = pairs
+                .iter()
+                .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
+            // Rays per cycle per run, a ratio of sums; its CI scaled to Mray/s.
+            let per_cycle: Vec<(f64, f64)> = pairs.iter().map(|&(c, r)| (r, c)).collect();
+            Rate {
+                rays: rays / tiles_timed * n_tiles as f64,
+                cycles: cyc / tiles_timed * n_tiles as f64,
+                mrays: rays / (cyc / hz) / 1e6,
+                ci: systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6),
+                ops,
+                bad,
+            }
+        })
+        .collect())
 }
 
 #[cfg(test)]

@@ -59,6 +59,10 @@ pub(crate) struct Rate {
     pub(crate) mrays: f64,
     /// 95% CI half-width of `mrays`.
     pub(crate) ci: Option<f64>,
+    /// Simulated instructions per ray (timed units).
+    pub(crate) instr_per_ray: f64,
+    /// Cycles per simulated instruction (timed units).
+    pub(crate) cpi: f64,
     /// Ops simulated for the whole sample (timed ops and warmed memory and
     /// branch ops; the same for every depth of one sample).
     pub(crate) ops: u64,
@@ -175,6 +179,8 @@ pub(crate) fn frame_rates(
     let depths = bounces as usize;
     // Per depth, per group: (cycles, rays) of the frame to that depth.
     let mut pairs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); depths];
+    // Per depth: simulated instructions of the timed units.
+    let mut instr = vec![0f64; depths];
     // The group's timed traces and each one's (frame depth, rays).
     let (mut timed, mut timed_of) = (Vec::new(), Vec::new());
     let mut next = 0;
@@ -197,11 +203,12 @@ pub(crate) fn frame_rates(
         if last {
             let mut per = vec![(0.0, 0.0); depths];
             for (t, &(d, rays)) in timed.iter().zip(&timed_of) {
-                let cyc = session.timed_queue(&[t]).map_err(AppError)?.cycles as f64;
+                let st = session.timed_queue(&[t]).map_err(AppError)?;
                 for (b, p) in per.iter_mut().enumerate() {
                     if d as usize <= b + 1 {
-                        p.0 += cyc;
+                        p.0 += st.cycles as f64;
                         p.1 += rays as f64;
+                        instr[b] += st.ops as f64;
                     }
                 }
             }
@@ -217,7 +224,8 @@ pub(crate) fn frame_rates(
     let hz = m.clock_ghz * 1e9;
     Ok(pairs
         .iter()
-        .map(|pairs| {
+        .zip(&instr)
+        .map(|(pairs, &ins)| {
             let (cyc, rays) = pairs
                 .iter()
                 .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
@@ -228,6 +236,8 @@ pub(crate) fn frame_rates(
                 cycles: cyc / tiles_timed * n_tiles as f64,
                 mrays: rays / (cyc / hz) / 1e6,
                 ci: systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6),
+                instr_per_ray: ins / rays,
+                cpi: cyc / ins,
                 ops,
                 bad,
             }

@@ -295,7 +295,7 @@ fn golden_op_streams() {
 }
 
 /// Every report of the papers' registries.
-const REPORTS: [&str; 9] = [
+const REPORTS: [&str; 14] = [
     "drs-table1",
     "drs-table2",
     "drs-fig5",
@@ -305,6 +305,11 @@ const REPORTS: [&str; 9] = [
     "mft-packet256",
     "mft-quality",
     "mft-fig6",
+    "mbvh-fig2",
+    "mbvh-fig3",
+    "mbvh-fig4-6",
+    "mbvh-fig7-8",
+    "mbvh-table1-2",
 ];
 
 #[test]
@@ -331,6 +336,9 @@ fn every_report_is_listed_and_reached_through_the_cli_with_its_options_checked()
         ]));
         assert!(e.contains("16 lanes"), "{name}: {e}");
     }
+    // The MBVH rates are the paper's 4-wide SSE figures.
+    let e = err(&rtsim(&["reproduce", "mbvh-fig3", "--machine", "larrabee"]));
+    assert!(e.contains("4-wide"), "{e}");
     let e = err(&rtsim(&["reproduce", "drs-table9"]));
     assert!(e.contains("unknown report 'drs-table9'"), "{e}");
 }

@@ -63,6 +63,33 @@ fn header(
     }
 }
 
+/// Cycles per ray and the share of rays that hit nothing, per stream of a
+/// frame (bounce 0: primary; shadow k: from the hits of bounce k).
+fn kind_rows(scene: &str, r: &Rate) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for (&(depth, shadow), &(cyc, rays, misses)) in &r.by_kind {
+        let kind = match (depth, shadow) {
+            (_, true) => "shadow",
+            (0, false) => "primary",
+            _ => "reflection",
+        };
+        let row = |metric: &str, v: f64| {
+            Row::new(metric, v)
+                .key("scene", scene)
+                .key("stream_bounce", depth)
+                .key("rays", kind)
+        };
+        rows.push(row("cycles_per_ray", cyc / rays.max(1.0)).unit("cycles"));
+        let what = if shadow {
+            "unoccluded_fraction"
+        } else {
+            "miss_fraction"
+        };
+        rows.push(row(what, misses / rays.max(1.0)));
+    }
+    rows
+}
+
 /// The rate of the deepest frame of [`frame_rates`] (a frame of its own).
 fn last(mut v: Vec<Rate>) -> Rate {
     v.pop().expect("at least one bounce")
@@ -238,6 +265,7 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
         for (b, r) in (1..).zip(&rates) {
             rows.extend(rate_rows(scene, b, "MBVH RS", r));
         }
+        rows.extend(kind_rows(scene, &rates[rates.len() - 1]));
         let first = rates[0].mrays;
         let lastr = rates[rates.len() - 1].mrays;
         notes.push(format!(

@@ -4,7 +4,7 @@
 //! carried from stream to stream; a stratified sample of runs of
 //! consecutive tiles timed in full detail after functional warming.
 
-use crate::frame::Prepared;
+use crate::frame::{kind_key, Prepared};
 use isa::{Detail, Machine, Placed, UnitProgram};
 use mbvh_kernels::layout::{lay_out, MbvhBufs};
 use mbvh_kernels::stats::Counters;
@@ -17,6 +17,7 @@ use scene::agreement::{mismatches_expected, Expected, F32Test};
 use scene::reference::Reference;
 use scene::workload::{RayStream, StreamKind, Tile};
 use scene::Hit;
+use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Pixels per side of a tile: a tile's streams are the renderer's batches
@@ -63,6 +64,9 @@ pub(crate) struct Rate {
     pub(crate) instr_per_ray: f64,
     /// Cycles per simulated instruction (timed units).
     pub(crate) cpi: f64,
+    /// Per stream kind of the frame ([`crate::frame::kind_key`]): timed
+    /// cycles, rays, and rays that hit nothing.
+    pub(crate) by_kind: BTreeMap<(u32, bool), (f64, f64, f64)>,
     /// Ops simulated for the whole sample (timed ops and warmed memory and
     /// branch ops; the same for every depth of one sample).
     pub(crate) ops: u64,
@@ -97,6 +101,15 @@ fn frame_depth(kind: StreamKind) -> u32 {
         StreamKind::Primary => 1,
         StreamKind::Shadow(k) => k + 1,
         StreamKind::Bounce(k) => k,
+    }
+}
+
+/// [`frame_depth`] of a stream key.
+fn depth_of_key((d, shadow): (u32, bool)) -> u32 {
+    if shadow {
+        d + 1
+    } else {
+        d.max(1)
     }
 }
 
@@ -181,6 +194,8 @@ pub(crate) fn frame_rates(
     let mut pairs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); depths];
     // Per depth: simulated instructions of the timed units.
     let mut instr = vec![0f64; depths];
+    // Per stream kind: (cycles, rays, misses) of the timed units.
+    let mut by_kind: BTreeMap<(u32, bool), (f64, f64, f64)> = BTreeMap::new();
     // The group's timed traces and each one's (frame depth, rays).
     let (mut timed, mut timed_of) = (Vec::new(), Vec::new());
     let mut next = 0;
@@ -195,15 +210,25 @@ pub(crate) fn frame_rates(
             let want = want.as_ref().expect("timed streams have answers");
             let label = format!("{} {} {:?}", pr.name, kernel.name(), stream.kind);
             bad += mismatches_expected(F32Test::MollerTrumbore, &label, &refi, stream, want, &hits);
-            timed_of.push((frame_depth(stream.kind), c.rays));
+            let misses = hits.iter().filter(|h| !h.is_hit()).count();
+            timed_of.push((
+                frame_depth(stream.kind),
+                c.rays,
+                kind_key(stream.kind),
+                misses,
+            ));
             timed.push(t);
         } else {
             isa::trace::recycle(t);
         }
         if last {
             let mut per = vec![(0.0, 0.0); depths];
-            for (t, &(d, rays)) in timed.iter().zip(&timed_of) {
+            for (t, &(d, rays, key, misses)) in timed.iter().zip(&timed_of) {
                 let st = session.timed_queue(&[t]).map_err(AppError)?;
+                let k = by_kind.entry(key).or_default();
+                k.0 += st.cycles as f64;
+                k.1 += rays as f64;
+                k.2 += misses as f64;
                 for (b, p) in per.iter_mut().enumerate() {
                     if d as usize <= b + 1 {
                         p.0 += st.cycles as f64;
@@ -225,7 +250,8 @@ pub(crate) fn frame_rates(
     Ok(pairs
         .iter()
         .zip(&instr)
-        .map(|(pairs, &ins)| {
+        .enumerate()
+        .map(|(b, (pairs, &ins))| {
             let (cyc, rays) = pairs
                 .iter()
                 .fold((0.0, 0.0), |(a, b), &(x, y)| (a + x, b + y));
@@ -238,6 +264,11 @@ pub(crate) fn frame_rates(
                 ci: systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6),
                 instr_per_ray: ins / rays,
                 cpi: cyc / ins,
+                by_kind: by_kind
+                    .iter()
+                    .filter(|(k, _)| depth_of_key(**k) <= b as u32 + 1)
+                    .map(|(k, v)| (*k, *v))
+                    .collect(),
                 ops,
                 bad,
             }

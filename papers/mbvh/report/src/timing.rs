@@ -64,6 +64,9 @@ pub(crate) struct Rate {
     pub(crate) instr_per_ray: f64,
     /// Cycles per simulated instruction (timed units).
     pub(crate) cpi: f64,
+    /// Each run's cycles, in sample order (runs pair across methods timed
+    /// with the same seed: the same tiles and rays).
+    pub(crate) run_cycles: Vec<f64>,
     /// Per stream kind of the frame ([`crate::frame::kind_key`]): timed
     /// cycles, rays, and rays that hit nothing.
     pub(crate) by_kind: BTreeMap<(u32, bool), (f64, f64, f64)>,
@@ -264,6 +267,7 @@ pub(crate) fn frame_rates(
                 ci: systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6),
                 instr_per_ray: ins / rays,
                 cpi: cyc / ins,
+                run_cycles: pairs.iter().map(|p| p.0).collect(),
                 by_kind: by_kind
                     .iter()
                     .filter(|(k, _)| depth_of_key(**k) <= b as u32 + 1)

@@ -119,3 +119,27 @@ fn counter_reports_refuse_a_machine() {
         .unwrap_err();
     assert!(e.0.contains("--machine"), "{}", e.0);
 }
+
+#[test]
+fn counts_are_the_same_on_one_and_two_host_threads() {
+    let run = |n: usize| {
+        let dir = std::env::temp_dir().join(format!("mbvh-threads-{n}-{}", std::process::id()));
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap();
+        let mut j = pool.install(|| {
+            report(
+                "mbvh-fig4-6",
+                Given {
+                    tiles: Some(2),
+                    ..small(&dir)
+                },
+            )
+        });
+        j["host_seconds"] = serde_json::json!(0);
+        std::fs::remove_dir_all(&dir).ok();
+        j
+    };
+    assert_eq!(run(1), run(2));
+}

@@ -64,6 +64,29 @@ fn header(
     }
 }
 
+/// Where a frame's cycles go: per code region, the share of the cycles,
+/// instructions per ray and CPI.
+fn region_rows(r: &Rate, bounces: u32) -> Vec<Row> {
+    let total: f64 = r.regions.iter().map(|x| x.1).sum();
+    let rays_timed = r.regions.iter().map(|x| x.0).sum::<f64>() / r.instr_per_ray;
+    let mut rows = Vec::new();
+    for (reg, &(ops, cyc)) in isa::Region::ALL.iter().zip(&r.regions) {
+        if cyc == 0.0 && ops == 0.0 {
+            continue;
+        }
+        let row = |metric: &str, v: f64| {
+            Row::new(metric, v)
+                .key("scene", "conference")
+                .key("bounces", bounces)
+                .key("region", reg.name())
+        };
+        rows.push(row("cycle_share", cyc / total.max(1.0)));
+        rows.push(row("instructions_per_ray", ops / rays_timed.max(1.0)));
+        rows.push(row("cpi", cyc / ops.max(1.0)));
+    }
+    rows
+}
+
 /// Cycles per ray and the share of rays that hit nothing, per stream of a
 /// frame (bounce 0: primary; shadow k: from the hits of bounce k).
 fn kind_rows(scene: &str, r: &Rate) -> Vec<Row> {
@@ -163,6 +186,7 @@ pub fn mbvh_fig3(a: &ReproduceArgs) -> AppResult<Produced> {
     let b = 3;
     // The paper's configuration at 3 bounces is the loop's frame (same sample).
     let base = base.expect("the loop reaches 3 bounces");
+    rows.extend(region_rows(&base, b));
     let variants = [
         (
             "unordered",

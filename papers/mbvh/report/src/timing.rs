@@ -64,6 +64,9 @@ pub(crate) struct Rate {
     pub(crate) instr_per_ray: f64,
     /// Cycles per simulated instruction (timed units).
     pub(crate) cpi: f64,
+    /// Per code region (`isa::Region` order): simulated instructions and
+    /// cycles of the timed units.
+    pub(crate) regions: [(f64, f64); 8],
     /// Each run's cycles, in sample order (runs pair across methods timed
     /// with the same seed: the same tiles and rays).
     pub(crate) run_cycles: Vec<f64>,
@@ -195,8 +198,9 @@ pub(crate) fn frame_rates(
     let depths = bounces as usize;
     // Per depth, per group: (cycles, rays) of the frame to that depth.
     let mut pairs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); depths];
-    // Per depth: simulated instructions of the timed units.
+    // Per depth: simulated instructions of the timed units, and per region.
     let mut instr = vec![0f64; depths];
+    let mut regions = vec![[(0f64, 0f64); 8]; depths];
     // Per stream kind: (cycles, rays, misses) of the timed units.
     let mut by_kind: BTreeMap<(u32, bool), (f64, f64, f64)> = BTreeMap::new();
     // The group's timed traces and each one's (frame depth, rays).
@@ -237,6 +241,10 @@ pub(crate) fn frame_rates(
                         p.0 += st.cycles as f64;
                         p.1 += rays as f64;
                         instr[b] += st.ops as f64;
+                        for (r, reg) in regions[b].iter_mut().enumerate() {
+                            reg.0 += st.region_ops[r] as f64;
+                            reg.1 += st.region_cycles[r] as f64;
+                        }
                     }
                 }
             }
@@ -267,6 +275,7 @@ pub(crate) fn frame_rates(
                 ci: systematic_ratio_ci(&per_cycle).map(|h| h * hz / 1e6),
                 instr_per_ray: ins / rays,
                 cpi: cyc / ins,
+                regions: regions[b],
                 run_cycles: pairs.iter().map(|p| p.0).collect(),
                 by_kind: by_kind
                     .iter()

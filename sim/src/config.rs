@@ -44,6 +44,12 @@ pub struct CoreConfig {
     /// waits for the stores to write the cache instead (OoO).
     #[serde(default)]
     pub store_forward_fail_penalty: u32,
+    /// A load forwards from a store wider than 8 bytes only if it starts at
+    /// the store's first byte (Core 2 and earlier: a 32-bit read of the
+    /// second lane of a 128-bit store fails); otherwise any store that
+    /// contains the load forwards (OoO).
+    #[serde(default)]
+    pub store_forward_wide_same_start: bool,
     /// Store buffer entries (OoO): a store dispatches only with a free
     /// entry, held until the store retires; loads forward from its stores.
     #[serde(default)]

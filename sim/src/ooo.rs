@@ -12,7 +12,9 @@
 //!   also waits for one of `mshrs` miss slots), or store-to-load forwarding
 //!   from the youngest older store still in the store buffer that overlaps
 //!   the load; a load that store does not contain (wider, or spanning two
-//!   stores) cannot forward and pays `store_forward_fail_penalty`;
+//!   stores), or on Core 2-class machines a load inside a wide store that
+//!   does not start with it (`store_forward_wide_same_start`), cannot
+//!   forward and pays `store_forward_fail_penalty`;
 //! - retire: in order, `retire_width` per cycle; a store holds its store
 //!   buffer entry until it retires. A two-uop store that names its address
 //!   source (`addr=`) issues its address uop when the address is ready and
@@ -380,6 +382,7 @@ pub struct OooCore {
     l1_latency: u64,
     sf_latency: u64,
     sf_fail: u64,
+    sf_same_start: bool,
     macro_fusion: bool,
     penalty: u64,
     cal: Calendar,
@@ -432,6 +435,7 @@ impl OooCore {
             l1_latency: u64::from(m.caches[0].latency),
             sf_latency: u64::from(c.store_forward_latency),
             sf_fail: u64::from(c.store_forward_fail_penalty),
+            sf_same_start: c.store_forward_wide_same_start,
             macro_fusion: c.macro_fusion,
             penalty: u64::from(c.mispredict_penalty),
             cal: Calendar::new(c.ports as usize),
@@ -784,8 +788,9 @@ impl OooCore {
     }
 
     /// The youngest store in the buffer when a load of bytes `lo..hi`
-    /// executes at `at` that overlaps it, and whether it holds every byte
-    /// of the load (else forwarding fails).
+    /// executes at `at` that overlaps it, and whether it can forward: it
+    /// holds every byte of the load and (`store_forward_wide_same_start`, for
+    /// a store wider than 8 bytes) starts where the load does.
     #[inline(always)]
     fn forwarding(&self, lo: u64, hi: u64, at: u64) -> Option<(StoreEntry, bool)> {
         if !self.store_near(lo, hi) {
@@ -793,7 +798,11 @@ impl OooCore {
         }
         self.buffered(at)
             .find(|st| st.lo < hi && lo < st.hi)
-            .map(|st| (*st, st.lo <= lo && hi <= st.hi))
+            .map(|st| {
+                let contained = st.lo <= lo && hi <= st.hi;
+                let start = !self.sf_same_start || st.hi - st.lo <= 8 || st.lo == lo;
+                (*st, contained && start)
+            })
     }
 
     /// Whether a store the buffer may still hold wrote a granule (8 bytes,

@@ -327,6 +327,31 @@ fn a_load_the_store_does_not_contain_cannot_forward() {
 }
 
 #[test]
+fn core2_forwards_from_a_wide_store_only_to_a_load_at_its_start() {
+    // A 16-byte store of %1 (imul: ready 4), then a 4-byte load inside it.
+    let run = |m: &MachineConfig, load: &str| {
+        cycles(
+            m,
+            &then_chain(&format!("%1 = imul\nstore %1 @d+0x40:16\n%3 = {load}\n")),
+        )
+    };
+    let fwd = 9 + 30;
+    let hsw_like = hsw();
+    let core2 = hsw()
+        .with_sets(&["core.store_forward_wide_same_start=true".into()])
+        .unwrap();
+    // Contained loads forward on Haswell wherever they start.
+    assert_eq!(run(&hsw_like, "load @d+0x44:4"), fwd);
+    // With the Core 2 rule: at the store's start it forwards, at +4 it
+    // fails (12 cycles more at Haswell's penalty).
+    assert_eq!(run(&core2, "load @d+0x40:4"), fwd);
+    assert_eq!(run(&core2, "load @d+0x44:4"), fwd + 12);
+    // Stores of 8 bytes or less still forward to any load they contain.
+    let narrow = format!("%1 = imul\nstore %1 @d+0x40:8\n%3 = load @d+0x44:4\n");
+    assert_eq!(cycles(&core2, &then_chain(&narrow)), fwd);
+}
+
+#[test]
 fn a_full_store_buffer_stalls_dispatch() {
     // A slow store first (its data: a divide, done 22; it retires in 22),
     // then two more stores and an alu chain.

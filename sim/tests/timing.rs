@@ -347,8 +347,8 @@ fn core2_forwards_from_a_wide_store_only_to_a_load_at_its_start() {
     assert_eq!(run(&core2, "load @d+0x40:4"), fwd);
     assert_eq!(run(&core2, "load @d+0x44:4"), fwd + 12);
     // Stores of 8 bytes or less still forward to any load they contain.
-    let narrow = format!("%1 = imul\nstore %1 @d+0x40:8\n%3 = load @d+0x44:4\n");
-    assert_eq!(cycles(&core2, &then_chain(&narrow)), fwd);
+    let narrow = "%1 = imul\nstore %1 @d+0x40:8\n%3 = load @d+0x44:4\n";
+    assert_eq!(cycles(&core2, &then_chain(narrow)), fwd);
 }
 
 #[test]

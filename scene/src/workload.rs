@@ -160,7 +160,7 @@ fn for_each_sample(
     f: impl FnMut([f64; 3], [f64; 3], Rng, u32),
 ) {
     let raster = (0..t).flat_map(|py| (0..t).map(move |px| (px, py)));
-    for_each_sample_in(cam, (tx, ty, t), raster, spp, seed, f);
+    for_each_sample_in(cam, (tx, ty, t), raster, (spp, false), seed, f);
 }
 
 /// The tile's pixels in Morton (Z) order: every aligned run of 4^k pixels is
@@ -180,15 +180,18 @@ fn morton_pixels(t: u32) -> Vec<(u32, u32)> {
     px
 }
 
-/// [`for_each_sample`] over pixels of the tile in the given order.
+/// [`for_each_sample`] over pixels of the tile in the given order;
+/// `stratified` (and `spp` a square n^2): sample k of a pixel jittered in
+/// cell (k mod n, k div n) of an n x n grid over the pixel.
 fn for_each_sample_in(
     cam: &Camera,
     (tx, ty, t): (u32, u32, u32),
     pixels: impl IntoIterator<Item = (u32, u32)>,
-    spp: u32,
+    (spp, stratified): (u32, bool),
     seed: u64,
     mut f: impl FnMut([f64; 3], [f64; 3], Rng, u32),
 ) {
+    let n = strata(spp).filter(|_| stratified);
     for (px, py) in pixels {
         {
             let (x, y) = (tx * t + px, ty * t + py);
@@ -197,14 +200,39 @@ fn for_each_sample_in(
             }
             for k in 0..spp {
                 let mut r = Rng::new(path_seed(seed, (tx, ty), py * t + px, k));
-                let (o, d) = cam.ray(
-                    f64::from(x) + f64::from(r.f32()),
-                    f64::from(y) + f64::from(r.f32()),
-                );
+                let (jx, jy) = (f64::from(r.f32()), f64::from(r.f32()));
+                let (ox, oy) = match n {
+                    Some(n) => (
+                        (f64::from(k % n) + jx) / f64::from(n),
+                        (f64::from(k / n) + jy) / f64::from(n),
+                    ),
+                    None => (jx, jy),
+                };
+                let (o, d) = cam.ray(f64::from(x) + ox, f64::from(y) + oy);
                 f(o, d, r, (py * t + px) * spp + k);
             }
         }
     }
+}
+
+/// n if `spp` is n^2 (n > 1), else none.
+fn strata(spp: u32) -> Option<u32> {
+    let n = f64::from(spp).sqrt().round() as u32;
+    (n > 1 && n * n == spp).then_some(n)
+}
+
+/// Sample `k`'s cell of the n x n strata of a second 2D dimension (the
+/// lens), in a seeded shuffled order per pixel so it is not correlated with
+/// the pixel cell `k` takes.
+fn shuffled_cell(n: u32, k: u32, pixel_seed: u64) -> (u32, u32) {
+    let mut perm: Vec<u32> = (0..n * n).collect();
+    let mut r = Rng::new(pixel_seed);
+    for i in (1..perm.len()).rev() {
+        let j = (r.next_u64() % (i as u64 + 1)) as usize;
+        perm.swap(i, j);
+    }
+    let c = perm[k as usize];
+    (c % n, c / n)
 }
 
 /// Primary rays of tile (`tx`, `ty`) of size `t` x `t` pixels, `spp` jittered samples each.
@@ -427,19 +455,28 @@ pub fn distribution_tile(
     // Pixels in Morton order: a ray group of any power-of-two size covers
     // a compact block of pixels (the stream kernels group consecutive rays).
     let pixels = morton_pixels(t);
+    // Pixel and lens positions stratified n x n per pixel (16 paths: 4 x 4),
+    // the lens cells in a shuffled order (the paper: sudoku samples, whose
+    // 2D projections are stratified alike).
+    let n = strata(paths);
     for_each_sample_in(
         cam,
         (tx, ty, t),
         pixels,
-        paths,
+        (paths, true),
         seed,
         |o, d, mut r, path| {
             // Thin lens: the ray through the lens point meets the pinhole ray on the focus plane.
             let focal = add(o, scale(d, lens.focus / dot(d, fwd)));
-            let (a, phi) = (
-                lens.aperture * f64::from(r.f32()).sqrt(),
-                2.0 * std::f64::consts::PI * f64::from(r.f32()),
-            );
+            let (mut u, mut v) = (f64::from(r.f32()), f64::from(r.f32()));
+            if let Some(n) = n {
+                let pixel = path / paths;
+                let (cx, cy) =
+                    shuffled_cell(n, path % paths, path_seed(seed, (tx, ty), pixel, u32::MAX));
+                u = (f64::from(cx) + u) / f64::from(n);
+                v = (f64::from(cy) + v) / f64::from(n);
+            }
+            let (a, phi) = (lens.aperture * u.sqrt(), 2.0 * std::f64::consts::PI * v);
             let lo = add(
                 eye,
                 add(scale(right, a * phi.cos()), scale(up, a * phi.sin())),
@@ -732,6 +769,22 @@ mod tests {
                     "shadow ray ends on the light plane y = 4: {end:?}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn strata_cover_every_cell_once_in_a_shuffled_order() {
+        assert_eq!(
+            (strata(16), strata(15), strata(1), strata(64)),
+            (Some(4), None, None, Some(8))
+        );
+        for seed in [1, 2, 3] {
+            let mut cells: Vec<(u32, u32)> = (0..16).map(|k| shuffled_cell(4, k, seed)).collect();
+            let in_order = cells == (0..16).map(|k| (k % 4, k / 4)).collect::<Vec<_>>();
+            cells.sort_unstable();
+            cells.dedup();
+            assert_eq!(cells.len(), 16);
+            assert!(!in_order, "shuffled, not the pixel's order");
         }
     }
 

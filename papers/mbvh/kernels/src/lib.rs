@@ -14,6 +14,7 @@
 
 pub mod layout;
 pub mod packet;
+mod shared;
 pub mod single;
 pub mod stats;
 pub mod stream;

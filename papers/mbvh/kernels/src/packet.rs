@@ -12,10 +12,11 @@
 //! with interval-arithmetic culling; these are single SIMD packets of the
 //! machine's width, the paper's "4-wide packets" on SSE.
 
-use crate::layout::{block_bytes, node_bytes, MbvhBufs, LEAF_COUNT_MASK, LEAF_FIRST_SHIFT};
+use crate::layout::{node_bytes, MbvhBufs};
+use crate::shared::{broadcast_triangle, leaf_blocks, slab_axis, slab_hits, sort_farthest_first};
 use crate::stats::Counters;
-use isa::{At, BinOp, Buf, Cmp, Machine, MemKind, Region, SOp, Shift};
-use rt::single::{moller, Block};
+use isa::{At, BinOp, Buf, Cmp, Machine, MemKind, Region, Shift};
+use rt::single::moller;
 use scene::bvh::LEAF;
 use scene::{Hit, HitPolicy};
 
@@ -264,20 +265,9 @@ fn inner<M: Machine>(
         for a in 0..3 {
             let lo = m.load_bcast(&tree.nodes, At::idx(nb, 1, 4 * w * (2 * a) + 4 * ch));
             let hi = m.load_bcast(&tree.nodes, At::idx(nb, 1, 4 * w * (2 * a + 1) + 4 * ch));
-            let d0 = m.sub(lo, pk.org[a]);
-            let t0 = m.mul(d0, pk.idir[a]);
-            let d1 = m.sub(hi, pk.org[a]);
-            let t1 = m.mul(d1, pk.idir[a]);
-            near[a] = m.min(t0, t1);
-            far[a] = m.max(t0, t1);
+            (near[a], far[a]) = slab_axis(m, (lo, hi), pk.org[a], pk.idir[a]);
         }
-        let n01 = m.max(near[0], near[1]);
-        let n2 = m.max(near[2], zero);
-        let tn = m.max(n01, n2);
-        let f01 = m.min(far[0], far[1]);
-        let f2 = m.min(far[2], pk.tfar);
-        let tf = m.min(f01, f2);
-        let hit = m.cmp(Cmp::Le, tn, tf);
+        let (hit, tn) = slab_hits(m, near, far, zero, pk.tfar);
         let hit = m.kand(hit, pk.live);
         let any = m.any(hit);
         if !m.branch(site::HIT, any) {
@@ -288,17 +278,7 @@ fn inner<M: Machine>(
         let child = m.s_load(&tree.nodes, At::idx(nb, 1, 24 * w + 4 * ch), 4, false);
         kids.push((child, d, dmin));
     }
-    for i in 1..kids.len() {
-        let mut j = i;
-        while j > 0 {
-            let lt = m.x_cmp(Cmp::Lt, kids[j - 1].2, kids[j].2);
-            if !m.branch(site::SORT, lt) {
-                break;
-            }
-            kids.swap(j - 1, j);
-            j -= 1;
-        }
-    }
+    sort_farthest_first(m, &mut kids, |k: &(M::S, M::F, M::X)| k.2, site::SORT);
     for (child, d, _) in kids {
         m.s_store(&mut b.nodes_stack, At::idx(sp, 4, 0), 4, child);
         let db = m.s_shift(Shift::Shl, sp, (4 * w).trailing_zeros());
@@ -318,29 +298,13 @@ fn leaf<M: Machine>(
     policy: HitPolicy,
     c: &mut Counters,
 ) {
-    let w = M::LANES;
+    let _w = M::LANES;
     m.region(Region::Leaf);
-    let fm = m.int(i64::from(!LEAF));
-    let first = m.s_and(node, fm);
-    let first = m.s_shift(Shift::Shr, first, LEAF_FIRST_SHIFT);
-    let cm = m.int(i64::from(LEAF_COUNT_MASK));
-    let ntri = m.s_and(node, cm);
-    let bbytes = m.int(block_bytes(w) as i64);
-    let fb = m.s_op(SOp::Mul, first, bbytes);
+    let (fb, ntri) = leaf_blocks(m, node);
     let mut ti = m.int(0);
     let mut t = 0;
     loop {
-        let at = (t / w) * block_bytes(w) + 4 * (t % w);
-        let mut row = |r: usize| m.load_bcast(&tree.tris, At::idx(fb, 1, at + 4 * w * r));
-        let blk = Block {
-            v0: [row(0), row(1), row(2)],
-            e1: [row(3), row(4), row(5)],
-            e2: [row(6), row(7), row(8)],
-            prim: {
-                let p = row(9);
-                m.bits_to_i(p)
-            },
-        };
+        let blk = broadcast_triangle(m, &tree.tris, fb, t);
         c.prim_tests += 1;
         c.prim_lanes += u64::from(m.bits(act).count_ones());
         let sites = [site::TRI_EDGE, site::TRI_DEPTH];

@@ -6,11 +6,10 @@
 //! block per SIMD primitive test). Same tree and triangle blocks as MBVH RS;
 //! rays in the compact record (loaded and broadcast once per ray).
 
-use crate::layout::{
-    block_bytes, node_bytes, MbvhBufs, RayForm, RayRecord, LEAF_COUNT_MASK, LEAF_FIRST_SHIFT,
-};
+use crate::layout::{block_bytes, node_bytes, MbvhBufs, RayForm, RayRecord};
+use crate::shared::{leaf_blocks, slab_hits, sort_farthest_first};
 use crate::stats::Counters;
-use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, MemKind, Region, SOp, Shift};
+use isa::{At, BinOp, Buf, Cmp, Int, Logic, Machine, MemKind, Region, Shift};
 use rt::single::{moller, Block};
 use scene::bvh::LEAF;
 use scene::{Hit, HitPolicy};
@@ -224,13 +223,7 @@ fn inner<M: Machine>(
         near[a] = m.min(t0, t1);
         far[a] = m.max(t0, t1);
     }
-    let n01 = m.max(near[0], near[1]);
-    let n2 = m.max(near[2], ray.tmin);
-    let tn = m.max(n01, n2);
-    let f01 = m.min(far[0], far[1]);
-    let f2 = m.min(far[2], ray.tfar);
-    let tf = m.min(f01, f2);
-    let hit = m.cmp(Cmp::Le, tn, tf);
+    let (hit, tn) = slab_hits(m, near, far, ray.tmin, ray.tfar);
     let mut bits = m.movemask(hit);
     let vw = m.s_load(&tree.nodes, At::idx(nb, 1, 28 * w), 4, false);
     bits = m.s_and(bits, vw);
@@ -253,17 +246,7 @@ fn inner<M: Machine>(
         }
     }
     // Farthest first: the nearest is popped next.
-    for i in 1..kids.len() {
-        let mut j = i;
-        while j > 0 {
-            let lt = m.x_cmp(Cmp::Lt, kids[j - 1].1, kids[j].1);
-            if !m.branch(site::SORT, lt) {
-                break;
-            }
-            kids.swap(j - 1, j);
-            j -= 1;
-        }
-    }
+    sort_farthest_first(m, &mut kids, |k: &(M::S, M::X)| k.1, site::SORT);
     for (child, d) in kids {
         m.s_store(&mut b.stack, At::idx(sp, 8, 0), 4, child);
         m.x_store(&mut b.stack, At::idx(sp, 8, 4), d);
@@ -283,14 +266,8 @@ fn leaf<M: Machine>(
 ) -> bool {
     let w = M::LANES;
     m.region(Region::Leaf);
-    let fm = m.int(i64::from(!LEAF));
-    let first = m.s_and(node, fm);
-    let first = m.s_shift(Shift::Shr, first, LEAF_FIRST_SHIFT);
-    let cm = m.int(i64::from(LEAF_COUNT_MASK));
-    let ntri = m.s_and(node, cm);
+    let (fb, ntri) = leaf_blocks(m, node);
     let nt = ntri.get() as usize;
-    let bbytes = m.int(block_bytes(w) as i64);
-    let fb = m.s_op(SOp::Mul, first, bbytes);
     let mut any = false;
     let mut k = m.int(0);
     for blk_i in 0..nt.div_ceil(w) {

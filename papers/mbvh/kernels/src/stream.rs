@@ -24,12 +24,11 @@
 //! tree's are not); the leaf's ray-id widening goes through memory (SSE has
 //! no 16-to-32-bit gather index; 2 scalar ops per ray per leaf).
 
-use crate::layout::{
-    block_bytes, node_bytes, MbvhBufs, RayForm, RayRecord, LEAF_COUNT_MASK, LEAF_FIRST_SHIFT,
-};
+use crate::layout::{node_bytes, MbvhBufs, RayForm, RayRecord};
+use crate::shared::{broadcast_triangle, leaf_blocks, slab_axis, slab_hits, sort_farthest_first};
 use crate::stats::Counters;
 use isa::{At, Buf, Cmp, IOp, Int, Machine, MemKind, Region, SOp, Shift};
-use rt::single::{moller, Block};
+use rt::single::moller;
 use scene::bvh::LEAF;
 use scene::{Hit, HitPolicy};
 
@@ -352,20 +351,9 @@ fn box_test<M: Machine>(
     let mut near = [tmin; 3];
     let mut far = [len; 3];
     for a in 0..3 {
-        let d0 = m.sub(bx[2 * a], o[a]);
-        let t0 = m.mul(d0, id[a]);
-        let d1 = m.sub(bx[2 * a + 1], o[a]);
-        let t1 = m.mul(d1, id[a]);
-        near[a] = m.min(t0, t1);
-        far[a] = m.max(t0, t1);
+        (near[a], far[a]) = slab_axis(m, (bx[2 * a], bx[2 * a + 1]), o[a], id[a]);
     }
-    let n01 = m.max(near[0], near[1]);
-    let n2 = m.max(near[2], tmin);
-    let tn = m.max(n01, n2);
-    let f01 = m.min(far[0], far[1]);
-    let f2 = m.min(far[2], len);
-    let tf = m.min(f01, f2);
-    (m.cmp(Cmp::Le, tn, tf), tn)
+    slab_hits(m, near, far, tmin, len)
 }
 
 /// A hit child: its ref, lane, ray count and (ordered) accumulated length.
@@ -415,19 +403,8 @@ fn push_children<M: Machine>(
         }
     }
     if order == Order::Ordered {
-        // Insertion sort, longest first: the shortest is pushed last, popped first.
-        for i in 1..kids.len() {
-            let mut j = i;
-            while j > 0 {
-                let (a, bb) = (kids[j - 1].3.expect("ordered"), kids[j].3.expect("ordered"));
-                let lt = m.x_cmp(Cmp::Lt, a, bb);
-                if !m.branch(site::SORT, lt) {
-                    break;
-                }
-                kids.swap(j - 1, j);
-                j -= 1;
-            }
-        }
+        let len = |k: &Kid<M>| k.3.expect("ordered");
+        sort_farthest_first(m, &mut kids, len, site::SORT);
     }
     for (child, lane, cnt, _) in kids {
         m.s_store(&mut b.tasks, At::idx(tsp, 1, 0), 4, child);
@@ -451,13 +428,7 @@ fn leaf<M: Machine>(
     let w = M::LANES;
     m.region(Region::Leaf);
     let mut ptr = pop_rays(m, b, lane, cnt);
-    let fm = m.int(i64::from(!LEAF));
-    let first = m.s_and(node, fm);
-    let first = m.s_shift(Shift::Shr, first, LEAF_FIRST_SHIFT);
-    let cm = m.int(i64::from(LEAF_COUNT_MASK));
-    let ntri = m.s_and(node, cm);
-    let bbytes = m.int(block_bytes(w) as i64);
-    let fb = m.s_op(SOp::Mul, first, bbytes);
+    let (fb, ntri) = leaf_blocks(m, node);
     let total = cnt.get() as usize;
     let mut done = m.int(0);
     let mut k0 = 0;
@@ -519,7 +490,7 @@ fn packet<M: Machine>(
     let mut t = 0;
     let mut ti = m.int(0);
     loop {
-        let blk = triangle(m, tree, fb, t);
+        let blk = broadcast_triangle(m, &tree.tris, fb, t);
         c.prim_tests += 1;
         c.prim_lanes += u64::from(m.bits(live).count_ones());
         let sites = [site::TRI_EDGE, site::TRI_DEPTH];
@@ -556,17 +527,4 @@ fn packet<M: Machine>(
         let inf = m.splat(f32::INFINITY);
         sc(m, r.tmin, inf);
     }
-}
-
-/// Triangle `t` of the leaf whose blocks start at byte `fb`, broadcast.
-fn triangle<M: Machine>(m: &mut M, tree: &MbvhBufs, fb: M::S, t: usize) -> Block<M> {
-    let w = M::LANES;
-    let at = (t / w) * block_bytes(w) + 4 * (t % w);
-    let mut row = |r: usize| m.load_bcast(&tree.tris, At::idx(fb, 1, at + 4 * w * r));
-    let v0 = [row(0), row(1), row(2)];
-    let e1 = [row(3), row(4), row(5)];
-    let e2 = [row(6), row(7), row(8)];
-    let pf = row(9);
-    let prim = m.bits_to_i(pf);
-    Block { v0, e1, e2, prim }
 }

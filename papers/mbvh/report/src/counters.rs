@@ -2,7 +2,7 @@
 //! Conference stand-in, MBVH RS against single-ray MBVH and packets, and
 //! MBVH RS's primitive-test efficiency against its ray group size.
 
-use crate::frame::{measure, Method, Prepared, Tally};
+use crate::frame::{measure, ray_type, Method, Prepared, Tally};
 use crate::paper::*;
 use isa::FlavourId;
 use mbvh_kernels::stats::Counters;
@@ -15,15 +15,6 @@ use std::time::Instant;
 
 /// The paper's coherency scene (Figures 3-8).
 const SCENE: &str = "conference";
-
-/// Ray-type label of a stream key.
-fn ray_type((depth, shadow): (u32, bool)) -> &'static str {
-    match (depth, shadow) {
-        (_, true) => "shadow",
-        (0, false) => "primary",
-        _ => "reflection",
-    }
-}
 
 fn counter_rows(method: &str, key: (u32, bool), c: &Counters, lanes: usize) -> Vec<Row> {
     let row = |metric: &str, v: f64| {

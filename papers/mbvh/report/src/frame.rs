@@ -103,6 +103,15 @@ pub(crate) fn kind_key(k: StreamKind) -> (u32, bool) {
     }
 }
 
+/// Ray-type label of a stream key.
+pub(crate) fn ray_type((depth, shadow): (u32, bool)) -> &'static str {
+    match (depth, shadow) {
+        (_, true) => "shadow",
+        (0, false) => "primary",
+        _ => "reflection",
+    }
+}
+
 /// One method of a report: its label, kernel and flavour.
 pub(crate) struct Method {
     pub(crate) label: String,

@@ -2,7 +2,7 @@
 //! of MBVH RS over the distribution tracer's frames, one core of the Core 2
 //! (Figures 2 and 3) and whole Dunnington and Core i7 machines (Tables 1-2).
 
-use crate::frame::Prepared;
+use crate::frame::{ray_type, Prepared};
 use crate::paper::*;
 use crate::timing::{design, frame_rates, Rate};
 use mbvh_kernels::layout::RayForm;
@@ -92,11 +92,7 @@ fn region_rows(r: &Rate, bounces: u32) -> Vec<Row> {
 fn kind_rows(scene: &str, r: &Rate) -> Vec<Row> {
     let mut rows = Vec::new();
     for (&(depth, shadow), &(cyc, rays, misses)) in &r.by_kind {
-        let kind = match (depth, shadow) {
-            (_, true) => "shadow",
-            (0, false) => "primary",
-            _ => "reflection",
-        };
+        let kind = ray_type((depth, shadow));
         let row = |metric: &str, v: f64| {
             Row::new(metric, v)
                 .key("scene", scene)

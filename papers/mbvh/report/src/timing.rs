@@ -15,7 +15,7 @@ use repro::sampling::{mix, systematic_ratio_ci};
 use repro::{AppError, AppResult};
 use scene::agreement::{mismatches_expected, Expected, F32Test};
 use scene::reference::Reference;
-use scene::workload::{RayStream, StreamKind, Tile};
+use scene::workload::{RayStream, Tile};
 use scene::Hit;
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -101,17 +101,10 @@ fn plan(n_tiles: usize, groups: usize, per: usize, seed: u64) -> Vec<(Vec<usize>
         .collect()
 }
 
-/// The smallest bounce depth whose frame traces a stream of `kind`.
-fn frame_depth(kind: StreamKind) -> u32 {
-    match kind {
-        StreamKind::Primary => 1,
-        StreamKind::Shadow(k) => k + 1,
-        StreamKind::Bounce(k) => k,
-    }
-}
-
-/// [`frame_depth`] of a stream key.
-fn depth_of_key((d, shadow): (u32, bool)) -> u32 {
+/// The smallest bounce depth whose frame traces the stream of key
+/// ([`kind_key`]) `(d, shadow)`: primary rays 1, bounce d's rays d, the
+/// shadow rays from bounce d's hits d + 1.
+fn frame_depth((d, shadow): (u32, bool)) -> u32 {
     if shadow {
         d + 1
     } else {
@@ -203,7 +196,7 @@ pub(crate) fn frame_rates(
     let mut regions = vec![[(0f64, 0f64); 8]; depths];
     // Per stream kind: (cycles, rays, misses) of the timed units.
     let mut by_kind: BTreeMap<(u32, bool), (f64, f64, f64)> = BTreeMap::new();
-    // The group's timed traces and each one's (frame depth, rays).
+    // The group's timed traces and each one's (stream key, rays, misses).
     let (mut timed, mut timed_of) = (Vec::new(), Vec::new());
     let mut next = 0;
     isa::run_units(&prog, m.flavour(), "mbvh", units, |_, _, t, (hits, c)| {
@@ -218,19 +211,15 @@ pub(crate) fn frame_rates(
             let label = format!("{} {} {:?}", pr.name, kernel.name(), stream.kind);
             bad += mismatches_expected(F32Test::MollerTrumbore, &label, &refi, stream, want, &hits);
             let misses = hits.iter().filter(|h| !h.is_hit()).count();
-            timed_of.push((
-                frame_depth(stream.kind),
-                c.rays,
-                kind_key(stream.kind),
-                misses,
-            ));
+            timed_of.push((kind_key(stream.kind), c.rays, misses));
             timed.push(t);
         } else {
             isa::trace::recycle(t);
         }
         if last {
             let mut per = vec![(0.0, 0.0); depths];
-            for (t, &(d, rays, key, misses)) in timed.iter().zip(&timed_of) {
+            for (t, &(key, rays, misses)) in timed.iter().zip(&timed_of) {
+                let d = frame_depth(key);
                 let st = session.timed_queue(&[t]).map_err(AppError)?;
                 let k = by_kind.entry(key).or_default();
                 k.0 += st.cycles as f64;
@@ -279,7 +268,7 @@ pub(crate) fn frame_rates(
                 run_cycles: pairs.iter().map(|p| p.0).collect(),
                 by_kind: by_kind
                     .iter()
-                    .filter(|(k, _)| depth_of_key(**k) <= b as u32 + 1)
+                    .filter(|(k, _)| frame_depth(**k) <= b as u32 + 1)
                     .map(|(k, v)| (*k, *v))
                     .collect(),
                 ops,

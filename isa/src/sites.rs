@@ -58,9 +58,11 @@ pub const MBVH_RS: SiteBlock = SiteBlock::new("mbvh_kernels::stream", 120, 20);
 pub const MBVH_SINGLE: SiteBlock = SiteBlock::new("mbvh_kernels::single", 140, 10);
 /// Packet traversal of an MBVH (`mbvh_kernels::packet`).
 pub const MBVH_PACKET: SiteBlock = SiteBlock::new("mbvh_kernels::packet", 150, 20);
+/// Multi-hit intersection filters and the post-traversal sort (`multihit_kernels`).
+pub const MULTIHIT: SiteBlock = SiteBlock::new("multihit_kernels", 170, 20);
 
 /// Every block, in order.
-pub const PLAN: [SiteBlock; 10] = [
+pub const PLAN: [SiteBlock; 11] = [
     MICRO,
     BOXTEST,
     SINGLE,
@@ -71,6 +73,7 @@ pub const PLAN: [SiteBlock; 10] = [
     MBVH_RS,
     MBVH_SINGLE,
     MBVH_PACKET,
+    MULTIHIT,
 ];
 
 #[cfg(test)]

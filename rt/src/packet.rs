@@ -34,6 +34,7 @@
 //! iterates triangle4 lists by their count; the hybrid kernel's single-ray
 //! leaves test 1 ray vs 8 triangles (the paper: 1 vs 4).
 
+use crate::filter::{CandidateK, Filter};
 use crate::layout::{Bvh2Bufs, Bvh4Bufs, BLOCK_BYTES, NODE_BYTES};
 use crate::single::{moller_sided, walk4, Block, Moller, RayState, Sides, STACK_ENTRIES};
 use crate::stats::Tests;
@@ -240,6 +241,12 @@ impl PacketBufs {
         }
     }
 
+    /// Ray `i`'s lane slot (packet `slot / LANES`, lane `slot % LANES`).
+    #[must_use]
+    pub fn slot(&self, i: usize) -> usize {
+        self.slot_of[i]
+    }
+
     /// Ray `i`'s hit after a kernel ran.
     #[must_use]
     pub fn hit(&self, w: usize, i: usize) -> Hit {
@@ -269,12 +276,31 @@ pub fn trace_bvh4<M: Machine>(
     hybrid: bool,
     policy: HitPolicy,
 ) {
-    trace(m, Tree::Bvh4(s), pb, hybrid, policy);
+    trace(m, Tree::Bvh4(s), pb, hybrid, policy, None);
+}
+
+/// Packet BVH4 (closest hit), every candidate hit judged by `filter`
+/// ([`crate::filter`]): a triangle's hits over the packet go to the filter
+/// together; the lanes it accepts take the hit and the t_far it set.
+pub fn trace_bvh4_filtered<M: Machine>(
+    m: &mut M,
+    s: &Bvh4Bufs,
+    pb: &mut PacketBufs,
+    filter: &mut dyn Filter<M>,
+) {
+    trace(
+        m,
+        Tree::Bvh4(s),
+        pb,
+        false,
+        HitPolicy::Closest,
+        Some(filter),
+    );
 }
 
 /// Packet BVH2.
 pub fn trace_bvh2<M: Machine>(m: &mut M, s: &Bvh2Bufs, pb: &mut PacketBufs, policy: HitPolicy) {
-    trace(m, Tree::Bvh2(s), pb, false, policy);
+    trace(m, Tree::Bvh2(s), pb, false, policy, None);
 }
 
 /// One packet's vector registers.
@@ -287,14 +313,25 @@ struct Packet<M: Machine> {
     tfar: M::F,
 }
 
-fn trace<M: Machine>(m: &mut M, tree: Tree, pb: &mut PacketBufs, hybrid: bool, policy: HitPolicy) {
+fn trace<M: Machine>(
+    m: &mut M,
+    tree: Tree,
+    pb: &mut PacketBufs,
+    hybrid: bool,
+    policy: HitPolicy,
+    mut filter: Option<&mut dyn Filter<M>>,
+) {
     let w = M::LANES;
     let mut p = m.int(0);
     let np = m.int(pb.packets as i64);
     loop {
         m.region(Region::Traversal);
         let base = m.s_shift(Shift::Shl, p, packet_bytes(w).trailing_zeros());
-        trace_packet(m, tree, pb, base, hybrid, policy);
+        let f: Option<(&mut dyn Filter<M>, M::S)> = match filter {
+            Some(ref mut f) => Some((&mut **f, p)),
+            None => None,
+        };
+        trace_packet(m, tree, pb, base, hybrid, policy, f);
         p = m.s_addi(p, 1);
         if !m.branch_if(site::PACKETS, Cmp::Lt, p, np) {
             break;
@@ -309,6 +346,7 @@ fn trace_packet<M: Machine>(
     base: M::S,
     hybrid: bool,
     policy: HitPolicy,
+    mut filter: Option<(&mut dyn Filter<M>, M::S)>,
 ) {
     let w = M::LANES;
     let mut pk = load_packet(m, &pb.rays, base);
@@ -388,6 +426,10 @@ fn trace_packet<M: Machine>(
             base,
             (policy, sides),
             &mut tri_tests,
+            match filter {
+                Some((ref mut f, p)) => Some((&mut **f, p)),
+                None => None,
+            },
         );
         if policy.is_any() {
             // Done when every lane is occluded (t_far = -1) or padding.
@@ -581,6 +623,7 @@ fn leaf<M: Machine>(
     base: M::S,
     (policy, sides): (HitPolicy, Sides),
     tri_tests: &mut u64,
+    mut filter: Option<(&mut dyn Filter<M>, M::S)>,
 ) {
     let w = M::LANES;
     let mut valid = valid;
@@ -623,6 +666,24 @@ fn leaf<M: Machine>(
             continue;
         };
         let at = |r: usize| At::idx(base, 1, row(w, r));
+        if let Some((f, packet)) = filter.as_mut() {
+            // Embree 3's `IntersectKEpilogM`: the lanes the filter accepts
+            // take the hit and its t_far; the others keep theirs.
+            let c = CandidateK {
+                packet: *packet,
+                valid: hit,
+                t,
+                prim: pf,
+            };
+            let (acc, t_far) = f.packet(m, c);
+            m.region(Region::Leaf);
+            pk.tfar = m.select(acc, t_far, pk.tfar);
+            m.store_masked(acc, rays, at(row::TFAR), pk.tfar);
+            m.store_masked(acc, rays, at(row::U), tu);
+            m.store_masked(acc, rays, at(row::V), tv);
+            m.store_masked(acc, rays, at(row::PRIM), pf);
+            continue;
+        }
         if policy.is_any() {
             let done = m.splat(-1.0);
             pk.tfar = m.select(hit, done, pk.tfar);

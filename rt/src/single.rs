@@ -13,6 +13,7 @@
 //! the same); leaves divide on every test (Embree takes a reciprocal only on
 //! a hit: open, issue 12).
 
+use crate::filter::{Candidate1, Filter};
 use crate::layout::{is_leaf, Bvh2Bufs, Bvh4Bufs, BLOCK_BYTES, NODE_BYTES};
 use crate::stats::Tests;
 use isa::{At, BinOp, Buf, Cmp, Fma, Int, Logic, Machine, Region};
@@ -47,9 +48,13 @@ pub mod site {
     /// Any triangle passes the edge tests?
     pub const TRI_EDGE: Site = isa::sites::SINGLE.at(11);
 
+    /// Filtered leaves: another candidate in the pass?
+    pub const FILTERED: Site = isa::sites::SINGLE.at(12);
+
     /// Every site of the module (checked for duplicates by the layout test).
-    pub const ALL: [Site; 12] = [
+    pub const ALL: [Site; 13] = [
         RAYS, STACK, CULL, LEAF, ANY_CHILD, CHILD, CLOSER, TRI, PASS, SIDE, SORT, TRI_EDGE,
+        FILTERED,
     ];
 }
 
@@ -124,6 +129,54 @@ pub fn walk4<M: Machine>(
     tests: &mut Tests,
     policy: HitPolicy,
 ) {
+    walk4_with(m, s, st, (stack, start), tests, policy, None);
+}
+
+/// Trace rays `[0, nrays)` as [`trace_bvh4`] (closest hit), every
+/// candidate hit judged by `filter` ([`crate::filter`]): ray `i`'s hit
+/// record ends as the last candidate accepted, its t_far as the t_far the
+/// filter set.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_bvh4_filtered<M: Machine>(
+    m: &mut M,
+    s: &Bvh4Bufs,
+    trav: &mut Buf,
+    isect: &Buf,
+    hits: &mut Buf,
+    stack: &mut Buf,
+    nrays: usize,
+    tests: &mut Tests,
+    filter: &mut dyn Filter<M>,
+) {
+    let root = m.int(0);
+    each_ray(m, nrays, |m, ray| {
+        let mut st = RayState::load(m, trav, isect, hits, ray);
+        let policy = HitPolicy::Closest;
+        walk4_with(
+            m,
+            s,
+            &mut st,
+            (stack, root),
+            tests,
+            policy,
+            Some((filter, ray)),
+        );
+        m.region(Region::SingleRay);
+        st.write(m, trav, hits);
+    });
+}
+
+/// [`walk4`], with an intersection filter and the index of the ray it
+/// keeps its state by.
+fn walk4_with<M: Machine>(
+    m: &mut M,
+    s: &Bvh4Bufs,
+    st: &mut RayState<M>,
+    (stack, start): (&mut Buf, M::S),
+    tests: &mut Tests,
+    policy: HitPolicy,
+    mut filter: Option<(&mut dyn Filter<M>, M::S)>,
+) {
     let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     let neg = sign_bits(m, &idir);
     // Push the start node.
@@ -195,6 +248,10 @@ pub fn walk4<M: Machine>(
         }
         // Leaf: one block of 8 triangles, in passes of the lanes there are.
         tests.leaf += 1;
+        if let Some((f, ray)) = filter.as_mut() {
+            st.leaf_filtered(m, &s.tris, node, (&mut **f, *ray));
+            continue;
+        }
         if st.leaf(m, &s.tris, node, policy) && policy.is_any() {
             break;
         }
@@ -417,6 +474,66 @@ impl<M: Machine> RayState<M> {
             }
         }
         any
+    }
+
+    /// Leaf `node` with an intersection filter: per block pass, the
+    /// candidates within the interval nearest first, each judged by `f`
+    /// (Embree 3's `Intersect1EpilogM`): an accepted one becomes the hit
+    /// and its t_far the filter's; after each verdict the candidate and
+    /// those beyond t_far are dropped.
+    fn leaf_filtered(
+        &mut self,
+        m: &mut M,
+        tris: &Buf,
+        node: M::S,
+        (f, ray): (&mut dyn Filter<M>, M::S),
+    ) {
+        let width = self.leaf_lanes;
+        m.region(Region::Leaf);
+        let mask_idx = m.int(i64::from(!scene::bvh::LEAF));
+        let blk = m.s_and(node, mask_idx);
+        let bytes = m.int(BLOCK_BYTES as i64);
+        let bb = m.s_op(isa::SOp::Mul, blk, bytes);
+        let inf = m.splat(f32::INFINITY);
+        for p in 0..8 / width {
+            let blk = load_block(m, tris, bb, p, width);
+            let live = (M::LANES > width).then(|| m.mask((1 << width) - 1));
+            let sites = [site::TRI_EDGE, site::TRI];
+            let ray_v = (&self.org, &self.dir, self.tfar);
+            let Some(Moller { t, u, v, mut valid }) = moller(m, &blk, ray_v, live, sites) else {
+                continue;
+            };
+            loop {
+                // The nearest remaining candidate.
+                let tv = m.select(valid, t, inf);
+                let tmin = m.reduce(BinOp::Min, tv);
+                let tb = m.broadcast(tmin);
+                let eq = m.cmp(Cmp::Eq, tv, tb);
+                let at_min = m.klogic(Logic::And, eq, valid);
+                let lane = m.bitscan(at_min).get() as usize;
+                let off = 32 * 9 + 4 * (width * p + lane);
+                let prim = m.s_load(tris, At::idx(bb, 1, off), 4, true);
+                let verdict = f.one(m, Candidate1 { ray, t: tmin, prim });
+                m.region(Region::Leaf);
+                if let Some(t_far) = verdict {
+                    self.tfar_x = t_far;
+                    self.tfar = m.broadcast(t_far);
+                    self.best_u = m.extract(u, lane);
+                    self.best_v = m.extract(v, lane);
+                    self.best_prim = prim;
+                }
+                // Drop it, and every candidate beyond the ray's t_far.
+                let this = m.mask(1 << lane);
+                let others = m.knot(this);
+                valid = m.kand(valid, others);
+                let within = m.cmp(Cmp::Le, t, self.tfar);
+                valid = m.kand(valid, within);
+                let more = m.any(valid);
+                if !m.branch(site::FILTERED, more) {
+                    break;
+                }
+            }
+        }
     }
 
     /// Write the hit (t_far, u, v, prim) back to lane `k` of its packet record.

@@ -71,7 +71,7 @@ pub fn tri_eps_for(test: F32Test, mesh: &Mesh, prim: u32, org: [f64; 3], dir: [f
 /// incidence |d . n| / |n|. Negligible for most triangles; on a long sliver
 /// far from the origin it is not (a studio's 45 m cove strip: 1e-4 at t =
 /// 0.46, where 1e-4 relative allows 5e-5).
-fn t_tolerance(mesh: &Mesh, prim: u32, ray: &Ray) -> f64 {
+pub(crate) fn t_tolerance(mesh: &Mesh, prim: u32, ray: &Ray) -> f64 {
     let g = TriGeom::of(mesh, prim);
     let longest =
         g.e1.length()
@@ -96,7 +96,7 @@ fn grazing(test: F32Test, mesh: &Mesh, ray: &Ray, h: &RefHit) -> bool {
 
 /// [`grazing`], or (one-sided reference) met nearly edge-on, where a
 /// back-face culling kernel may drop it.
-fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &RefHit) -> bool {
+pub(crate) fn may_skip(test: F32Test, refi: &Reference, ray: &Ray, h: &RefHit) -> bool {
     grazing(test, refi.mesh(), ray, h)
         || (refi.is_one_sided() && refi.edge_on(h.prim, ray.dir))
         || (test == F32Test::Pluecker && pluecker_unreliable(refi.mesh(), h.prim, ray))
@@ -114,7 +114,13 @@ fn pluecker_unreliable(mesh: &Mesh, prim: u32, ray: &Ray) -> bool {
 /// Whether triangle `prim` is hit at about `t` (`None`: anywhere in
 /// (0, tmax]) by `ray` in f64 with its edges widened by the f32 tolerance (a
 /// hit the reference calls a near miss).
-fn near_hit(test: F32Test, refi: &Reference, ray: &Ray, prim: u32, t: Option<f64>) -> bool {
+pub(crate) fn near_hit(
+    test: F32Test,
+    refi: &Reference,
+    ray: &Ray,
+    prim: u32,
+    t: Option<f64>,
+) -> bool {
     // One-sided: a back face counts only when nearly edge-on, where the
     // kernel's f32 orientation test may go either way.
     if !refi.faces(prim, ray.dir) && !refi.edge_on(prim, ray.dir) {

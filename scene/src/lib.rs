@@ -17,6 +17,7 @@ pub mod loaded;
 pub mod mbvh;
 pub mod mesh;
 pub mod mesh_cache;
+pub mod multi_agreement;
 pub mod reference;
 pub mod refine;
 pub mod scene;

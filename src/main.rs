@@ -18,6 +18,7 @@ fn reports() -> Vec<&'static ReportDef> {
         .iter()
         .chain(mft_report::REPORTS.iter())
         .chain(mbvh_report::REPORTS.iter())
+        .chain(multihit_report::REPORTS.iter())
         .collect()
 }
 

@@ -295,7 +295,7 @@ fn golden_op_streams() {
 }
 
 /// Every report of the papers' registries.
-const REPORTS: [&str; 14] = [
+const REPORTS: [&str; 16] = [
     "drs-table1",
     "drs-table2",
     "drs-fig5",
@@ -310,6 +310,8 @@ const REPORTS: [&str; 14] = [
     "mbvh-fig4-6",
     "mbvh-fig7-8",
     "mbvh-table1-2",
+    "multihit-fig2",
+    "multihit-summary",
 ];
 
 #[test]
@@ -339,6 +341,14 @@ fn every_report_is_listed_and_reached_through_the_cli_with_its_options_checked()
     // The MBVH rates are the paper's 4-wide SSE figures.
     let e = err(&rtsim(&["reproduce", "mbvh-fig3", "--machine", "larrabee"]));
     assert!(e.contains("4-wide"), "{e}");
+    // The multi-hit kernels are the paper's 8-wide ispc modules.
+    let e = err(&rtsim(&[
+        "reproduce",
+        "multihit-fig2",
+        "--machine",
+        "larrabee",
+    ]));
+    assert!(e.contains("8-wide"), "{e}");
     let e = err(&rtsim(&["reproduce", "drs-table9"]));
     assert!(e.contains("unknown report 'drs-table9'"), "{e}");
 }

@@ -171,7 +171,7 @@ fn the_app_is_thin_and_every_library_warns_on_missing_docs() {
 #[test]
 fn branch_sites_are_unique_and_inside_their_modules_block() {
     use isa::sites;
-    let modules: [(&[isa::Site], sites::SiteBlock); 10] = [
+    let modules: [(&[isa::Site], sites::SiteBlock); 11] = [
         (&micro::SITES, sites::MICRO),
         (&rt::boxtest::SITES, sites::BOXTEST),
         (&rt::single::site::ALL, sites::SINGLE),
@@ -182,6 +182,7 @@ fn branch_sites_are_unique_and_inside_their_modules_block() {
         (&mbvh_kernels::stream::site::ALL, sites::MBVH_RS),
         (&mbvh_kernels::single::site::ALL, sites::MBVH_SINGLE),
         (&mbvh_kernels::packet::site::ALL, sites::MBVH_PACKET),
+        (&multihit_kernels::site::ALL, sites::MULTIHIT),
     ];
     let mut seen = BTreeSet::new();
     for (all, block) in modules {

@@ -1,0 +1,326 @@
+//! What both multi-hit reports measure: each scene at 1024x768 with one
+//! pixel-centre visibility ray per pixel, traced in 16x16-pixel tiles of
+//! 4x2-pixel packets by the 8-wide packet kernel with the naive and the
+//! node-culling filter, for N_query from 1 to all; a stratified sample of
+//! tiles timed on one core in full detail after functional warming (the
+//! tile before, then the tile itself), every timed ray's hit list checked
+//! against the f64 reference's.
+
+use crate::paper::{HEIGHT, WIDTH};
+use isa::{Detail, Machine, Placed, UnitProgram};
+use multihit_kernels::{Counters, Kernel, Method, Run, Traversal, Tree, BVH, NAIVE_CAPACITY};
+use rayon::prelude::*;
+use repro::progress::Progress;
+use repro::sampling::{mix, systematic_ratio_ci};
+use repro::{AppError, AppResult};
+use scene::multi_agreement::list_mismatches;
+use scene::reference::{Ray, RefHit, Reference};
+use scene::scene::{Camera, Scene};
+use scene::workload::{packet_slots, RayStream, StreamKind};
+use scene::Hit;
+use std::sync::Arc;
+
+/// Pixels per side of a tile.
+pub(crate) const TILE: u32 = 16;
+
+/// The eight scenes (see the paper's README for what each stands for).
+pub(crate) const SCENES: [&str; 8] = [
+    "bmw",
+    "layers",
+    "conference",
+    "fern",
+    "fairy",
+    "trex",
+    "saloon",
+    "ferrari",
+];
+
+/// A scene made ready: its trees, camera at 1024x768, hit statistics and
+/// the sampled tiles with their reference answers.
+pub(crate) struct Prepared {
+    pub(crate) name: String,
+    pub(crate) tree: Arc<Tree>,
+    /// Mean and largest hits per ray over the frame's pixel grid sample.
+    pub(crate) mean_hits: f64,
+    pub(crate) max_hits: u32,
+    /// Rays the hit statistics came from.
+    pub(crate) stat_rays: usize,
+    /// Per sampled run: the warmed tile before (if any) and the timed tile.
+    tiles: Vec<(Option<TileRays>, TileRays)>,
+}
+
+/// One tile's rays, packet slots and (timed tiles) every ray's reference hits.
+#[derive(Clone)]
+struct TileRays {
+    rays: Arc<RayStream>,
+    slots: Arc<Vec<u32>>,
+    all: Vec<Vec<RefHit>>,
+}
+
+/// Tiles per row and column of the frame.
+fn tiles_wide() -> (u32, u32) {
+    (WIDTH / TILE, HEIGHT / TILE)
+}
+
+/// Pixel-centre rays of tile `k` (raster order), path = pixel in the tile.
+fn tile_rays(cam: &Camera, k: usize) -> RayStream {
+    let (tw, _) = tiles_wide();
+    let (x0, y0) = ((k as u32 % tw) * TILE, (k as u32 / tw) * TILE);
+    let (mut org, mut dir) = (Vec::new(), Vec::new());
+    for y in 0..TILE {
+        for x in 0..TILE {
+            let (o, d) = cam.ray(f64::from(x0 + x) + 0.5, f64::from(y0 + y) + 0.5);
+            org.push(o.map(|c| c as f32));
+            dir.push(d.map(|c| c as f32));
+        }
+    }
+    let n = org.len();
+    RayStream::from_rays(StreamKind::Primary, org, dir, vec![f32::INFINITY; n])
+}
+
+/// The sampled tiles: one at a seeded place in each of `groups` equal
+/// strata of the frame's tiles in raster order, with the tile before it.
+fn plan(groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
+    let (tw, th) = tiles_wide();
+    let n = (tw * th) as usize;
+    let stride = (n / groups.max(1)).max(1);
+    (0..groups.min(n))
+        .map(|g| {
+            let k = g * stride + (mix(seed ^ mix(g as u64 + 1)) % stride as u64) as usize;
+            (k.checked_sub(1), k.min(n - 1))
+        })
+        .collect()
+}
+
+impl Prepared {
+    /// Load `name` at 1024x768 with its trees, sample its hit statistics on
+    /// every `stat_step`-th pixel in each direction, and plan `groups` runs.
+    pub(crate) fn new(name: &str, stat_step: u32, groups: usize, seed: u64) -> AppResult<Prepared> {
+        let mut scene = Scene::load(name)?;
+        scene.config.camera.width = WIDTH;
+        scene.config.camera.height = HEIGHT;
+        let (b2, _) = scene::bvh_cache::build(&scene.mesh, &BVH).map_err(AppError)?;
+        let b4 = scene::bvh::Bvh4::collapse(&b2);
+        let tree = Arc::new(Tree {
+            mesh: scene.mesh.clone(),
+            b2,
+            b4,
+        });
+        let cam = scene.config.camera.clone();
+        let refi = Reference::with_bvh(&tree.mesh, &tree.b2);
+        let pixels: Vec<(u32, u32)> = (0..HEIGHT / stat_step)
+            .flat_map(|y| (0..WIDTH / stat_step).map(move |x| (x * stat_step, y * stat_step)))
+            .collect();
+        let counts: Vec<usize> = pixels
+            .par_iter()
+            .map(|&(x, y)| {
+                let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                let ray = Ray::new(o.map(|c| c as f32 as f64), d.map(|c| c as f32 as f64));
+                refi.all(&ray).len()
+            })
+            .collect();
+        let with = |k: usize, timed: bool| {
+            let rays = tile_rays(&cam, k);
+            let slots = packet_slots(&rays, TILE, 1, 8);
+            let all = if timed {
+                (0..rays.len())
+                    .into_par_iter()
+                    .map(|i| refi.all(&rays.ray(i)))
+                    .collect()
+            } else {
+                Vec::new()
+            };
+            TileRays {
+                rays: Arc::new(rays),
+                slots: Arc::new(slots),
+                all,
+            }
+        };
+        let tiles: Vec<_> = plan(groups, seed)
+            .into_iter()
+            .map(|(before, k)| (before.map(|b| with(b, false)), with(k, true)))
+            .collect();
+        // Rays the timed tiles hold more hits than the grid saw count too.
+        let tile_max = tiles
+            .iter()
+            .flat_map(|t| t.1.all.iter().map(Vec::len))
+            .max();
+        let max_hits = counts.iter().copied().chain(tile_max).max().unwrap_or(0) as u32;
+        Ok(Prepared {
+            name: name.into(),
+            tree,
+            mean_hits: counts.iter().sum::<usize>() as f64 / counts.len().max(1) as f64,
+            max_hits: max_hits.max(1),
+            stat_rays: counts.len(),
+            tiles,
+        })
+    }
+
+    /// N_query values: 1, 2, 4, ... below the scene's most hits, then all.
+    pub(crate) fn queries(&self) -> Vec<u32> {
+        let mut q: Vec<u32> = (0..)
+            .map(|i| 1u32 << i)
+            .take_while(|&n| n < self.max_hits)
+            .collect();
+        q.push(self.max_hits);
+        q
+    }
+}
+
+/// The kernel over tiles as units: the scene laid out once.
+struct Units {
+    kernel: Kernel,
+    n_query: u32,
+    tree: Arc<Tree>,
+}
+
+impl UnitProgram for Units {
+    type Laid = rt::layout::Bvh4Bufs;
+    type Unit = (Arc<RayStream>, Arc<Vec<u32>>);
+    type Out = (Vec<Vec<Hit>>, Counters);
+
+    fn lay_out<M: Machine>(&self, m: &mut M) -> Self::Laid {
+        self.tree.lay_out(m)
+    }
+
+    fn unit<M: Machine>(&self, m: &mut M, laid: &Self::Laid, u: &Self::Unit) -> Self::Out {
+        let run = Run {
+            kernel: self.kernel,
+            n_query: self.n_query,
+            capacity: NAIVE_CAPACITY.max(self.n_query),
+            tree: self.tree.clone(),
+            rays: u.0.clone(),
+            slots: Some(u.1.clone()),
+        };
+        run.trace_on(m, laid)
+    }
+}
+
+/// One method at one N_query on one scene.
+pub(crate) struct Cell {
+    /// Millions of hits per second on one core.
+    pub(crate) mhits: f64,
+    /// 95% CI half-width of `mhits`.
+    pub(crate) ci: Option<f64>,
+    /// Each run's cycles, in sample order (the same tiles for every cell).
+    pub(crate) run_cycles: Vec<f64>,
+    /// Hits returned per ray (timed tiles).
+    pub(crate) hits_per_ray: f64,
+    /// Simulated instructions per ray and cycles per instruction.
+    pub(crate) instr_per_ray: f64,
+    pub(crate) cpi: f64,
+    /// Share of the cycles in the filter and sort (`Region::Shading`).
+    pub(crate) filter_share: f64,
+    /// Filter calls per ray, and node tests per ray.
+    pub(crate) candidates_per_ray: f64,
+    pub(crate) nodes_per_ray: f64,
+    /// Ops simulated (timed and warmed).
+    pub(crate) ops: u64,
+    /// Rays whose list differed from the reference.
+    pub(crate) bad: usize,
+}
+
+/// Time `method` at `n_query` over the sampled tiles of `pr` on one core of `m`.
+pub(crate) fn measure(
+    m: &sim::MachineConfig,
+    pr: &Prepared,
+    (method, n_query): (Method, u32),
+    progress: &Progress,
+) -> AppResult<Cell> {
+    let kernel = Kernel::new(Traversal::Packet, method);
+    let prog = Units {
+        kernel,
+        n_query,
+        tree: pr.tree.clone(),
+    };
+    let mut units = Vec::new();
+    for (before, tile) in &pr.tiles {
+        if let Some(b) = before {
+            units.push((b, Detail::Warmed, false));
+        }
+        units.push((tile, Detail::Warmed, false));
+        units.push((tile, Detail::Timed, true));
+    }
+    progress.add_units(units.len() as u64);
+    let placed = units.iter().map(|(t, d, _)| {
+        let unit = (t.rays.clone(), t.slots.clone());
+        (Placed { thread: 0, unit }, *d)
+    });
+    let mut session = sim::Session::new(m);
+    let (mut ops, mut bad, mut next) = (0u64, 0usize, 0usize);
+    let (mut pairs, mut c) = (Vec::new(), Counters::default());
+    let (mut instr, mut filter_cycles) = (0f64, 0f64);
+    isa::run_units(
+        &prog,
+        m.flavour(),
+        "multihit",
+        placed,
+        |_, _, t, (lists, cn)| {
+            let (tile, _, timed) = units[next];
+            next += 1;
+            progress.done(1);
+            ops += t.ops.len() as u64;
+            if !timed {
+                session.warm(&[(0, &t)]).map_err(AppError)?;
+                isa::trace::recycle(t);
+                return Ok(());
+            }
+            let rays: Vec<Ray> = (0..tile.rays.len()).map(|i| tile.rays.ray(i)).collect();
+            let refi = Reference::with_bvh(&pr.tree.mesh, &pr.tree.b2);
+            let label = format!("{} {}", pr.name, kernel.name());
+            bad += list_mismatches(&label, &refi, &rays, &tile.all, n_query, &lists);
+            let st = session.timed_queue(&[&t]).map_err(AppError)?;
+            isa::trace::recycle(t);
+            pairs.push((cn.hits as f64, st.cycles as f64));
+            instr += st.ops as f64;
+            filter_cycles += st.region_cycles[isa::Region::Shading as usize] as f64;
+            add(&mut c, &cn);
+            Ok::<(), AppError>(())
+        },
+    )?;
+    let hz = m.clock_ghz * 1e9;
+    let (hits, cycles) = pairs.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+    let rays = c.rays.max(1) as f64;
+    Ok(Cell {
+        mhits: hits / (cycles / hz) / 1e6,
+        ci: systematic_ratio_ci(&pairs).map(|h| h * hz / 1e6),
+        run_cycles: pairs.iter().map(|p| p.1).collect(),
+        hits_per_ray: hits / rays,
+        instr_per_ray: instr / rays,
+        cpi: cycles / instr.max(1.0),
+        filter_share: filter_cycles / cycles.max(1.0),
+        candidates_per_ray: c.candidates as f64 / rays,
+        nodes_per_ray: c.tests.other as f64 / rays,
+        ops,
+        bad,
+    })
+}
+
+/// Sum the counters a cell reports.
+fn add(c: &mut Counters, d: &Counters) {
+    c.rays += d.rays;
+    c.hits += d.hits;
+    c.candidates += d.candidates;
+    c.tests.other += d.tests.other;
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn runs_fall_in_their_strata_with_the_tile_before() {
+        let (tw, th) = tiles_wide();
+        let n = (tw * th) as usize;
+        for g in [1, 4, 16] {
+            let p = plan(g, 7);
+            assert_eq!(p.len(), g);
+            for (i, &(before, k)) in p.iter().enumerate() {
+                let stride = n / g;
+                assert!(k >= i * stride && k < (i + 1) * stride, "{g} {i} {k}");
+                assert_eq!(before, k.checked_sub(1));
+            }
+        }
+        assert_ne!(plan(4, 7), plan(4, 8));
+    }
+}

@@ -1,0 +1,52 @@
+//! The multi-hit paper's reports computed through the library on a small
+//! sample: every ray's hit list checked against the reference, node culling
+//! ahead at N_query = 1, the paper's statements beside ours.
+
+use repro::Given;
+
+fn value(j: &serde_json::Value, want: &[(&str, &str)], metric: &str) -> Option<f64> {
+    j["rows"].as_array().unwrap().iter().find_map(|r| {
+        (r["metric"] == metric && want.iter().all(|(k, v)| r[*k] == *v))
+            .then(|| r["value"].as_f64().unwrap())
+    })
+}
+
+#[test]
+fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
+    let dir = std::env::temp_dir().join(format!("multihit-test-{}", std::process::id()));
+    let def = multihit_report::REPORTS
+        .iter()
+        .find(|d| d.name == "multihit-summary")
+        .expect("registered");
+    let g = Given {
+        quick: true,
+        tiles: Some(2),
+        out: Some(dir.clone()),
+        ..Given::default()
+    };
+    let p = def.compute(g).expect("computed");
+    assert_eq!(p.mismatches, 0.0, "hit lists differ from the reference");
+    assert!(dir.join("multihit-summary.png").exists());
+    let j = serde_json::to_value(&p.report).unwrap();
+    // The layered scene: every primary ray crosses up to 64 layers.
+    let layers = |m: &str| value(&j, &[("scene", "layers")], m).unwrap();
+    assert_eq!(layers("max_hits_per_ray"), 64.0);
+    assert!(layers("mean_hits_per_ray") > 32.0);
+    let speedup = |n: &str| {
+        value(
+            &j,
+            &[("scene", "layers"), ("n_query", n)],
+            "speedup_node_culling_over_naive",
+        )
+        .unwrap()
+    };
+    assert!(speedup("1") > 2.0, "culling at N = 1: {}", speedup("1"));
+    assert!(speedup("64") < speedup("1"), "the gain falls with N_query");
+    let row = j["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["metric"] == "mean_speedup_at_n_query_1")
+        .unwrap();
+    assert_eq!(row["paper"], 2.0);
+}

@@ -1,6 +1,6 @@
 //! The intersection-filter hook of the Embree-style kernels (single-ray
-//! BVH4, [`crate::single::trace_bvh4_filtered`], and the packet kernel,
-//! [`crate::packet::trace_bvh4_filtered`]), with the semantics Embree has
+//! BVH4, `single::trace_bvh4_filtered`, and the packet kernel,
+//! `packet::trace_bvh4_filtered`), with the semantics Embree has
 //! from 2.10 on (Embree 3's `Intersect1EpilogM` / `IntersectKEpilogM`):
 //!
 //! - the filter sees every candidate hit that passes the ray's current

@@ -85,6 +85,67 @@ pub fn list_mismatches(
     bad.len()
 }
 
+/// Whether two kernels' lists for one ray (each checked against the
+/// reference with [`list_agrees`]) are the same hits: as long, t within 1e-4
+/// relative place by place, and the same triangles apart from those tied
+/// with the last t (either tied triangle may take the N_query-th place).
+#[must_use]
+pub fn same_hits(a: &[Hit], b: &[Hit]) -> bool {
+    let close = |x: f32, y: f32| (x - y).abs() <= 1e-4 * y.abs().max(1.0);
+    if a.len() != b.len() || a.iter().zip(b).any(|(x, y)| !close(x.t, y.t)) {
+        return false;
+    }
+    let Some(last) = a.last().map(|h| h.t) else {
+        return true;
+    };
+    let before = |l: &[Hit]| {
+        let mut p: Vec<Option<u32>> = l
+            .iter()
+            .filter(|h| !close(h.t, last))
+            .map(|h| h.prim)
+            .collect();
+        p.sort_unstable();
+        p
+    };
+    before(a) == before(b)
+}
+
+/// [`same_hits`], or lists of two kernels that test triangles differently
+/// (an f32 kernel and a watertight one) differing only where one fell
+/// through a crack: every triangle only one list holds is a reference hit
+/// grazing an edge within the f32 tolerance, a triangle the reference
+/// misses by less than that tolerance, or that list's last hit (the place a
+/// grazing hit took in the other).
+#[must_use]
+pub fn same_up_to_cracks(
+    test: F32Test,
+    refi: &Reference,
+    ray: &Ray,
+    all: &[RefHit],
+    a: &[Hit],
+    b: &[Hit],
+) -> bool {
+    if same_hits(a, b) {
+        return true;
+    }
+    let only = |x: &[Hit], y: &[Hit]| {
+        let last = x.last().map_or(f32::INFINITY, |h| h.t);
+        x.iter()
+            .filter(|h| !y.iter().any(|g| g.prim == h.prim))
+            .all(|h| {
+                (h.t - last).abs() <= 1e-4 * last.abs().max(1.0)
+                    || all
+                        .iter()
+                        .any(|r| Some(r.prim) == h.prim && may_skip(test, refi, ray, r))
+                    || h.prim.is_some_and(|p| {
+                        !all.iter().any(|r| r.prim == p)
+                            && near_hit(test, refi, ray, p, Some(f64::from(h.t)))
+                    })
+            })
+    };
+    only(a, b) && only(b, a)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -133,6 +194,45 @@ mod tests {
         assert!(!ok(3, &[hit(2.0, 2), hit(1.0, 0), hit(1.0, 1)]));
         // On the edge either triangle may fall through the f32 crack.
         assert!(ok(2, &[hit(1.0, 0), hit(2.0, 2)]));
+    }
+
+    #[test]
+    fn same_hits_allows_ties_in_any_order_and_at_the_cut() {
+        let (a, b) = (
+            [hit(1.0, 0), hit(1.0, 1), hit(2.0, 2)],
+            [hit(1.0, 1), hit(1.0, 0), hit(2.0, 2)],
+        );
+        assert!(same_hits(&a, &b));
+        assert!(same_hits(&[hit(1.0, 0)], &[hit(1.0, 1)]), "tied at the cut");
+        assert!(!same_hits(&a, &a[..2]));
+        assert!(!same_hits(
+            &[hit(1.0, 0), hit(2.0, 2)],
+            &[hit(1.0, 1), hit(2.0, 2)]
+        ));
+        assert!(!same_hits(&[hit(1.0, 0)], &[hit(1.5, 0)]));
+        assert!(same_hits(&[], &[]));
+    }
+
+    #[test]
+    fn a_crack_may_separate_an_f32_kernel_from_a_watertight_one() {
+        let mesh = quads();
+        let refi = Reference::brute(&mesh);
+        let t = F32Test::MollerTrumbore;
+        // Down the shared edge: one kernel may drop triangle 1 (grazing).
+        let ray = Ray::new([0.6, 0.6, 1.0], [0.0, 0.0, -1.0]);
+        let all = refi.all(&ray);
+        let full = [hit(1.0, 0), hit(1.0, 1), hit(2.0, 2)];
+        let same = |a: &[Hit], b: &[Hit]| same_up_to_cracks(t, &refi, &ray, &all, a, b);
+        assert!(same(&full, &[hit(1.0, 0), hit(2.0, 2)]));
+        // Away from edges nothing may differ.
+        let ray = Ray::new([0.7, 0.2, 1.0], [0.0, 0.0, -1.0]);
+        let all = refi.all(&ray);
+        let same = |a: &[Hit], b: &[Hit]| same_up_to_cracks(t, &refi, &ray, &all, a, b);
+        assert!(!same(&[hit(1.0, 0), hit(2.0, 2)], &[hit(2.0, 2)]));
+        assert!(same(
+            &[hit(1.0, 0), hit(2.0, 2)],
+            &[hit(1.0, 0), hit(2.0, 2)]
+        ));
     }
 
     #[test]

@@ -9,6 +9,8 @@
 
 #![warn(missing_docs)]
 
+#[cfg(feature = "embree")]
+mod embree;
 mod measure;
 pub mod paper;
 mod reports;

@@ -47,6 +47,9 @@ pub(crate) struct Prepared {
     pub(crate) stat_rays: usize,
     /// Per sampled run: the warmed tile before (if any) and the timed tile.
     tiles: Vec<(Option<TileRays>, TileRays)>,
+    /// Embree's scene of the same mesh.
+    #[cfg(feature = "embree")]
+    pub(crate) embree: crate::embree::Embree,
 }
 
 /// One tile's rays, packet slots and (timed tiles) every ray's reference hits.
@@ -147,6 +150,8 @@ impl Prepared {
             .max();
         let max_hits = counts.iter().copied().chain(tile_max).max().unwrap_or(0) as u32;
         Ok(Prepared {
+            #[cfg(feature = "embree")]
+            embree: crate::embree::Embree::new(&tree.mesh).map_err(AppError)?,
             name: name.into(),
             tree,
             mean_hits: counts.iter().sum::<usize>() as f64 / counts.len().max(1) as f64,
@@ -154,6 +159,57 @@ impl Prepared {
             stat_rays: counts.len(),
             tiles,
         })
+    }
+
+    /// The rays of the timed tiles, with their packet slots.
+    #[cfg(feature = "embree")]
+    pub(crate) fn timed_rays(&self) -> impl Iterator<Item = (&RayStream, &[u32])> {
+        self.tiles
+            .iter()
+            .map(|t| (&*t.1.rays, t.1.slots.as_slice()))
+    }
+
+    /// Rays of a timed tile where Embree's hits (`rtcIntersect1` and
+    /// `rtcIntersect8`, the same filter) differ from ours or from the
+    /// reference's.
+    #[cfg(feature = "embree")]
+    fn embree_mismatches(
+        &self,
+        (tile, rays, refi): (&TileRays, &[Ray], &Reference),
+        (method, n_query): (Method, u32),
+        ours: &[Vec<Hit>],
+    ) -> usize {
+        use crate::embree::Call;
+        let mut bad = 0;
+        for call in [Call::One, Call::Eight] {
+            let theirs = self
+                .embree
+                .trace(&tile.rays, (method, n_query), call, &tile.slots);
+            let label = format!("{} embree {call:?} {method:?}", self.name);
+            bad += list_mismatches(&label, refi, rays, &tile.all, n_query, &theirs);
+            let test = scene::agreement::F32Test::MollerTrumbore;
+            let differ: Vec<usize> = (0..rays.len())
+                .filter(|&i| {
+                    let (t, o) = (&theirs[i], &ours[i]);
+                    !scene::multi_agreement::same_up_to_cracks(
+                        test,
+                        refi,
+                        &rays[i],
+                        &tile.all[i],
+                        t,
+                        o,
+                    )
+                })
+                .collect();
+            if let Some(&i) = differ.first() {
+                eprintln!(
+                    "{label} N={n_query} ray {i}: embree {:?} ours {:?}",
+                    theirs[i], ours[i]
+                );
+            }
+            bad += differ.len();
+        }
+        bad
     }
 
     /// N_query values: 1, 2, 4, ... below the scene's most hits, then all.
@@ -269,6 +325,10 @@ pub(crate) fn measure(
             let refi = Reference::with_bvh(&pr.tree.mesh, &pr.tree.b2);
             let label = format!("{} {}", pr.name, kernel.name());
             bad += list_mismatches(&label, &refi, &rays, &tile.all, n_query, &lists);
+            #[cfg(feature = "embree")]
+            {
+                bad += pr.embree_mismatches((tile, &rays, &refi), (method, n_query), &lists);
+            }
             let st = session.timed_queue(&[&t]).map_err(AppError)?;
             isa::trace::recycle(t);
             pairs.push((cn.hits as f64, st.cycles as f64));

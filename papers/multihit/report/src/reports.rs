@@ -188,6 +188,7 @@ pub(crate) fn multihit_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(r);
         }
     }
+    rows.extend(embree_rows(&scenes));
     plot_fig2(a, &scenes)?;
     let notes = vec![
         format!("The paper's machine is two 10-core E5-2650 v3 (40 threads); the {chip}-core rows are the simulated one-core rate times {chip}: tiles are independent, and the assumption leaves out shared-L3 and DRAM contention and the second hardware thread per core."),
@@ -236,6 +237,7 @@ pub(crate) fn multihit_summary(a: &ReproduceArgs) -> AppResult<Produced> {
         "scenes_node_culling_faster_at_n_query_1",
         faster_at_one as f64,
     ));
+    rows.extend(embree_rows(&scenes));
     plot_summary(a, &scenes)?;
     let notes = vec![
         "Speed-ups are paired over the same tiles (ratio of summed cycles; 95% CI over the tiles). The paper's 'up to 2x at N_query = 1' is its mean over eight scenes; its crossover 'as N_query -> 70%' of the most hits.".into(),
@@ -244,6 +246,50 @@ pub(crate) fn multihit_summary(a: &ReproduceArgs) -> AppResult<Produced> {
         mismatches: mismatches(&scenes),
         report: header("multihit-summary", (&m, a, start), (&scenes, rows, notes)),
     })
+}
+
+/// Embree's node-culling over naive time ratio on this host (`rtcIntersect8`,
+/// the timed tiles' rays, best of 3), per scene and N_query.
+#[cfg(feature = "embree")]
+fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
+    use crate::embree::Call;
+    let mut rows = Vec::new();
+    for sc in scenes {
+        for (n, _, _) in &sc.cells {
+            let time = |me: Method| {
+                (0..3)
+                    .map(|_| {
+                        let t0 = Instant::now();
+                        for (rays, slots) in sc.pr.timed_rays() {
+                            std::hint::black_box(sc.pr.embree.trace(
+                                rays,
+                                (me, *n),
+                                Call::Eight,
+                                slots,
+                            ));
+                        }
+                        t0.elapsed().as_secs_f64()
+                    })
+                    .fold(f64::INFINITY, f64::min)
+            };
+            let (naive, cull) = (time(Method::Naive), time(Method::NodeCulling));
+            rows.push(
+                Row::new(
+                    "embree_native_speedup_node_culling_over_naive",
+                    naive / cull,
+                )
+                .key("scene", &sc.pr.name)
+                .key("n_query", n)
+                .unit("host-measured"),
+            );
+        }
+    }
+    rows
+}
+
+#[cfg(not(feature = "embree"))]
+fn embree_rows(_: &[SceneCells]) -> Vec<Row> {
+    Vec::new()
 }
 
 fn plot_fig2(a: &ReproduceArgs, scenes: &[SceneCells]) -> AppResult<()> {

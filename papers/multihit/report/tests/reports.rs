@@ -49,4 +49,13 @@ fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
         .find(|r| r["metric"] == "mean_speedup_at_n_query_1")
         .unwrap();
     assert_eq!(row["paper"], 2.0);
+    // With Embree linked, every timed ray went through rtcIntersect1 and
+    // rtcIntersect8 with the same filters too (counted in the mismatches
+    // above), and its native time ratio stands beside ours.
+    let embree = value(
+        &j,
+        &[("scene", "layers"), ("n_query", "1")],
+        "embree_native_speedup_node_culling_over_naive",
+    );
+    assert_eq!(embree.is_some(), cfg!(feature = "embree"));
 }

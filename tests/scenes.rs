@@ -29,6 +29,7 @@ fn every_scene_loads_and_its_bvhs_validate() {
         "sphere",
         "bmw",
         "ferrari",
+        "truck",
     ];
     let mut args = vec!["list", "scenes"];
     args.extend(small);
@@ -45,6 +46,9 @@ fn every_scene_loads_and_its_bvhs_validate() {
     for n in ["conference", "fern", "saloon", "fairy", "layers", "sphere"] {
         assert!(get(n, "triangles").unwrap() > 1000.0, "{n}");
     }
+    // The multi-hit truck: 128 s + 2 s per drum triangles at s = 256 sides.
+    let truck = get("truck", "triangles").unwrap();
+    assert!((150_000.0..300_000.0).contains(&truck), "truck: {truck}");
     for n in ["fern", "saloon", "fairy", "conference"] {
         let r = get(n, "triangles_vs_paper").unwrap();
         assert!((0.75..=1.25).contains(&r), "{n}: {r} of the paper's count");

@@ -45,6 +45,10 @@ pub enum Source {
     /// of a round part. Its triangles are in the furniture's curves; the
     /// shell and table tops stay a few large triangles.
     Meeting(u64, u32, u32),
+    /// A cab-over cargo truck with its interior on a ground plane (the
+    /// multi-hit paper's truck): seed, crates and drums in its cargo body,
+    /// sides of a round part.
+    Truck(u64, u32, u32),
     /// Water: a square plane at y = 0 of half-size `half`, subdivided into
     /// cells x cells squares, its vertices raised by a seeded height map of
     /// amplitude `amp` (Ferrari's sea): seed, cells, half, amp.
@@ -226,6 +230,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("saloon", include_str!("../../configs/scenes/saloon.ron")),
     ("fairy", include_str!("../../configs/scenes/fairy.ron")),
     ("layers", include_str!("../../configs/scenes/layers.ron")),
+    ("truck", include_str!("../../configs/scenes/truck.ron")),
     ("sphere", include_str!("../../configs/scenes/sphere.ron")),
 ];
 
@@ -669,6 +674,14 @@ pub fn build_source(s: &Source) -> Result<Mesh, String> {
                 ));
             }
             crate::shapes::meeting_room(&mut m, seed, tables, segments);
+        }
+        Source::Truck(seed, cargo, segments) => {
+            if !(8..=4096).contains(&segments) || cargo > 100_000 {
+                return Err(format!(
+                    "Truck({seed}, {cargo}, {segments}): segments 8 to 4096, at most 100000 cargo items"
+                ));
+            }
+            crate::shapes::truck(&mut m, seed, cargo, segments);
         }
         Source::Water(seed, cells, half, amp) => {
             if !((1..=4096).contains(&cells) && half > 0.0 && half.is_finite() && amp.is_finite()) {

@@ -208,6 +208,133 @@ pub(crate) fn water(m: &mut Mesh, seed: u64, cells: u32, half: f32, amp: f32) {
     }
 }
 
+/// Append the shape `make` builds, its positions mapped by `map` (a
+/// rotation: the upright `cylinder` laid along x).
+fn mapped(m: &mut Mesh, make: impl FnOnce(&mut Mesh), map: impl Fn([f32; 3]) -> [f32; 3]) {
+    let mut part = Mesh::default();
+    make(&mut part);
+    let b = m.positions.len() as u32;
+    m.positions.extend(part.positions.into_iter().map(map));
+    m.tris
+        .extend(part.tris.into_iter().map(|t| t.map(|i| i + b)));
+}
+
+/// A closed round part along x: centre `c`, `len` long, `s` sides.
+fn cylinder_x(m: &mut Mesh, c: [f32; 3], radius: f32, len: f32, s: u32) {
+    let make = |p: &mut Mesh| cylinder(p, [0.0, 0.0, 0.0], radius, len, s);
+    mapped(m, make, |[x, y, z]| {
+        [c[0] - len / 2.0 + y, c[1] + x, c[2] + z]
+    });
+}
+
+/// A hollow box: six walls `t` thick (each a closed box) around the
+/// inside `lo`..`hi`, as a modelled cab or cargo body is sheet on both
+/// sides.
+fn shell(m: &mut Mesh, lo: [f32; 3], hi: [f32; 3], t: f32) {
+    for a in 0..3 {
+        for (at, d) in [(lo[a], -t), (hi[a], t)] {
+            let (mut l, mut h) = (lo, hi);
+            l[a] = at.min(at + d);
+            h[a] = at.max(at + d);
+            cuboid(m, l, h);
+        }
+    }
+}
+
+/// A wheel on the axis along x through `c`: a tyre of `s` sides (0.55 m
+/// radius), the rim inside it and the hub inside that (each closed, so a
+/// ray through the wheel crosses all three).
+fn wheel(m: &mut Mesh, c: [f32; 3], s: u32) {
+    cylinder_x(m, c, 0.55, 0.36, s);
+    cylinder_x(m, c, 0.36, 0.30, s);
+    cylinder_x(m, c, 0.12, 0.40, s / 2);
+}
+
+/// The truck of the multi-hit paper's Figure 2, as a vulnerability model
+/// has it (surfaces inside surfaces): a 7.4 m cab-over cargo truck on a
+/// ground plane. Chassis rails and three axles of two wheels each (tyre,
+/// rim, hub); a cab of sheet walls with two seats, a dashboard, a steering
+/// wheel and a column; under it an engine block with six cylinders and
+/// their pistons, a crankshaft and a radiator of thin fins; a fuel tank; a
+/// cargo body of sheet walls holding `cargo` seeded crates and drums. Round
+/// parts have `s` sides.
+pub(crate) fn truck(m: &mut Mesh, seed: u64, cargo: u32, s: u32) {
+    let mut r = Rng::new(seed);
+    quad(m, [-12.0, 0.0, -12.0], [0.0, 0.0, 24.0], [24.0, 0.0, 0.0]); // ground
+                                                                      // Chassis: two rails, three axles and their wheels.
+    for x in [-0.45f32, 0.45] {
+        cuboid(m, [x - 0.08, 0.75, -3.6], [x + 0.08, 0.95, 3.6]);
+    }
+    for z in [-2.7f32, 1.2, 2.6] {
+        cylinder_x(m, [0.0, 0.55, z], 0.07, 2.1, s / 2);
+        for x in [-1.05f32, 1.05] {
+            wheel(m, [x, 0.55, z], s);
+        }
+    }
+    cab(m, s);
+    engine(m, s);
+    cylinder_x(m, [1.0, 1.0, -0.6], 0.28, 1.2, s); // fuel tank
+    cylinder(m, [-1.1, 1.0, -1.4], 0.06, 2.6, s / 2); // exhaust stack
+    cargo_body(m, &mut r, cargo, s);
+}
+
+/// The cab: sheet walls, seats, dashboard, steering wheel and column.
+fn cab(m: &mut Mesh, s: u32) {
+    shell(m, [-1.2, 1.0, -3.7], [1.2, 3.0, -2.0], 0.03);
+    for x in [-0.6f32, 0.6] {
+        cuboid(m, [x - 0.28, 1.4, -2.65], [x + 0.28, 1.55, -2.15]); // cushion
+        cuboid(m, [x - 0.28, 1.55, -2.2], [x + 0.28, 2.3, -2.1]); // back
+    }
+    cuboid(m, [-1.15, 1.8, -3.65], [1.15, 2.1, -3.3]); // dashboard
+    let wheel_at = |p: [f32; 3]| [p[0] - 0.6, p[2] + 2.3, p[1] - 3.05];
+    mapped(m, |p| cylinder(p, [0.0, 0.0, 0.0], 0.22, 0.04, s), wheel_at);
+    mapped(
+        m,
+        |p| cylinder(p, [0.0, -0.5, 0.0], 0.03, 0.5, s / 2),
+        wheel_at,
+    );
+}
+
+/// The engine under the cab: block, six cylinders each with its piston,
+/// crankshaft and a radiator of 80 thin fins ahead of it.
+fn engine(m: &mut Mesh, s: u32) {
+    shell(m, [-0.5, 1.0, -3.4], [0.5, 1.9, -1.9], 0.02);
+    for k in 0..6 {
+        let z = -3.25 + 0.23 * k as f32;
+        cylinder(m, [0.0, 1.1, z + 0.1], 0.09, 0.7, s);
+        cylinder(m, [0.0, 1.2, z + 0.1], 0.075, 0.25, s);
+    }
+    let along_z = |[x, y, z]: [f32; 3]| [y, z + 1.05, x - 3.45];
+    mapped(
+        m,
+        |p| cylinder(p, [0.0, 0.0, 0.0], 0.05, 1.6, s / 2),
+        along_z,
+    );
+    for k in 0..80 {
+        let x = -0.5 + k as f32 / 79.0;
+        quad(m, [x, 1.1, -3.62], [0.0, 0.7, 0.0], [0.0, 0.0, 0.12]);
+    }
+}
+
+/// The cargo body: sheet walls and `n` seeded crates and drums inside.
+fn cargo_body(m: &mut Mesh, r: &mut Rng, n: u32, s: u32) {
+    let (lo, hi) = ([-1.2f32, 1.05, -1.8], [1.2f32, 3.2, 3.7]);
+    shell(m, lo, hi, 0.03);
+    for _ in 0..n {
+        let (x, z) = (
+            r.range(lo[0] + 0.3, hi[0] - 0.3),
+            r.range(lo[2] + 0.3, hi[2] - 0.3),
+        );
+        let y = lo[1] + r.range(0.0, 1.2);
+        if r.range(0.0, 1.0) < 0.5 {
+            let h = r.range(0.1, 0.25);
+            cuboid(m, [x - h, y, z - h], [x + h, y + 2.0 * h, z + h]);
+        } else {
+            cylinder(m, [x, y, z], r.range(0.12, 0.25), r.range(0.4, 0.8), s);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

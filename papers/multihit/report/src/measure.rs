@@ -25,7 +25,7 @@ pub(crate) const TILE: u32 = 16;
 
 /// The eight scenes (see the paper's README for what each stands for).
 pub(crate) const SCENES: [&str; 8] = [
-    "bmw",
+    "truck",
     "layers",
     "conference",
     "fern",

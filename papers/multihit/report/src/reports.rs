@@ -255,6 +255,7 @@ fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
     use crate::embree::Call;
     let mut rows = Vec::new();
     for sc in scenes {
+        let mut cross = None;
         for (n, _, _) in &sc.cells {
             let time = |me: Method| {
                 (0..3)
@@ -273,6 +274,9 @@ fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
                     .fold(f64::INFINITY, f64::min)
             };
             let (naive, cull) = (time(Method::Naive), time(Method::NodeCulling));
+            if naive <= cull && cross.is_none() {
+                cross = Some(f64::from(*n) / f64::from(sc.pr.max_hits));
+            }
             rows.push(
                 Row::new(
                     "embree_native_speedup_node_culling_over_naive",
@@ -283,6 +287,14 @@ fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
                 .unit("host-measured"),
             );
         }
+        let mut r = Row::new(
+            "embree_native_crossover_fraction_of_max_hits",
+            cross.unwrap_or(f64::NAN),
+        )
+        .key("scene", &sc.pr.name)
+        .unit("host-measured");
+        r.paper = Some(CROSSOVER_FRACTION);
+        rows.push(r);
     }
     rows
 }

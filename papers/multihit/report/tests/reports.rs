@@ -59,3 +59,36 @@ fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
     );
     assert_eq!(embree.is_some(), cfg!(feature = "embree"));
 }
+
+/// Report `name` on a pool of `n` host threads, host-measured figures
+/// (host time, Embree's native ratios) left out.
+fn on_threads(n: usize, name: &str, g: Given) -> serde_json::Value {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap();
+    let def = multihit_report::REPORTS
+        .iter()
+        .find(|d| d.name == name)
+        .unwrap();
+    let p = pool.install(|| def.compute(g)).expect("computed");
+    let mut j = serde_json::to_value(&p.report).unwrap();
+    let o = j.as_object_mut().unwrap();
+    o.remove("host_seconds");
+    let rows = o["rows"].as_array_mut().unwrap();
+    rows.retain(|r| r["unit"] != "host-measured");
+    j
+}
+
+#[test]
+fn one_and_two_host_threads_give_identical_reports() {
+    let dir = std::env::temp_dir().join(format!("multihit-threads-{}", std::process::id()));
+    let g = || Given {
+        quick: true,
+        tiles: Some(1),
+        out: Some(dir.clone()),
+        ..Given::default()
+    };
+    let one = on_threads(1, "multihit-fig2", g());
+    assert_eq!(one, on_threads(2, "multihit-fig2", g()));
+}

@@ -23,6 +23,8 @@ pub mod refine;
 pub mod scene;
 mod shapes;
 pub mod simplify;
+pub mod volume;
+pub mod volume_bvh;
 pub mod workload;
 
 pub use hit::{Hit, HitPolicy};

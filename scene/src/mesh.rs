@@ -113,7 +113,7 @@ impl Mesh {
 }
 
 /// Read a file, gunzipping it if it ends in `.gz`.
-fn read_all(path: &Path) -> Result<Vec<u8>, MeshError> {
+pub(crate) fn read_all(path: &Path) -> Result<Vec<u8>, MeshError> {
     let file = path.display().to_string();
     let raw = std::fs::read(path).map_err(|e| MeshError {
         file: file.clone(),

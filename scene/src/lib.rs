@@ -23,6 +23,7 @@ pub mod refine;
 pub mod scene;
 mod shapes;
 pub mod simplify;
+pub mod transfer;
 pub mod volume;
 pub mod volume_bvh;
 pub mod workload;

@@ -26,6 +26,7 @@ pub mod simplify;
 pub mod transfer;
 pub mod volume;
 pub mod volume_bvh;
+pub mod volume_ref;
 pub mod workload;
 
 pub use hit::{Hit, HitPolicy};

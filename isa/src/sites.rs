@@ -60,9 +60,11 @@ pub const MBVH_SINGLE: SiteBlock = SiteBlock::new("mbvh_kernels::single", 140, 1
 pub const MBVH_PACKET: SiteBlock = SiteBlock::new("mbvh_kernels::packet", 150, 20);
 /// Multi-hit intersection filters and the post-traversal sort (`multihit_kernels`).
 pub const MULTIHIT: SiteBlock = SiteBlock::new("multihit_kernels", 170, 20);
+/// Volume ray casting (`volume_kernels`).
+pub const VOLUME: SiteBlock = SiteBlock::new("volume_kernels", 190, 20);
 
 /// Every block, in order.
-pub const PLAN: [SiteBlock; 11] = [
+pub const PLAN: [SiteBlock; 12] = [
     MICRO,
     BOXTEST,
     SINGLE,
@@ -74,6 +76,7 @@ pub const PLAN: [SiteBlock; 11] = [
     MBVH_SINGLE,
     MBVH_PACKET,
     MULTIHIT,
+    VOLUME,
 ];
 
 #[cfg(test)]

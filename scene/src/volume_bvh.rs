@@ -73,6 +73,9 @@ pub struct VNode {
     pub max: u8,
     /// Children (indices), or `None` for a leaf.
     pub children: Option<[u32; 2]>,
+    /// The axis an inner node splits on (its first child is the lower
+    /// side); 0 for a leaf.
+    pub axis: u8,
 }
 
 /// The implicit min-max BVH of a volume; node 0 is the root (none when
@@ -129,6 +132,16 @@ impl MinMaxBvh {
         for (i, n) in self.nodes.iter().enumerate() {
             match n.children {
                 Some(ch) => {
+                    let (a, b) = (
+                        self.nodes.get(ch[0] as usize),
+                        self.nodes.get(ch[1] as usize),
+                    );
+                    if let (Some(a), Some(b)) = (a, b) {
+                        let ax = n.axis as usize;
+                        if a.hi[ax] > b.lo[ax] {
+                            return Err(format!("node {i}: children overlap along axis {ax}"));
+                        }
+                    }
                     for c in ch {
                         let c = self
                             .nodes
@@ -218,6 +231,7 @@ fn leaf_nodes(v: &Volume, leaf: u32) -> Vec<VNode> {
                 min,
                 max,
                 children: None,
+                axis: 0,
             });
         }
     });
@@ -225,13 +239,19 @@ fn leaf_nodes(v: &Volume, leaf: u32) -> Vec<VNode> {
 }
 
 /// Make node `at` the root of `leaves`: a leaf if there is one, else a
-/// median split on the axis of the set's largest extent.
+/// split at the median centroid on the axis along which the centroids
+/// spread most, leaves left of the plane to the first child. Leaves are a
+/// grid of bricks, so the children do not overlap along the split axis and
+/// the traversal's near-first order along it is front to back.
 fn split(nodes: &mut Vec<VNode>, at: usize, leaves: &mut [VNode]) {
     let (mut lo, mut hi) = ([u32::MAX; 3], [0u32; 3]);
+    let (mut clo, mut chi) = ([u32::MAX; 3], [0u32; 3]);
     for l in leaves.iter() {
         for a in 0..3 {
             lo[a] = lo[a].min(l.lo[a]);
             hi[a] = hi[a].max(l.hi[a]);
+            clo[a] = clo[a].min(l.lo[a] + l.hi[a]);
+            chi[a] = chi[a].max(l.lo[a] + l.hi[a]);
         }
     }
     let min = leaves.iter().map(|l| l.min).min().unwrap_or(0);
@@ -240,9 +260,19 @@ fn split(nodes: &mut Vec<VNode>, at: usize, leaves: &mut [VNode]) {
         nodes[at] = leaves[0];
         return;
     }
-    let axis = (0..3).max_by_key(|&a| (hi[a] - lo[a], 2 - a)).unwrap_or(0);
-    leaves.sort_by_key(|l| (l.lo[axis] + l.hi[axis], l.lo));
-    let (left, right) = leaves.split_at_mut(leaves.len() / 2);
+    let axis = (0..3)
+        .max_by_key(|&a| (chi[a] - clo[a], 2 - a))
+        .unwrap_or(0);
+    let c = |l: &VNode| l.lo[axis] + l.hi[axis];
+    leaves.sort_by_key(|l| (c(l), l.lo));
+    // The plane at the median centroid; ties go right unless that empties
+    // the left side (distinct leaves of a grid spread on the chosen axis).
+    let median = c(&leaves[leaves.len() / 2]);
+    let mut cut = leaves.partition_point(|l| c(l) < median);
+    if cut == 0 {
+        cut = leaves.partition_point(|l| c(l) <= median);
+    }
+    let (left, right) = leaves.split_at_mut(cut);
     let first = nodes.len() as u32;
     nodes.extend([left[0], right[0]]);
     nodes[at] = VNode {
@@ -251,6 +281,7 @@ fn split(nodes: &mut Vec<VNode>, at: usize, leaves: &mut [VNode]) {
         min,
         max,
         children: Some([first, first + 1]),
+        axis: axis as u8,
     };
     split(nodes, first as usize, left);
     split(nodes, first as usize + 1, right);

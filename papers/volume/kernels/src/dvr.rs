@@ -52,6 +52,11 @@ pub struct Consts<M: Machine> {
 }
 
 impl<M: Machine> Consts<M> {
+    /// The step growth `rda` in every lane.
+    pub fn rda_vec(&self) -> M::F {
+        self.rda
+    }
+
     /// The constants for sampling `s`.
     pub fn new(m: &mut M, s: &Sampling) -> Self {
         assert_eq!(M::LANES, 4, "Listing 2 is 4-wide AoS (SSE)");
@@ -76,6 +81,34 @@ impl<M: Machine> Consts<M> {
 /// Scratch bytes the routine spills through (unions of Listing 2).
 pub const SCRATCH_BYTES: usize = 64;
 
+/// A ray's integration state between calls (leaf to leaf): its colour,
+/// the next sample's position `{x, y, z, t}`, the next step, and the last
+/// classified value (-1: none yet).
+#[derive(Clone, Copy)]
+pub struct State<M: Machine> {
+    /// Associated RGBA so far.
+    pub rgba: M::F,
+    /// The next sample.
+    pub p: M::F,
+    /// The next step (direction times step length; w: the step).
+    pub sdt: M::F,
+    /// The last classified value.
+    pub flast: M::S,
+}
+
+impl<M: Machine> State<M> {
+    /// A ray's state at `tenter`, nothing gathered.
+    pub fn start(m: &mut M, c: &Consts<M>, (org, dir): (M::F, M::F), tenter: M::X) -> Self {
+        let te = m.broadcast(tenter);
+        State {
+            rgba: c.zero,
+            p: m.fmadd(te, dir, org),
+            sdt: m.mul(dir, c.dt),
+            flast: m.int(-1),
+        }
+    }
+}
+
 /// Integrate `ray` through the volume: its associated RGBA.
 pub fn dvr<M: Machine>(
     m: &mut M,
@@ -86,28 +119,46 @@ pub fn dvr<M: Machine>(
     s: &Sampling,
 ) -> M::F {
     m.region(Region::Volume);
-    let te = m.broadcast(ray.tenter);
-    let mut p = m.fmadd(te, ray.dir, ray.org);
-    let mut pi = m.to_int(p);
-    let mut sdt = m.mul(ray.dir, c.dt);
-    let srda = (s.rda != 0.0).then(|| m.mul(ray.dir, c.rda));
-    let tx = m.broadcast(ray.texit);
+    let mut st = State::start(m, c, (ray.org, ray.dir), ray.tenter);
+    integrate(m, (v, scratch), c, &mut st, (ray.dir, ray.texit), s);
+    st.rgba
+}
+
+/// Listing 2's loop from the state's next sample until the ray is opaque
+/// or the next sample lies beyond `texit`; the state is left at the next
+/// sample.
+pub fn integrate<M: Machine>(
+    m: &mut M,
+    (v, scratch): (&VolBufs, &mut Buf),
+    c: &Consts<M>,
+    st: &mut State<M>,
+    (dir, texit): (M::F, M::X),
+    s: &Sampling,
+) {
+    m.region(Region::Volume);
+    let mut pi = m.to_int(st.p);
+    let srda = (s.rda != 0.0).then(|| m.mul(dir, c.rda));
+    let tx = m.broadcast(texit);
     let last_lane = m.mask(0b1000);
     let inf = m.splat(f32::INFINITY);
     let ray_texit = m.select(last_lane, tx, inf);
-    let mut rgba = c.zero;
-    let mut flast = m.int(-1);
+    let State {
+        mut rgba,
+        mut p,
+        mut sdt,
+        mut flast,
+    } = *st;
     loop {
         let (base, val) = base_voxel(m, v, scratch, pi);
         let zero = m.int(0);
         if m.branch_if(site::VAL, Cmp::Ne, val, zero) {
-            let st = Stencil::new(m, v, scratch, (p, pi), (base, val), c);
-            let fval = st.value(m, scratch);
+            let stn = Stencil::new(m, v, scratch, (p, pi), (base, val), c);
+            let fval = stn.value(m, scratch);
             let from_first = m.s_cmp(Cmp::Lt, flast, zero);
             let front = m.s_select(from_first, fval, flast);
             let mut sample = classify(m, v, front, fval);
             if s.lighting != Lighting::Unlit {
-                sample = light(m, &st, (sample, p, ray.dir), c, s.lighting);
+                sample = light(m, &stn, (sample, p, dir), c, s.lighting);
             }
             let a = m.permute(rgba, &[3, 3, 3, 3]);
             let keep = m.sub(c.one, a);
@@ -127,7 +178,12 @@ pub fn dvr<M: Machine>(
             break;
         }
     }
-    rgba
+    *st = State {
+        rgba,
+        p,
+        sdt,
+        flast,
+    };
 }
 
 /// Spill an integer vector and read its x, y, z lanes back as scalars.

@@ -9,6 +9,7 @@
 
 #![warn(missing_docs)]
 
+pub mod bvh;
 pub mod dvr;
 pub mod layout;
 
@@ -33,9 +34,51 @@ pub mod site {
     pub const PIXELS: Site = isa::sites::VOLUME.at(3);
     /// The ray meets the volume's box?
     pub const BOX: Site = isa::sites::VOLUME.at(4);
+    /// BVH: stack empty?
+    pub const STACK: Site = isa::sites::VOLUME.at(5);
+    /// BVH: node empty for the transfer function (eq. 5)?
+    pub const EMPTY: Site = isa::sites::VOLUME.at(6);
+    /// BVH: node pruned to a leaf (eq. 6)?
+    pub const PRUNE: Site = isa::sites::VOLUME.at(7);
+    /// BVH: a leaf?
+    pub const LEAF: Site = isa::sites::VOLUME.at(8);
+    /// BVH: the packlet hits the box?
+    pub const PACKLET_HIT: Site = isa::sites::VOLUME.at(9);
+    /// BVH: more packlets?
+    pub const PACKLET: Site = isa::sites::VOLUME.at(10);
+    /// BVH: the first active ray's direction negative on the split axis?
+    pub const ORDER: Site = isa::sites::VOLUME.at(11);
+    /// BVH leaf: another ray of the packlet?
+    pub const LEAF_RAY: Site = isa::sites::VOLUME.at(12);
+    /// BVH leaf: the ray opaque or its next sample beyond the leaf?
+    pub const SKIP: Site = isa::sites::VOLUME.at(13);
+    /// BVH leaf: the next sample before the leaf's entry?
+    pub const SKIP_AHEAD: Site = isa::sites::VOLUME.at(14);
+    /// BVH leaf: another differential step to the entry?
+    pub const SKIP_STEP: Site = isa::sites::VOLUME.at(15);
+    /// More packets?
+    pub const PACKETS: Site = isa::sites::VOLUME.at(16);
 
     /// Every site of the crate (checked for duplicates by the layout test).
-    pub const ALL: [Site; 5] = [VAL, TERM, LIT, PIXELS, BOX];
+    pub const ALL: [Site; 17] = [
+        VAL,
+        TERM,
+        LIT,
+        PIXELS,
+        BOX,
+        STACK,
+        EMPTY,
+        PRUNE,
+        LEAF,
+        PACKLET_HIT,
+        PACKLET,
+        ORDER,
+        LEAF_RAY,
+        SKIP,
+        SKIP_AHEAD,
+        SKIP_STEP,
+        PACKETS,
+    ];
 }
 
 /// A volume made ready: its bricks and transfer function.
@@ -211,4 +254,145 @@ fn pixel<M: Machine>(
     m.region(Region::Setup);
     let off = m.s_shift(isa::Shift::Shl, i, 4);
     m.store(image, At::idx(off, 1, 0), out);
+}
+
+/// The "bvh" method: the image's 8x8-ray packets (2x2-ray packlets) traced
+/// through the implicit min-max BVH, each ray integrated leaf by leaf.
+#[derive(Clone)]
+pub struct BvhRun {
+    /// The volume and transfer function.
+    pub prepared: Arc<Prepared>,
+    /// Its min-max BVH.
+    pub tree: Arc<scene::volume_bvh::MinMaxBvh>,
+    /// The rays, row by row of an image `width` wide (width and height
+    /// multiples of 8).
+    pub rays: Arc<Rays>,
+    /// Image width.
+    pub width: u32,
+    /// Sampling and lighting.
+    pub sampling: Sampling,
+    /// Eqs. 5 and 6's thresholds.
+    pub heuristics: bvh::Heuristics,
+}
+
+impl Program for BvhRun {
+    type Out = Vec<[f32; 4]>;
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        let pr = &self.prepared;
+        let v = layout::lay_out(m, &pr.bricked, pr.volume.dims, &pr.tf);
+        let nodes = bvh::lay_out_nodes(m, &self.tree);
+        self.trace_on(m, &v, &nodes)
+    }
+}
+
+impl BvhRun {
+    /// The rays of packet (`px`, `py`), packlet by packlet (2x2 rays each,
+    /// lanes in row order): their indices in the image.
+    fn packet_rays(&self, px: u32, py: u32) -> Vec<usize> {
+        (0..64u32)
+            .map(|k| {
+                let (p, l) = (k / 4, k % 4);
+                let x = px * 8 + (p % 4) * 2 + l % 2;
+                let y = py * 8 + (p / 4) * 2 + l / 2;
+                (y * self.width + x) as usize
+            })
+            .collect()
+    }
+
+    /// Trace every packet over a laid-out volume and BVH: RGBA per ray.
+    ///
+    /// # Panics
+    /// If the image is not whole packets.
+    pub fn trace_on<M: Machine>(&self, m: &mut M, v: &VolBufs, nodes: &Buf) -> Vec<[f32; 4]> {
+        let (w, n) = (self.width, self.rays.len());
+        let h = n as u32 / w.max(1);
+        assert!(
+            w.is_multiple_of(8) && h.is_multiple_of(8) && (w * h) as usize == n,
+            "whole 8x8 packets"
+        );
+        let sp = m.space();
+        let rays = sp.alloc_f32(MemKind::Rays, "volume-rays", &self.rays.records(), 64);
+        let mut image = sp.alloc(MemKind::Image, "image", 16 * n.max(1), 64);
+        let mut scratch = sp.alloc(MemKind::Stack, "dvr-scratch", dvr::SCRATCH_BYTES, 64);
+        let mut states = sp.alloc(MemKind::Rays, "ray-states", 64 * 64, 64);
+        let mut stack = sp.alloc(MemKind::Stack, "bvh-stack", 8 * 128, 64);
+        let c = dvr::Consts::new(m, &self.sampling);
+        let hi = v.dims.map(|d| (d.max(1) - 1) as f32);
+        let box_hi = m.consts(&[hi[0], hi[1], hi[2], f32::INFINITY]);
+        let dims = v.dims.map(|d| f64::from(d.max(1) - 1));
+        let vol_diag = (dims[0] * dims[0] + dims[1] * dims[1] + dims[2] * dims[2]).sqrt() as f32;
+        let mut p = m.int(0);
+        let end = m.int(i64::from((w / 8) * (h / 8)));
+        for py in 0..h / 8 {
+            for px in 0..w / 8 {
+                let ids = self.packet_rays(px, py);
+                let org: Vec<[f32; 3]> = ids.iter().map(|&i| self.rays.org[i]).collect();
+                let dir: Vec<[f32; 3]> = ids.iter().map(|&i| self.rays.dir[i]).collect();
+                let recs = bvh::packlet_records(&org, &dir);
+                let packlets = m.space().alloc_f32(MemKind::Rays, "packlets", &recs, 64);
+                for (k, &i) in ids.iter().enumerate() {
+                    start_ray(m, (&rays, &mut states), (i, k), (&c, box_hi));
+                }
+                let pb = bvh::PacketBufs {
+                    packlets: &packlets,
+                    states: &mut states,
+                    stack: &mut stack,
+                    scratch: &mut scratch,
+                };
+                let hv = (self.heuristics, vol_diag);
+                bvh::trace_packet(m, v, nodes, pb, &c, hv, &self.sampling);
+                m.region(Region::Setup);
+                for (k, &i) in ids.iter().enumerate() {
+                    let rgba = m.load(&states, At::off(64 * k));
+                    m.store(&mut image, At::off(16 * i), rgba);
+                }
+                p = m.s_addi(p, 1);
+                m.branch_if(site::PACKETS, Cmp::Lt, p, end);
+            }
+        }
+        (0..n)
+            .map(|k| std::array::from_fn(|c| image.f32_at(16 * k + 4 * c)))
+            .collect()
+    }
+}
+
+/// Set ray `i` (packet slot `k`) up: clipped to the volume's box, its state
+/// at the entry (a ray that misses gets its next sample at +inf: every leaf
+/// skips it).
+fn start_ray<M: Machine>(
+    m: &mut M,
+    (rays, states): (&Buf, &mut Buf),
+    (i, k): (usize, usize),
+    (c, box_hi): (&dvr::Consts<M>, M::F),
+) {
+    m.region(Region::Setup);
+    let org = m.load(rays, At::off(32 * i));
+    let dir = m.load(rays, At::off(32 * i + 16));
+    let one = m.splat(1.0);
+    let idir = m.div(one, dir);
+    let zero = m.splat(0.0);
+    let lo = m.sub(zero, org);
+    let t0 = m.mul(lo, idir);
+    let hi = m.sub(box_hi, org);
+    let t1 = m.mul(hi, idir);
+    let near = m.min(t0, t1);
+    let far = m.max(t0, t1);
+    let tenter = m.reduce(isa::BinOp::Max, near);
+    let texit = m.reduce(isa::BinOp::Min, far);
+    let miss = m.x_cmp(Cmp::Gt, tenter, texit);
+    let st = if m.branch(site::BOX, miss) {
+        let inf = m.splat(f32::INFINITY);
+        dvr::State {
+            rgba: zero,
+            p: inf,
+            sdt: zero,
+            flast: m.int(-1),
+        }
+    } else {
+        dvr::State::start(m, c, (org, dir), tenter)
+    };
+    m.store(states, At::off(64 * k), st.rgba);
+    m.store(states, At::off(64 * k + 16), st.p);
+    m.store(states, At::off(64 * k + 32), st.sdt);
+    m.s_store(states, At::off(64 * k + 48), 4, st.flast);
 }

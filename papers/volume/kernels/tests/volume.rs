@@ -94,3 +94,73 @@ fn listing_2_matches_the_reference_unlit_and_lit() {
         );
     }
 }
+
+#[test]
+fn the_bvh_caster_matches_the_reference_and_skips_work() {
+    use scene::volume_bvh::MinMaxBvh;
+    use volume_kernels::bvh::Heuristics;
+    use volume_kernels::BvhRun;
+    let vol = Volume::mixing_layer(32, 9);
+    let dims = vol.dims;
+    let tree = Arc::new(MinMaxBvh::build(&vol, 4));
+    let pr = Arc::new(Prepared::new(vol, Transfer::parse(TF).unwrap()));
+    let c = dims.map(f64::from);
+    let eye = [c[0] * 1.9, -c[1] * 0.7, c[2] * 1.4];
+    let rays = Arc::new(Rays::camera(dims, eye, 40.0, (24, 24)));
+    let s = Sampling {
+        dt: 0.5,
+        rda: 0.0,
+        lighting: Lighting::Unlit,
+        light: [0.0; 3],
+        light_threshold: 0.01,
+    };
+    let want: Vec<[f64; 4]> = (0..rays.len())
+        .map(|i| {
+            cast(
+                &pr.volume,
+                &pr.tf,
+                rays.org[i].map(f64::from),
+                rays.dir[i].map(f64::from),
+                &s,
+            )
+        })
+        .collect();
+    let sse = Run {
+        prepared: pr.clone(),
+        rays: rays.clone(),
+        sampling: s,
+    };
+    let (sse_img, sse_trace) = {
+        let (t, img) = isa::record(&sse, FlavourId::Sse4, "sse");
+        (img, t.ops.len())
+    };
+    for (dc, dp) in [(0.0, f32::INFINITY), (1e-3, 1.5)] {
+        let run = BvhRun {
+            prepared: pr.clone(),
+            tree: tree.clone(),
+            rays: rays.clone(),
+            width: 24,
+            sampling: s,
+            heuristics: Heuristics {
+                delta_c: dc,
+                delta_p: dp,
+            },
+        };
+        let (t, img) = isa::record(&run, FlavourId::Sse4, "bvh");
+        assert_eq!(
+            img,
+            isa::run_native(&run, FlavourId::Sse4),
+            "traced = native"
+        );
+        let (max, psnr, off) = compare(&img, &want);
+        let (smax, spsnr, _) = compare(&sse_img, &want);
+        eprintln!(
+            "bvh dc {dc} dp {dp}: max {max:.4} PSNR {psnr:.1} off {off:.4} ops {} (sse: max {smax:.4} PSNR {spsnr:.1} ops {sse_trace})",
+            t.ops.len()
+        );
+        assert!(
+            psnr > 40.0 && max < 0.3 && off < 0.02,
+            "dc {dc}: max {max}, PSNR {psnr}, {off}"
+        );
+    }
+}

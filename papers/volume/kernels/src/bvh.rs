@@ -1,0 +1,434 @@
+//! Coherent traversal of the implicit min-max BVH (section 5.2, after Wald
+//! et al. 2007): 8x8-ray packets of 16 packlets of 4 rays (SoA), a stack of
+//! (node, first active packlet), the first active packlet tested
+//! speculatively and then the following ones until one hits; per node the
+//! preintegrated opacity over its value range decides empty space (eq. 5)
+//! and pruning (eq. 6, the node taken as a leaf); at a leaf every active
+//! packlet from the first is clipped to the leaf's box and each of its rays
+//! integrated by Listing 2 from where it stopped ([`crate::dvr::State`],
+//! kept per ray in memory) to its exit from the leaf. Children are visited
+//! nearer first along the node's split axis by the first active ray's
+//! direction.
+//!
+//! The sample sequence of a ray is the brute-force caster's (it starts at
+//! the volume's box and steps on), so the BVH only removes samples: those in
+//! nodes eq. 5 calls empty (and the classification chain through them).
+//!
+//! Not yet (named in the paper's README): the interval-arithmetic frustum
+//! test after a failed speculative test (every following packlet is tested
+//! instead), and the constant-subvolume routine (eq. 7).
+
+use crate::dvr::{integrate, Consts, State};
+use crate::layout::{VolBufs, PRE_BYTES};
+use crate::site;
+use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
+use scene::volume_bvh::{MinMaxBvh, VNODE_BYTES};
+use scene::volume_ref::Sampling;
+
+/// Rays per packet side (8 x 8) and per packlet.
+pub const PACKET_SIDE: u32 = 8;
+/// Packlets per packet.
+pub const PACKLETS: usize = 16;
+/// Flag on a node's child word: a leaf.
+const LEAF: u32 = 1 << 31;
+/// Bytes of one packlet's SoA record: org, dir, idir, 3 rows each.
+const PACKLET_BYTES: usize = 9 * 16;
+/// Bytes of one ray's integration state: rgba, p, sdt, flast (+ pad).
+const STATE_BYTES: usize = 64;
+
+/// The BVH's nodes in simulated memory: per node its box (6 f32), its
+/// range and split axis (`min | max << 8 | axis << 16`) and its first
+/// child (or `LEAF`).
+pub fn lay_out_nodes<M: Machine>(m: &mut M, t: &MinMaxBvh) -> Buf {
+    let mut words: Vec<u32> = Vec::with_capacity(t.nodes.len() * 8);
+    for n in &t.nodes {
+        for c in n.lo.iter().chain(&n.hi) {
+            words.push((*c as f32).to_bits());
+        }
+        words.push(u32::from(n.min) | u32::from(n.max) << 8 | u32::from(n.axis) << 16);
+        words.push(n.children.map_or(LEAF, |c| c[0]));
+    }
+    if words.is_empty() {
+        words.resize(8, 0);
+    }
+    assert_eq!(words.len() * 4, t.nodes.len().max(1) * VNODE_BYTES);
+    m.space()
+        .alloc_u32(MemKind::Volume, "minmax-bvh", &words, 64)
+}
+
+/// The thresholds of eqs. 5 and 6 and the volume's diagonal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Heuristics {
+    /// Eq. 5's culling threshold delta_c.
+    pub delta_c: f32,
+    /// Eq. 6's pruning threshold delta_p.
+    pub delta_p: f32,
+}
+
+/// One packet's buffers.
+pub struct PacketBufs<'a> {
+    /// Packlet records (SoA).
+    pub packlets: &'a Buf,
+    /// Per-ray states.
+    pub states: &'a mut Buf,
+    /// Traversal stack: (node, first) pairs.
+    pub stack: &'a mut Buf,
+    /// Listing 2's scratch.
+    pub scratch: &'a mut Buf,
+}
+
+/// Packlet record rows (16 bytes each).
+mod row {
+    pub const ORG: usize = 0;
+    pub const DIR: usize = 3;
+    pub const IDIR: usize = 6;
+}
+
+/// SoA packlet records of a packet's 64 rays (ray `k` of the packet is
+/// lane `k % 4` of packlet `k / 4`).
+#[must_use]
+pub fn packlet_records(org: &[[f32; 3]], dir: &[[f32; 3]]) -> Vec<f32> {
+    assert_eq!(org.len(), PACKLETS * 4);
+    let mut v = vec![0f32; PACKLETS * PACKLET_BYTES / 4];
+    for (k, (o, d)) in org.iter().zip(dir).enumerate() {
+        let (p, l) = (k / 4, k % 4);
+        for a in 0..3 {
+            let at = |r: usize| p * PACKLET_BYTES / 4 + (r + a) * 4 + l;
+            v[at(row::ORG)] = o[a];
+            v[at(row::DIR)] = d[a];
+            v[at(row::IDIR)] = 1.0 / d[a];
+        }
+    }
+    v
+}
+
+/// Traverse the BVH for one packet whose rays' states are set up; each
+/// state ends with the ray's colour.
+#[allow(clippy::too_many_arguments)]
+pub fn trace_packet<M: Machine>(
+    m: &mut M,
+    v: &VolBufs,
+    nodes: &Buf,
+    pb: PacketBufs,
+    c: &Consts<M>,
+    (h, vol_diag): (Heuristics, f32),
+    s: &Sampling,
+) {
+    m.region(Region::Traversal);
+    let PacketBufs {
+        packlets,
+        states,
+        stack,
+        scratch,
+    } = pb;
+    let zero = m.int(0);
+    m.s_store(stack, At::off(0), 4, zero);
+    m.s_store(stack, At::off(4), 4, zero);
+    let mut sp = m.int(1);
+    let dc = m.float(h.delta_c);
+    let dp_vol = m.float(h.delta_p / vol_diag);
+    loop {
+        m.region(Region::Traversal);
+        if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
+            break;
+        }
+        sp = m.s_addi(sp, -1);
+        let node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
+        let first = m.s_load(stack, At::idx(sp, 8, 4), 4, false);
+        let nb = m.s_shift(Shift::Shl, node, VNODE_BYTES.trailing_zeros());
+        let range = m.s_load(nodes, At::idx(nb, 1, 24), 4, false);
+        let alpha = range_alpha(m, v, range);
+        // Eq. 5: nothing visible in the node's range.
+        let empty = m.x_cmp(Cmp::Le, alpha, dc);
+        if m.branch(site::EMPTY, empty) {
+            continue;
+        }
+        let bx = NodeBox::load(m, nodes, nb);
+        let Some(first) = first_hit(m, packlets, &bx, first) else {
+            continue;
+        };
+        let child = m.s_load(nodes, At::idx(nb, 1, 28), 4, false);
+        let leaf_flag = m.int(i64::from(LEAF));
+        let is_leaf = m.s_and(child, leaf_flag);
+        // Eq. 6: opaque for its size: take it as a leaf.
+        let pruned = is_leaf.get() == 0 && {
+            let diag = bx.diagonal(m);
+            let limit = m.x_op(isa::BinOp::Mul, dp_vol, diag);
+            let prune = m.x_cmp(Cmp::Gt, alpha, limit);
+            m.branch(site::PRUNE, prune)
+        };
+        if m.branch(site::LEAF, is_leaf) || pruned {
+            leaf(
+                m,
+                (v, packlets, &mut *states, &mut *scratch),
+                &bx,
+                first,
+                c,
+                s,
+            );
+            continue;
+        }
+        push_children(m, (stack, &mut sp), (packlets, first), (range, child));
+    }
+}
+
+/// The preintegrated opacity over a node's range word.
+fn range_alpha<M: Machine>(m: &mut M, v: &VolBufs, range: M::S) -> M::X {
+    let mask = m.int(0xffff);
+    let mm = m.s_and(range, mask);
+    // Entry (min, max) of the table, its alpha at byte 12.
+    let lo = m.int(0xff);
+    let min = m.s_and(mm, lo);
+    let max = m.s_shift(Shift::Shr, mm, 8);
+    let row = m.s_shift(Shift::Shl, min, 8);
+    let k = m.s_add(row, max);
+    let off = m.s_shift(Shift::Shl, k, PRE_BYTES.trailing_zeros());
+    m.x_load(&v.pre, At::idx(off, 1, 12))
+}
+
+/// A node's box, each bound broadcast.
+struct NodeBox<M: Machine> {
+    lo: [M::F; 3],
+    hi: [M::F; 3],
+    lo_x: [M::X; 3],
+    hi_x: [M::X; 3],
+}
+
+impl<M: Machine> NodeBox<M> {
+    fn load(m: &mut M, nodes: &Buf, nb: M::S) -> Self {
+        let lo_x = [0, 1, 2].map(|a| m.x_load(nodes, At::idx(nb, 1, 4 * a)));
+        let hi_x = [0, 1, 2].map(|a| m.x_load(nodes, At::idx(nb, 1, 12 + 4 * a)));
+        NodeBox {
+            lo: lo_x.map(|x| m.broadcast(x)),
+            hi: hi_x.map(|x| m.broadcast(x)),
+            lo_x,
+            hi_x,
+        }
+    }
+    /// The box's diagonal length.
+    fn diagonal(&self, m: &mut M) -> M::X {
+        let d = [0, 1, 2].map(|a| m.x_op(isa::BinOp::Sub, self.hi_x[a], self.lo_x[a]));
+        let d0 = m.x_op(isa::BinOp::Mul, d[0], d[0]);
+        let d1 = m.x_fma(isa::Fma::MAdd, d[1], d[1], d0);
+        let d2 = m.x_fma(isa::Fma::MAdd, d[2], d[2], d1);
+        m.x_sqrt(d2)
+    }
+    /// Packlet `k` (register index) against the box: entry, exit, hit mask.
+    fn test(&self, m: &mut M, packlets: &Buf, k: M::S) -> (M::F, M::F, M::K) {
+        let bytes = m_int(m, PACKLET_BYTES);
+        let base = m.s_op(isa::SOp::Mul, k, bytes);
+        let mut near = m.splat(0.0);
+        let mut far = m.splat(f32::INFINITY);
+        for a in 0..3 {
+            let o = m.load(packlets, At::idx(base, 1, 16 * (row::ORG + a)));
+            let id = m.load(packlets, At::idx(base, 1, 16 * (row::IDIR + a)));
+            let l = m.sub(self.lo[a], o);
+            let h = m.sub(self.hi[a], o);
+            let t0 = m.mul(l, id);
+            let t1 = m.mul(h, id);
+            let mn = m.min(t0, t1);
+            let mx = m.max(t0, t1);
+            near = m.max(near, mn);
+            far = m.min(far, mx);
+        }
+        let hit = m.cmp(Cmp::Le, near, far);
+        (near, far, hit)
+    }
+}
+
+fn m_int<M: Machine>(m: &mut M, v: usize) -> M::S {
+    m.int(v as i64)
+}
+
+/// The first packlet from `first` that hits the box (speculatively the
+/// first itself), or `None`.
+fn first_hit<M: Machine>(m: &mut M, packlets: &Buf, bx: &NodeBox<M>, first: M::S) -> Option<M::S> {
+    let end = m.int(PACKLETS as i64);
+    let mut k = first;
+    loop {
+        let (_, _, hit) = bx.test(m, packlets, k);
+        let any = m.any(hit);
+        if m.branch(site::PACKLET_HIT, any) {
+            return Some(k);
+        }
+        k = m.s_addi(k, 1);
+        if !m.branch_if(site::PACKLET, Cmp::Lt, k, end) {
+            return None;
+        }
+    }
+}
+
+/// Push the children, the farther along the split axis (by the first active
+/// ray's direction) first, so the nearer is popped next.
+fn push_children<M: Machine>(
+    m: &mut M,
+    (stack, sp): (&mut Buf, &mut M::S),
+    (packlets, first): (&Buf, M::S),
+    (range, child): (M::S, M::S),
+) {
+    let axis = m.s_shift(Shift::Shr, range, 16);
+    let three = m.int(3);
+    let axis = m.s_and(axis, three);
+    let bytes = m_int(m, PACKLET_BYTES);
+    let base = m.s_op(isa::SOp::Mul, first, bytes);
+    let row = m.s_shift(Shift::Shl, axis, 4);
+    let at = m.s_add(base, row);
+    let d = m.x_load(packlets, At::idx(at, 1, 16 * row::DIR));
+    let z = m.float(0.0);
+    let neg = m.x_cmp(Cmp::Lt, d, z);
+    let second = m.s_addi(child, 1);
+    let (near, far) = if m.branch(site::ORDER, neg) {
+        (second, child)
+    } else {
+        (child, second)
+    };
+    for n in [far, near] {
+        m.s_store(stack, At::idx(*sp, 8, 0), 4, n);
+        m.s_store(stack, At::idx(*sp, 8, 4), 4, first);
+        *sp = m.s_addi(*sp, 1);
+    }
+}
+
+/// A leaf: every packlet from `first` clipped to the box, each hitting ray
+/// integrated from its next sample to its exit from the box.
+fn leaf<M: Machine>(
+    m: &mut M,
+    (v, packlets, states, scratch): (&VolBufs, &Buf, &mut Buf, &mut Buf),
+    bx: &NodeBox<M>,
+    first: M::S,
+    c: &Consts<M>,
+    s: &Sampling,
+) {
+    let end = m.int(PACKLETS as i64);
+    let mut k = first;
+    loop {
+        m.region(Region::Traversal);
+        let (near, far, hit) = bx.test(m, packlets, k);
+        let mut bits = m.movemask(hit);
+        let zero = m.int(0);
+        while m.branch_if(site::LEAF_RAY, Cmp::Ne, bits, zero) {
+            let lane = m.s_tzcnt(bits);
+            let l = lane.get() as usize;
+            let tenter = m.extract(near, l);
+            let texit = m.extract(far, l);
+            let four = m.s_shift(Shift::Shl, k, 2);
+            let ray = m.s_add(four, lane);
+            let io = (tenter, texit);
+            one_ray(
+                m,
+                (v, packlets, &mut *states, &mut *scratch),
+                (k, l, ray),
+                io,
+                c,
+                s,
+            );
+            m.region(Region::Traversal);
+            let b1 = m.s_addi(bits, -1);
+            bits = m.s_and(bits, b1);
+        }
+        k = m.s_addi(k, 1);
+        if !m.branch_if(site::PACKLET, Cmp::Lt, k, end) {
+            break;
+        }
+    }
+}
+
+/// Integrate one ray of the packet through a leaf it leaves at `texit`,
+/// from its saved state (nothing if it is opaque or its next sample is
+/// beyond the leaf).
+fn one_ray<M: Machine>(
+    m: &mut M,
+    (v, packlets, states, scratch): (&VolBufs, &Buf, &mut Buf, &mut Buf),
+    (k, l, ray): (M::S, usize, M::S),
+    (tenter, texit): (M::X, M::X),
+    c: &Consts<M>,
+    s: &Sampling,
+) {
+    let sb = m.s_shift(Shift::Shl, ray, STATE_BYTES.trailing_zeros());
+    let p = m.load(states, At::idx(sb, 1, 16));
+    let t = m.extract(p, 3);
+    let beyond = m.x_cmp(Cmp::Gt, t, texit);
+    let rgba = m.load(states, At::idx(sb, 1, 0));
+    let a = m.extract(rgba, 3);
+    let opaque_at = m.float(0.95);
+    let opaque = m.x_cmp(Cmp::Gt, a, opaque_at);
+    let skip = m.s_op(isa::SOp::Or, beyond, opaque);
+    if m.branch(site::SKIP, skip) {
+        return;
+    }
+    let bytes = m_int(m, PACKLET_BYTES);
+    let pb = m.s_op(isa::SOp::Mul, k, bytes);
+    let d = [0, 1, 2].map(|a| m.x_load(packlets, At::idx(pb, 1, 16 * (row::DIR + a) + 4 * l)));
+    let dir = {
+        let bc = d.map(|x| m.broadcast(x));
+        let xy = m.shuffle2(bc[0], bc[1], &[0, 0, 4, 4]);
+        let one = c_one(m);
+        let z1 = m.shuffle2(bc[2], one, &[0, 0, 4, 4]);
+        m.shuffle2(xy, z1, &[0, 2, 4, 6])
+    };
+    let mut st = State {
+        rgba,
+        p,
+        sdt: m.load(states, At::idx(sb, 1, 32)),
+        flast: m.s_load(states, At::idx(sb, 1, 48), 4, true),
+    };
+    skip_to(m, &mut st, (dir, tenter), c, s);
+    integrate(m, (v, scratch), c, &mut st, (dir, texit), s);
+    m.store(states, At::idx(sb, 1, 0), st.rgba);
+    m.store(states, At::idx(sb, 1, 16), st.p);
+    m.store(states, At::idx(sb, 1, 32), st.sdt);
+    m.s_store(states, At::idx(sb, 1, 48), 4, st.flast);
+}
+
+/// Move a ray's next sample up to the leaf's entry `tenter` along its own
+/// sample sequence (the samples between lie in nodes the traversal
+/// skipped): uniform steps in closed form (`k = ceil((tenter - t) / dt)`),
+/// differential ones step by step.
+fn skip_to<M: Machine>(
+    m: &mut M,
+    st: &mut State<M>,
+    (dir, tenter): (M::F, M::X),
+    c: &Consts<M>,
+    s: &Sampling,
+) {
+    m.region(Region::Traversal);
+    let t = m.extract(st.p, 3);
+    let before = m.x_cmp(Cmp::Lt, t, tenter);
+    if !m.branch(site::SKIP_AHEAD, before) {
+        return;
+    }
+    let te = m.broadcast(tenter);
+    if s.rda == 0.0 {
+        let tv = m.permute(st.p, &[3, 3, 3, 3]);
+        let gap = m.sub(te, tv);
+        let dt = m.permute(st.sdt, &[3, 3, 3, 3]);
+        let n = m.div(gap, dt);
+        let ni = m.to_int(n);
+        let k = m.to_float(ni);
+        let covered = m.mul(k, dt);
+        let short = m.cmp(Cmp::Lt, covered, gap);
+        let one = m.splat(1.0);
+        let k1 = m.add(k, one);
+        let k = m.select(short, k1, k);
+        st.p = m.fmadd(k, st.sdt, st.p);
+        return;
+    }
+    let srda = m.mul(dir, c.rda_vec());
+    loop {
+        st.p = m.add(st.p, st.sdt);
+        st.sdt = m.add(st.sdt, srda);
+        let t = m.extract(st.p, 3);
+        let more = m_lt(m, t, tenter);
+        if !m.branch(site::SKIP_STEP, more) {
+            break;
+        }
+    }
+}
+
+fn m_lt<M: Machine>(m: &mut M, a: M::X, b: M::X) -> M::S {
+    m.x_cmp(Cmp::Lt, a, b)
+}
+
+fn c_one<M: Machine>(m: &mut M) -> M::F {
+    m.splat(1.0)
+}

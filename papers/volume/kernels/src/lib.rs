@@ -115,9 +115,40 @@ pub struct Rays {
 
 impl Rays {
     /// A pinhole camera's `w` x `h` pixel-centre rays at `eye`, looking at
-    /// the volume's centre, vertical field of view `fov` degrees.
+    /// the volume's centre, vertical field of view `fov` degrees, row by row.
     #[must_use]
     pub fn camera(dims: [u32; 3], eye: [f64; 3], fov: f64, (w, h): (u32, u32)) -> Rays {
+        let pixels: Vec<(u32, u32)> = (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).collect();
+        Rays::pixels(dims, eye, fov, (w, h), &pixels)
+    }
+
+    /// The same camera's rays of 8x8-pixel packet (`px`, `py`) in packet
+    /// order: 16 packlets of 2x2 pixels (lanes in row order), packlets row
+    /// by row.
+    #[must_use]
+    pub fn packet(
+        dims: [u32; 3],
+        eye: [f64; 3],
+        fov: f64,
+        wh: (u32, u32),
+        (px, py): (u32, u32),
+    ) -> Rays {
+        let pixels: Vec<(u32, u32)> = (0..64u32)
+            .map(|k| {
+                let (p, l) = (k / 4, k % 4);
+                (px * 8 + (p % 4) * 2 + l % 2, py * 8 + (p / 4) * 2 + l / 2)
+            })
+            .collect();
+        Rays::pixels(dims, eye, fov, wh, &pixels)
+    }
+
+    fn pixels(
+        dims: [u32; 3],
+        eye: [f64; 3],
+        fov: f64,
+        (w, h): (u32, u32),
+        px: &[(u32, u32)],
+    ) -> Rays {
         let centre = dims.map(|d| f64::from(d.max(1) - 1) / 2.0);
         let cam = scene::scene::Camera {
             eye: eye.map(|c| c as f32),
@@ -128,13 +159,11 @@ impl Rays {
             height: h,
         };
         let (mut org, mut dir) = (Vec::new(), Vec::new());
-        for y in 0..h {
-            for x in 0..w {
-                let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                org.push(o.map(|c| c as f32));
-                dir.push(d.map(|c| (c / l) as f32));
-            }
+        for &(x, y) in px {
+            let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let l = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            org.push(o.map(|c| c as f32));
+            dir.push(d.map(|c| (c / l) as f32));
         }
         Rays { org, dir }
     }
@@ -264,11 +293,8 @@ pub struct BvhRun {
     pub prepared: Arc<Prepared>,
     /// Its min-max BVH.
     pub tree: Arc<scene::volume_bvh::MinMaxBvh>,
-    /// The rays, row by row of an image `width` wide (width and height
-    /// multiples of 8).
+    /// The rays in packet order ([`Rays::packet`]): 64 per packet.
     pub rays: Arc<Rays>,
-    /// Image width.
-    pub width: u32,
     /// Sampling and lighting.
     pub sampling: Sampling,
     /// Eqs. 5 and 6's thresholds.
@@ -286,30 +312,13 @@ impl Program for BvhRun {
 }
 
 impl BvhRun {
-    /// The rays of packet (`px`, `py`), packlet by packlet (2x2 rays each,
-    /// lanes in row order): their indices in the image.
-    fn packet_rays(&self, px: u32, py: u32) -> Vec<usize> {
-        (0..64u32)
-            .map(|k| {
-                let (p, l) = (k / 4, k % 4);
-                let x = px * 8 + (p % 4) * 2 + l % 2;
-                let y = py * 8 + (p / 4) * 2 + l / 2;
-                (y * self.width + x) as usize
-            })
-            .collect()
-    }
-
     /// Trace every packet over a laid-out volume and BVH: RGBA per ray.
     ///
     /// # Panics
-    /// If the image is not whole packets.
+    /// If the rays are not whole packets.
     pub fn trace_on<M: Machine>(&self, m: &mut M, v: &VolBufs, nodes: &Buf) -> Vec<[f32; 4]> {
-        let (w, n) = (self.width, self.rays.len());
-        let h = n as u32 / w.max(1);
-        assert!(
-            w.is_multiple_of(8) && h.is_multiple_of(8) && (w * h) as usize == n,
-            "whole 8x8 packets"
-        );
+        let n = self.rays.len();
+        assert!(n.is_multiple_of(64), "whole packets of 64 rays");
         let sp = m.space();
         let rays = sp.alloc_f32(MemKind::Rays, "volume-rays", &self.rays.records(), 64);
         let mut image = sp.alloc(MemKind::Image, "image", 16 * n.max(1), 64);
@@ -322,10 +331,10 @@ impl BvhRun {
         let dims = v.dims.map(|d| f64::from(d.max(1) - 1));
         let vol_diag = (dims[0] * dims[0] + dims[1] * dims[1] + dims[2] * dims[2]).sqrt() as f32;
         let mut p = m.int(0);
-        let end = m.int(i64::from((w / 8) * (h / 8)));
-        for py in 0..h / 8 {
-            for px in 0..w / 8 {
-                let ids = self.packet_rays(px, py);
+        let end = m.int((n / 64) as i64);
+        for packet in 0..n / 64 {
+            {
+                let ids: Vec<usize> = (64 * packet..64 * packet + 64).collect();
                 let org: Vec<[f32; 3]> = ids.iter().map(|&i| self.rays.org[i]).collect();
                 let dir: Vec<[f32; 3]> = ids.iter().map(|&i| self.rays.dir[i]).collect();
                 let recs = bvh::packlet_records(&org, &dir);

@@ -134,24 +134,42 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
         let (t, img) = isa::record(&sse, FlavourId::Sse4, "sse");
         (img, t.ops.len())
     };
+    // The same pixels in packet order, and back.
+    let packets: Vec<(u32, u32)> = (0..3).flat_map(|y| (0..3).map(move |x| (x, y))).collect();
+    let mut order = Vec::new();
+    let (mut org, mut dir) = (Vec::new(), Vec::new());
+    for &(px, py) in &packets {
+        let r = Rays::packet(dims, eye, 40.0, (24, 24), (px, py));
+        org.extend(r.org);
+        dir.extend(r.dir);
+        for k in 0..64u32 {
+            let (p, l) = (k / 4, k % 4);
+            let (x, y) = (px * 8 + (p % 4) * 2 + l % 2, py * 8 + (p / 4) * 2 + l / 2);
+            order.push((y * 24 + x) as usize);
+        }
+    }
+    let packed = Arc::new(Rays { org, dir });
+    for (i, &j) in order.iter().enumerate() {
+        assert_eq!((packed.org[i], packed.dir[i]), (rays.org[j], rays.dir[j]));
+    }
     for (dc, dp) in [(0.0, f32::INFINITY), (1e-3, 1.5)] {
         let run = BvhRun {
             prepared: pr.clone(),
             tree: tree.clone(),
-            rays: rays.clone(),
-            width: 24,
+            rays: packed.clone(),
             sampling: s,
             heuristics: Heuristics {
                 delta_c: dc,
                 delta_p: dp,
             },
         };
-        let (t, img) = isa::record(&run, FlavourId::Sse4, "bvh");
-        assert_eq!(
-            img,
-            isa::run_native(&run, FlavourId::Sse4),
-            "traced = native"
-        );
+        let (t, packed_img) = isa::record(&run, FlavourId::Sse4, "bvh");
+        let native = isa::run_native(&run, FlavourId::Sse4);
+        assert_eq!(packed_img, native, "traced = native");
+        let mut img = vec![[0f32; 4]; rays.len()];
+        for (i, &j) in order.iter().enumerate() {
+            img[j] = packed_img[i];
+        }
         let (max, psnr, off) = compare(&img, &want);
         let (smax, spsnr, _) = compare(&sse_img, &want);
         eprintln!(

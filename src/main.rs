@@ -19,6 +19,7 @@ fn reports() -> Vec<&'static ReportDef> {
         .chain(mft_report::REPORTS.iter())
         .chain(mbvh_report::REPORTS.iter())
         .chain(multihit_report::REPORTS.iter())
+        .chain(volume_report::REPORTS.iter())
         .collect()
 }
 

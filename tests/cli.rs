@@ -295,7 +295,7 @@ fn golden_op_streams() {
 }
 
 /// Every report of the papers' registries.
-const REPORTS: [&str; 16] = [
+const REPORTS: [&str; 17] = [
     "drs-table1",
     "drs-table2",
     "drs-fig5",
@@ -312,6 +312,7 @@ const REPORTS: [&str; 16] = [
     "mbvh-table1-2",
     "multihit-fig2",
     "multihit-summary",
+    "volume-fig5",
 ];
 
 #[test]
@@ -349,6 +350,14 @@ fn every_report_is_listed_and_reached_through_the_cli_with_its_options_checked()
         "larrabee",
     ]));
     assert!(e.contains("8-wide"), "{e}");
+    // Listing 2 is 4-wide SSE.
+    let e = err(&rtsim(&[
+        "reproduce",
+        "volume-fig5",
+        "--machine",
+        "larrabee",
+    ]));
+    assert!(e.contains("4-wide"), "{e}");
     let e = err(&rtsim(&["reproduce", "drs-table9"]));
     assert!(e.contains("unknown report 'drs-table9'"), "{e}");
 }

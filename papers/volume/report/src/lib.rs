@@ -1,0 +1,35 @@
+//! # volume-report
+//!
+//! The volume-rendering paper's reports (Knoll et al. 2011): frames per
+//! second per dataset against the paper's Figure 5 ([`paper`]), computed on
+//! the simulated kernels with every timed pixel checked against the f64
+//! reference.
+
+#![warn(missing_docs)]
+
+mod measure;
+pub mod paper;
+mod reports;
+
+use repro::{Opt, ReportDef};
+
+/// The paper's workstation (one core of it is simulated).
+pub const MACHINE: &str = "nehalem-x5550";
+
+const OPTIONS: &[Opt] = &[
+    Opt::Quick,
+    Opt::Machine,
+    Opt::Set,
+    Opt::Tiles,
+    Opt::Seed,
+    Opt::Out,
+];
+
+/// The volume paper's reports.
+pub const REPORTS: [ReportDef; 1] = [ReportDef {
+    name: "volume-fig5",
+    about: "Volume rendering Figure 5: fps at 512^2 per dataset, sse and bvh, on one X5550 core and the 8-core workstation",
+    machine: MACHINE,
+    options: OPTIONS,
+    run: reports::volume_fig5,
+}];

@@ -1,0 +1,343 @@
+//! What the volume reports measure: a dataset at 512^2 seen from its view,
+//! its 8x8-pixel packets as units (the "sse" caster on the packet's rays, or
+//! the "bvh" caster on the packet), a stratified sample of packets timed on
+//! one core in full detail after functional warming (the packet before, then
+//! itself), every timed pixel checked against the f64 reference.
+
+use isa::{Detail, Machine, Placed, UnitProgram};
+use rayon::prelude::*;
+use repro::progress::Progress;
+use repro::sampling::{mix, systematic_ratio_ci};
+use repro::{AppError, AppResult};
+use scene::transfer::Transfer;
+use scene::volume::Volume;
+use scene::volume_bvh::MinMaxBvh;
+use scene::volume_ref::{cast, Lighting, Sampling};
+use std::sync::Arc;
+use volume_kernels::bvh::Heuristics;
+use volume_kernels::layout::VolBufs;
+use volume_kernels::{BvhRun, Prepared, Rays, Run};
+
+/// Image side (the paper's 512^2).
+pub(crate) const RES: u32 = 512;
+
+/// A pixel counts as differing from the reference above this difference in
+/// a channel (one sample's contribution moved across a voxel boundary by f32
+/// rounding stays below it; see the paper's README).
+pub(crate) const PIXEL_TOL: f64 = 0.3;
+
+/// The paper's heuristics' defaults: delta_c < 1e-3, delta_p = 1.5.
+pub(crate) const HEURISTICS: Heuristics = Heuristics {
+    delta_c: 1e-3,
+    delta_p: 1.5,
+};
+
+/// A dataset made ready: its volume, transfer function, tree, view and
+/// lighting.
+pub(crate) struct Dataset {
+    pub(crate) prepared: Arc<Prepared>,
+    pub(crate) tree: Arc<MinMaxBvh>,
+    pub(crate) eye: [f64; 3],
+    /// Vertical field of view (degrees) that frames the volume.
+    pub(crate) fov: f64,
+    pub(crate) sampling: Sampling,
+    /// Host seconds the tree took to build (varies run to run).
+    pub(crate) build_seconds: f64,
+}
+
+fn lighting(c: char) -> Lighting {
+    match c {
+        'd' => Lighting::Diffuse,
+        'p' => Lighting::Phong,
+        _ => Lighting::Unlit,
+    }
+}
+
+impl Dataset {
+    /// Load dataset `name` (lighting `lit`, leaves of `leaf`^3); `quick`
+    /// makes the generated field 64^3 instead of 128^3.
+    pub(crate) fn load(
+        name: &'static str,
+        (lit, leaf): (char, u32),
+        quick: bool,
+    ) -> AppResult<Dataset> {
+        let data = scene::scene::data_root().join("volumes");
+        let (vol, tf) = match name {
+            "engine" => (
+                Volume::load(&data.join("engine_256x256x128_uint8.raw.gz")),
+                include_str!("../../../../configs/transfer/engine.ron"),
+            ),
+            "neghip" => (
+                Volume::load(&data.join("neghip_66x66x66_uint8.raw.gz")),
+                include_str!("../../../../configs/transfer/neghip.ron"),
+            ),
+            "skull" => (
+                Volume::load(&data.join("skull_64x64x64_float32le.raw.gz")),
+                include_str!("../../../../configs/transfer/skull.ron"),
+            ),
+            _ => (
+                Ok(Volume::noisy(if quick { 64 } else { 128 }, 5)),
+                include_str!("../../../../configs/transfer/dense.ron"),
+            ),
+        };
+        let vol = vol.map_err(|e| AppError(e.to_string()))?;
+        let tf =
+            Transfer::parse(tf).map_err(|e| AppError(format!("{name} transfer function: {e}")))?;
+        let t0 = std::time::Instant::now();
+        let tree = MinMaxBvh::build(&vol, leaf);
+        let build_seconds = t0.elapsed().as_secs_f64();
+        let c = vol.dims.map(f64::from);
+        let eye = [c[0] * 1.6, -c[1] * 0.9, c[2] * 1.8];
+        // Frame the volume: its bounding sphere just inside the view, as
+        // the paper's images fill theirs.
+        let centre = c.map(|x| (x - 1.0) / 2.0);
+        let dist = (0..3)
+            .map(|a| (eye[a] - centre[a]).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let radius = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt() / 2.0;
+        let fov = 2.0 * (radius / dist).asin().to_degrees();
+        let light = [c[0] * 2.0, -c[1], c[2] * 3.0];
+        let sampling = Sampling {
+            dt: 0.5,
+            rda: 0.0,
+            lighting: lighting(lit),
+            light,
+            light_threshold: 0.01,
+        };
+        Ok(Dataset {
+            fov,
+            prepared: Arc::new(Prepared::new(vol, tf)),
+            tree: Arc::new(tree),
+            eye,
+            sampling,
+            build_seconds,
+        })
+    }
+}
+
+/// Which caster.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Method {
+    /// Listing 2 per pixel, no acceleration structure.
+    Sse,
+    /// Coherent BVH traversal.
+    Bvh,
+}
+
+impl Method {
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Method::Sse => "sse",
+            Method::Bvh => "bvh",
+        }
+    }
+}
+
+/// A packet's rays as a unit.
+struct Units {
+    method: Method,
+    ds: Arc<Dataset>,
+}
+
+impl UnitProgram for Units {
+    type Laid = (VolBufs, isa::Buf);
+    type Unit = Arc<Rays>;
+    type Out = Vec<[f32; 4]>;
+
+    fn lay_out<M: Machine>(&self, m: &mut M) -> Self::Laid {
+        let pr = &self.ds.prepared;
+        let v = volume_kernels::layout::lay_out(m, &pr.bricked, pr.volume.dims, &pr.tf);
+        let nodes = volume_kernels::bvh::lay_out_nodes(m, &self.ds.tree);
+        (v, nodes)
+    }
+
+    fn unit<M: Machine>(&self, m: &mut M, laid: &Self::Laid, rays: &Arc<Rays>) -> Self::Out {
+        let (pr, s) = (self.ds.prepared.clone(), self.ds.sampling);
+        match self.method {
+            Method::Sse => Run {
+                prepared: pr,
+                rays: rays.clone(),
+                sampling: s,
+            }
+            .trace_on(m, &laid.0),
+            Method::Bvh => BvhRun {
+                prepared: pr,
+                tree: self.ds.tree.clone(),
+                rays: rays.clone(),
+                sampling: s,
+                heuristics: HEURISTICS,
+            }
+            .trace_on(m, &laid.0, &laid.1),
+        }
+    }
+}
+
+/// The sampled packets: one at a seeded place in each of `groups` equal
+/// strata of the frame's packets in raster order, with the packet before.
+pub(crate) fn plan(groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
+    let n = ((RES / 8) * (RES / 8)) as usize;
+    let stride = (n / groups.max(1)).max(1);
+    (0..groups.min(n))
+        .map(|g| {
+            let k = g * stride + (mix(seed ^ mix(g as u64 + 1)) % stride as u64) as usize;
+            (k.checked_sub(1), k.min(n - 1))
+        })
+        .collect()
+}
+
+/// One method on one dataset.
+pub(crate) struct Cell {
+    /// Frames per second on one core (the frame's cycles from the sample).
+    pub(crate) fps: f64,
+    /// 95% CI half-width of `fps`.
+    pub(crate) ci: Option<f64>,
+    /// Each timed packet's cycles, in sample order.
+    pub(crate) run_cycles: Vec<f64>,
+    /// Instructions per ray and CPI of the timed packets.
+    pub(crate) instr_per_ray: f64,
+    pub(crate) cpi: f64,
+    /// Share of the cycles in traversal (`Region::Traversal`).
+    pub(crate) traversal_share: f64,
+    /// PSNR of the timed pixels against the reference.
+    pub(crate) psnr: f64,
+    /// Ops simulated.
+    pub(crate) ops: u64,
+    /// Pixels differing from the reference by more than [`PIXEL_TOL`].
+    pub(crate) bad: usize,
+}
+
+/// The reference's colour for every ray of `rays`.
+fn reference(ds: &Dataset, rays: &Rays) -> Vec<[f64; 4]> {
+    (0..rays.len())
+        .into_par_iter()
+        .map(|i| {
+            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+            cast(&ds.prepared.volume, &ds.prepared.tf, o, d, &ds.sampling)
+        })
+        .collect()
+}
+
+/// The sampled packets' rays and (timed packets) the reference's colours.
+pub(crate) type Sample = Vec<(Option<Arc<Rays>>, Arc<Rays>, Vec<[f64; 4]>)>;
+
+/// Rays and reference answers of the plan's packets.
+pub(crate) fn sample(ds: &Dataset, groups: usize, seed: u64) -> Sample {
+    let dims = ds.prepared.volume.dims;
+    let per_row = RES / 8;
+    let packet = |k: usize| {
+        let (px, py) = (k as u32 % per_row, k as u32 / per_row);
+        Arc::new(Rays::packet(dims, ds.eye, ds.fov, (RES, RES), (px, py)))
+    };
+    plan(groups, seed)
+        .into_iter()
+        .map(|(before, k)| {
+            let timed = packet(k);
+            let want = reference(ds, &timed);
+            (before.map(packet), timed, want)
+        })
+        .collect()
+}
+
+/// Time `method` over the sample on one core of `m`.
+pub(crate) fn measure(
+    m: &sim::MachineConfig,
+    ds: &Arc<Dataset>,
+    smp: &Sample,
+    method: Method,
+    progress: &Progress,
+) -> AppResult<Cell> {
+    let prog = Units {
+        method,
+        ds: ds.clone(),
+    };
+    let mut units = Vec::new();
+    for (g, (before, timed, _)) in smp.iter().enumerate() {
+        if let Some(b) = before {
+            units.push((b.clone(), Detail::Warmed, None));
+        }
+        units.push((timed.clone(), Detail::Warmed, None));
+        units.push((timed.clone(), Detail::Timed, Some(g)));
+    }
+    progress.add_units(units.len() as u64);
+    let placed: Vec<_> = units
+        .iter()
+        .map(|(r, d, _)| {
+            (
+                Placed {
+                    thread: 0,
+                    unit: r.clone(),
+                },
+                *d,
+            )
+        })
+        .collect();
+    let mut session = sim::Session::new(m);
+    let (mut ops, mut bad, mut next) = (0u64, 0usize, 0usize);
+    let (mut cycles, mut instr, mut trav) = (Vec::new(), 0f64, 0f64);
+    let (mut se, mut n_px) = (0f64, 0usize);
+    isa::run_units(&prog, m.flavour(), "volume", placed, |_, _, t, img| {
+        let g = units[next].2;
+        next += 1;
+        progress.done(1);
+        ops += t.ops.len() as u64;
+        let Some(g) = g else {
+            session.warm(&[(0, &t)]).map_err(AppError)?;
+            isa::trace::recycle(t);
+            return Ok(());
+        };
+        for (px, want) in img.iter().zip(&smp[g].2) {
+            let d = (0..4)
+                .map(|c| (f64::from(px[c]) - want[c]).abs())
+                .fold(0.0, f64::max);
+            bad += usize::from(d > PIXEL_TOL);
+            se += (0..4)
+                .map(|c| (f64::from(px[c]) - want[c]).powi(2))
+                .sum::<f64>();
+            n_px += 4;
+        }
+        let st = session.timed_queue(&[&t]).map_err(AppError)?;
+        isa::trace::recycle(t);
+        cycles.push(st.cycles as f64);
+        instr += st.ops as f64;
+        trav += st.region_cycles[isa::Region::Traversal as usize] as f64;
+        Ok::<(), AppError>(())
+    })?;
+    let hz = m.clock_ghz * 1e9;
+    let packets = ((RES / 8) * (RES / 8)) as f64;
+    let total: f64 = cycles.iter().sum();
+    let frame_cycles = total / cycles.len() as f64 * packets;
+    // Frames per cycle per packet as a ratio of sums: (1 / packets, cycles).
+    let pairs: Vec<(f64, f64)> = cycles.iter().map(|&c| (1.0 / packets, c)).collect();
+    let rays = 64.0 * cycles.len() as f64;
+    Ok(Cell {
+        fps: hz / frame_cycles,
+        ci: systematic_ratio_ci(&pairs).map(|h| h * hz),
+        run_cycles: cycles,
+        instr_per_ray: instr / rays,
+        cpi: total / instr.max(1.0),
+        traversal_share: trav / total.max(1.0),
+        psnr: 10.0 * (1.0 / (se / n_px.max(1) as f64).max(1e-30)).log10(),
+        ops,
+        bad,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn packets_fall_in_their_strata_with_the_one_before() {
+        let n = ((RES / 8) * (RES / 8)) as usize;
+        for g in [1, 8, 64] {
+            let p = plan(g, 7);
+            assert_eq!(p.len(), g);
+            for (i, &(before, k)) in p.iter().enumerate() {
+                let stride = n / g;
+                assert!(k >= i * stride && k < (i + 1) * stride);
+                assert_eq!(before, k.checked_sub(1));
+            }
+        }
+    }
+}

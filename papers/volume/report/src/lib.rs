@@ -7,6 +7,7 @@
 
 #![warn(missing_docs)]
 
+mod images;
 mod measure;
 pub mod paper;
 mod reports;
@@ -28,7 +29,7 @@ const OPTIONS: &[Opt] = &[
 /// The volume paper's reports.
 pub const REPORTS: [ReportDef; 1] = [ReportDef {
     name: "volume-fig5",
-    about: "Volume rendering Figure 5: fps at 512^2 per dataset, sse and bvh, on one X5550 core and the 8-core workstation",
+    about: "Volume rendering Figure 5: fps at 512^2 per dataset, sse and bvh, on one X5550 core and the 8-core workstation (PNG per dataset in --out DIR)",
     machine: MACHINE,
     options: OPTIONS,
     run: reports::volume_fig5,

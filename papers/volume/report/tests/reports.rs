@@ -10,13 +10,18 @@ fn figure_5_checks_every_timed_pixel_and_reports_both_casters() {
         .iter()
         .find(|d| d.name == "volume-fig5")
         .unwrap();
+    let dir = std::env::temp_dir().join(format!("volume-fig5-test-{}", std::process::id()));
     let g = Given {
         quick: true,
         tiles: Some(3),
+        out: Some(dir.clone()),
         ..Given::default()
     };
     let p = def.compute(g).expect("computed");
     assert_eq!(p.mismatches, 0.0, "pixels differ from the reference");
+    for ds in ["engine", "neghip", "skull", "dense"] {
+        assert!(dir.join(format!("volume-fig5-{ds}.png")).exists(), "{ds} image");
+    }
     let j = serde_json::to_value(&p.report).unwrap();
     let rows = j["rows"].as_array().unwrap();
     let get = |ds: &str, me: &str, cores: &str| {

@@ -1,0 +1,102 @@
+//! Each dataset as rendered: the "bvh" caster's whole frame (run natively:
+//! the same code, its ops not timed) beside the f64 reference's, their
+//! agreement over every pixel, and a PNG.
+
+use crate::measure::{Dataset, HEURISTICS};
+use rayon::prelude::*;
+use repro::{AppResult, ReproduceArgs};
+use scene::volume_ref::cast;
+use std::sync::Arc;
+use volume_kernels::{BvhRun, Rays};
+
+/// A frame's agreement with the reference: the largest difference in a
+/// channel, the PSNR, and the share of pixels off by more than 0.05.
+pub(crate) struct Agreement {
+    pub(crate) max: f64,
+    pub(crate) psnr: f64,
+    pub(crate) off: f64,
+    /// Pixels differing by more than `tol` in a channel.
+    pub(crate) bad: usize,
+}
+
+/// Render `ds` at `res` x `res` with the bvh caster (natively) and the
+/// reference; write the caster's frame to `<report>-<dataset>.png`.
+pub(crate) fn frame(
+    a: &ReproduceArgs,
+    (report, name): (&str, &str),
+    ds: &Dataset,
+    res: u32,
+    tol: f64,
+) -> AppResult<Agreement> {
+    let dims = ds.prepared.volume.dims;
+    let per = res / 8;
+    let packets: Vec<(u32, u32)> = (0..per)
+        .flat_map(|y| (0..per).map(move |x| (x, y)))
+        .collect();
+    let (mut org, mut dir, mut pixel) = (Vec::new(), Vec::new(), Vec::new());
+    for &(px, py) in &packets {
+        let r = Rays::packet(dims, ds.eye, ds.fov, (res, res), (px, py));
+        org.extend(r.org);
+        dir.extend(r.dir);
+        for k in 0..64u32 {
+            let (p, l) = (k / 4, k % 4);
+            let (x, y) = (px * 8 + (p % 4) * 2 + l % 2, py * 8 + (p / 4) * 2 + l / 2);
+            pixel.push((y * res + x) as usize);
+        }
+    }
+    let rays = Arc::new(Rays { org, dir });
+    // Packets in parallel chunks (each a run of its own), results in order.
+    let chunks: Vec<Vec<[f32; 4]>> = (0..packets.len())
+        .collect::<Vec<_>>()
+        .par_chunks(64)
+        .map(|c| {
+            let lo = 64 * c[0];
+            let hi = 64 * (c[c.len() - 1] + 1);
+            let part = Rays {
+                org: rays.org[lo..hi].to_vec(),
+                dir: rays.dir[lo..hi].to_vec(),
+            };
+            let run = BvhRun {
+                prepared: ds.prepared.clone(),
+                tree: ds.tree.clone(),
+                rays: Arc::new(part),
+                sampling: ds.sampling,
+                heuristics: HEURISTICS,
+            };
+            isa::run_native(&run, isa::FlavourId::Sse4)
+        })
+        .collect();
+    let got: Vec<[f32; 4]> = chunks.into_iter().flatten().collect();
+    let want: Vec<[f64; 4]> = (0..rays.len())
+        .into_par_iter()
+        .map(|i| {
+            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+            cast(&ds.prepared.volume, &ds.prepared.tf, o, d, &ds.sampling)
+        })
+        .collect();
+    let mut rgb = vec![0u8; (res * res * 3) as usize];
+    let (mut max, mut se, mut off, mut bad) = (0f64, 0f64, 0usize, 0usize);
+    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+        let mut px = 0f64;
+        for c in 0..4 {
+            let d = (f64::from(g[c]) - w[c]).abs();
+            px = px.max(d);
+            se += d * d;
+        }
+        max = max.max(px);
+        off += usize::from(px > 0.05);
+        bad += usize::from(px > tol);
+        for c in 0..3 {
+            rgb[3 * pixel[i] + c] = (g[c].clamp(0.0, 1.0) * 255.0).round() as u8;
+        }
+    }
+    let path = a.png_path(&format!("{report}-{name}"))?;
+    repro::io::write_atomic(&path, &repro::png::encode(res, res, &rgb))?;
+    let n = got.len().max(1) as f64;
+    Ok(Agreement {
+        max,
+        psnr: 10.0 * (1.0 / (se / (4.0 * n)).max(1e-30)).log10(),
+        off: off as f64 / n,
+        bad,
+    })
+}

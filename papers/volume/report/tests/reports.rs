@@ -20,7 +20,10 @@ fn figure_5_checks_every_timed_pixel_and_reports_both_casters() {
     let p = def.compute(g).expect("computed");
     assert_eq!(p.mismatches, 0.0, "pixels differ from the reference");
     for ds in ["engine", "neghip", "skull", "dense"] {
-        assert!(dir.join(format!("volume-fig5-{ds}.png")).exists(), "{ds} image");
+        assert!(
+            dir.join(format!("volume-fig5-{ds}.png")).exists(),
+            "{ds} image"
+        );
     }
     let j = serde_json::to_value(&p.report).unwrap();
     let rows = j["rows"].as_array().unwrap();

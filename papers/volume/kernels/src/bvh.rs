@@ -133,6 +133,7 @@ pub fn trace_packet<M: Machine>(
             break;
         }
         sp = m.s_addi(sp, -1);
+        c.bump(|k| k.nodes += 1);
         let node = m.s_load(stack, At::idx(sp, 8, 0), 4, false);
         let first = m.s_load(stack, At::idx(sp, 8, 4), 4, false);
         let nb = m.s_shift(Shift::Shl, node, VNODE_BYTES.trailing_zeros());
@@ -372,6 +373,7 @@ fn one_ray<M: Machine>(
         sdt: m.load(states, At::idx(sb, 1, 32)),
         flast: m.s_load(states, At::idx(sb, 1, 48), 4, true),
     };
+    c.bump(|k| k.leaf_rays += 1);
     skip_to(m, &mut st, (dir, tenter), c, s);
     integrate(m, (v, scratch), c, &mut st, (dir, texit), s);
     m.store(states, At::idx(sb, 1, 0), st.rgba);

@@ -36,8 +36,26 @@ pub struct Ray4<M: Machine> {
     pub texit: M::X,
 }
 
-/// The routine's constants (globals in Listing 2), made once per frame.
+/// What the casters count, host side (beside the code they count).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Counters {
+    /// Rays cast.
+    pub rays: u64,
+    /// Sample positions visited (Listing 2's loop iterations).
+    pub samples: u64,
+    /// Samples classified and blended (base voxel non-zero).
+    pub classified: u64,
+    /// BVH nodes popped.
+    pub nodes: u64,
+    /// Rays integrated through a leaf.
+    pub leaf_rays: u64,
+}
+
+/// The routine's constants (globals in Listing 2), made once per frame,
+/// and the run's counters.
 pub struct Consts<M: Machine> {
+    /// The run's counters.
+    pub count: std::cell::Cell<Counters>,
     one: M::F,
     zero: M::F,
     one_i: M::I,
@@ -52,6 +70,13 @@ pub struct Consts<M: Machine> {
 }
 
 impl<M: Machine> Consts<M> {
+    /// Add to the counters.
+    pub fn bump(&self, f: impl FnOnce(&mut Counters)) {
+        let mut c = self.count.get();
+        f(&mut c);
+        self.count.set(c);
+    }
+
     /// The step growth `rda` in every lane.
     pub fn rda_vec(&self) -> M::F {
         self.rda
@@ -63,6 +88,7 @@ impl<M: Machine> Consts<M> {
         let l = s.light.map(|c| c as f32);
         let thr = s.light_threshold as f32;
         Consts {
+            count: std::cell::Cell::new(Counters::default()),
             one: m.splat(1.0),
             zero: m.splat(0.0),
             one_i: m.splat_i(1),
@@ -149,9 +175,11 @@ pub fn integrate<M: Machine>(
         mut flast,
     } = *st;
     loop {
+        c.bump(|k| k.samples += 1);
         let (base, val) = base_voxel(m, v, scratch, pi);
         let zero = m.int(0);
         if m.branch_if(site::VAL, Cmp::Ne, val, zero) {
+            c.bump(|k| k.classified += 1);
             let stn = Stencil::new(m, v, scratch, (p, pi), (base, val), c);
             let fval = stn.value(m, scratch);
             let from_first = m.s_cmp(Cmp::Lt, flast, zero);

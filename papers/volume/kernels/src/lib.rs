@@ -200,7 +200,7 @@ pub struct Run {
 }
 
 impl Program for Run {
-    type Out = Vec<[f32; 4]>;
+    type Out = (Vec<[f32; 4]>, dvr::Counters);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let pr = &self.prepared;
         let v = layout::lay_out(m, &pr.bricked, pr.volume.dims, &pr.tf);
@@ -209,8 +209,8 @@ impl Program for Run {
 }
 
 impl Run {
-    /// Cast every ray over a laid-out volume: RGBA per ray.
-    pub fn trace_on<M: Machine>(&self, m: &mut M, v: &VolBufs) -> Vec<[f32; 4]> {
+    /// Cast every ray over a laid-out volume: RGBA per ray, and the counts.
+    pub fn trace_on<M: Machine>(&self, m: &mut M, v: &VolBufs) -> (Vec<[f32; 4]>, dvr::Counters) {
         let n = self.rays.len();
         let sp = m.space();
         let rays = sp.alloc_f32(MemKind::Rays, "volume-rays", &self.rays.records(), 64);
@@ -237,9 +237,11 @@ impl Run {
                 }
             }
         }
-        (0..n)
-            .map(|k| std::array::from_fn(|c| image.f32_at(16 * k + 4 * c)))
-            .collect()
+        c.bump(|k| k.rays += n as u64);
+        let img = (0..n)
+            .map(|k| std::array::from_fn(|ch| image.f32_at(16 * k + 4 * ch)))
+            .collect();
+        (img, c.count.get())
     }
 }
 
@@ -302,7 +304,7 @@ pub struct BvhRun {
 }
 
 impl Program for BvhRun {
-    type Out = Vec<[f32; 4]>;
+    type Out = (Vec<[f32; 4]>, dvr::Counters);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let pr = &self.prepared;
         let v = layout::lay_out(m, &pr.bricked, pr.volume.dims, &pr.tf);
@@ -312,11 +314,17 @@ impl Program for BvhRun {
 }
 
 impl BvhRun {
-    /// Trace every packet over a laid-out volume and BVH: RGBA per ray.
+    /// Trace every packet over a laid-out volume and BVH: RGBA per ray, and
+    /// the counts.
     ///
     /// # Panics
     /// If the rays are not whole packets.
-    pub fn trace_on<M: Machine>(&self, m: &mut M, v: &VolBufs, nodes: &Buf) -> Vec<[f32; 4]> {
+    pub fn trace_on<M: Machine>(
+        &self,
+        m: &mut M,
+        v: &VolBufs,
+        nodes: &Buf,
+    ) -> (Vec<[f32; 4]>, dvr::Counters) {
         let n = self.rays.len();
         assert!(n.is_multiple_of(64), "whole packets of 64 rays");
         let sp = m.space();
@@ -359,9 +367,11 @@ impl BvhRun {
                 m.branch_if(site::PACKETS, Cmp::Lt, p, end);
             }
         }
-        (0..n)
-            .map(|k| std::array::from_fn(|c| image.f32_at(16 * k + 4 * c)))
-            .collect()
+        c.bump(|k| k.rays += n as u64);
+        let img = (0..n)
+            .map(|k| std::array::from_fn(|ch| image.f32_at(16 * k + 4 * ch)))
+            .collect();
+        (img, c.count.get())
     }
 }
 

@@ -51,12 +51,14 @@ fn check(vol: Volume, lighting: Lighting, rda: f64) -> (f64, f64, f64) {
         rays: rays.clone(),
         sampling: s,
     };
-    let traced = isa::record(&run, FlavourId::Sse4, "volume").1;
+    let (traced, counts) = isa::record(&run, FlavourId::Sse4, "volume").1;
     assert_eq!(
-        traced,
+        (traced.clone(), counts),
         isa::run_native(&run, FlavourId::Sse4),
         "traced = native"
     );
+    assert_eq!(counts.rays, rays.len() as u64);
+    assert!(counts.classified > 0 && counts.classified <= counts.samples);
     let want: Vec<[f64; 4]> = (0..rays.len())
         .map(|i| {
             let o = rays.org[i].map(f64::from);
@@ -130,9 +132,9 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
         rays: rays.clone(),
         sampling: s,
     };
-    let (sse_img, sse_trace) = {
-        let (t, img) = isa::record(&sse, FlavourId::Sse4, "sse");
-        (img, t.ops.len())
+    let (sse_img, sse_trace, sse_counts) = {
+        let (t, (img, c)) = isa::record(&sse, FlavourId::Sse4, "sse");
+        (img, t.ops.len(), c)
     };
     // The same pixels in packet order, and back.
     let packets: Vec<(u32, u32)> = (0..3).flat_map(|y| (0..3).map(move |x| (x, y))).collect();
@@ -163,9 +165,15 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
                 delta_p: dp,
             },
         };
-        let (t, packed_img) = isa::record(&run, FlavourId::Sse4, "bvh");
+        let (t, (packed_img, counts)) = isa::record(&run, FlavourId::Sse4, "bvh");
         let native = isa::run_native(&run, FlavourId::Sse4);
-        assert_eq!(packed_img, native, "traced = native");
+        assert_eq!((packed_img.clone(), counts), native, "traced = native");
+        // The BVH only removes samples: never more than the brute-force caster.
+        assert!(
+            counts.samples <= sse_counts.samples,
+            "{counts:?} {sse_counts:?}"
+        );
+        assert!(counts.nodes > 0 && counts.leaf_rays > 0);
         let mut img = vec![[0f32; 4]; rays.len()];
         for (i, &j) in order.iter().enumerate() {
             img[j] = packed_img[i];

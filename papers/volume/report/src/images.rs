@@ -63,7 +63,7 @@ pub(crate) fn frame(
                 sampling: ds.sampling,
                 heuristics: HEURISTICS,
             };
-            isa::run_native(&run, isa::FlavourId::Sse4)
+            isa::run_native(&run, isa::FlavourId::Sse4).0
         })
         .collect();
     let got: Vec<[f32; 4]> = chunks.into_iter().flatten().collect();

@@ -143,7 +143,7 @@ struct Units {
 impl UnitProgram for Units {
     type Laid = (VolBufs, isa::Buf);
     type Unit = Arc<Rays>;
-    type Out = Vec<[f32; 4]>;
+    type Out = (Vec<[f32; 4]>, volume_kernels::dvr::Counters);
 
     fn lay_out<M: Machine>(&self, m: &mut M) -> Self::Laid {
         let pr = &self.ds.prepared;
@@ -194,6 +194,10 @@ pub(crate) struct Cell {
     pub(crate) ci: Option<f64>,
     /// Each timed packet's cycles, in sample order.
     pub(crate) run_cycles: Vec<f64>,
+    /// Sample positions visited and samples classified per ray (timed
+    /// packets).
+    pub(crate) samples_per_ray: f64,
+    pub(crate) classified_per_ray: f64,
     /// Instructions per ray and CPI of the timed packets.
     pub(crate) instr_per_ray: f64,
     pub(crate) cpi: f64,
@@ -276,33 +280,42 @@ pub(crate) fn measure(
     let (mut ops, mut bad, mut next) = (0u64, 0usize, 0usize);
     let (mut cycles, mut instr, mut trav) = (Vec::new(), 0f64, 0f64);
     let (mut se, mut n_px) = (0f64, 0usize);
-    isa::run_units(&prog, m.flavour(), "volume", placed, |_, _, t, img| {
-        let g = units[next].2;
-        next += 1;
-        progress.done(1);
-        ops += t.ops.len() as u64;
-        let Some(g) = g else {
-            session.warm(&[(0, &t)]).map_err(AppError)?;
+    let (mut samples, mut classified) = (0u64, 0u64);
+    isa::run_units(
+        &prog,
+        m.flavour(),
+        "volume",
+        placed,
+        |_, _, t, (img, cn)| {
+            let g = units[next].2;
+            next += 1;
+            progress.done(1);
+            ops += t.ops.len() as u64;
+            let Some(g) = g else {
+                session.warm(&[(0, &t)]).map_err(AppError)?;
+                isa::trace::recycle(t);
+                return Ok(());
+            };
+            for (px, want) in img.iter().zip(&smp[g].2) {
+                let d = (0..4)
+                    .map(|c| (f64::from(px[c]) - want[c]).abs())
+                    .fold(0.0, f64::max);
+                bad += usize::from(d > PIXEL_TOL);
+                se += (0..4)
+                    .map(|c| (f64::from(px[c]) - want[c]).powi(2))
+                    .sum::<f64>();
+                n_px += 4;
+            }
+            samples += cn.samples;
+            classified += cn.classified;
+            let st = session.timed_queue(&[&t]).map_err(AppError)?;
             isa::trace::recycle(t);
-            return Ok(());
-        };
-        for (px, want) in img.iter().zip(&smp[g].2) {
-            let d = (0..4)
-                .map(|c| (f64::from(px[c]) - want[c]).abs())
-                .fold(0.0, f64::max);
-            bad += usize::from(d > PIXEL_TOL);
-            se += (0..4)
-                .map(|c| (f64::from(px[c]) - want[c]).powi(2))
-                .sum::<f64>();
-            n_px += 4;
-        }
-        let st = session.timed_queue(&[&t]).map_err(AppError)?;
-        isa::trace::recycle(t);
-        cycles.push(st.cycles as f64);
-        instr += st.ops as f64;
-        trav += st.region_cycles[isa::Region::Traversal as usize] as f64;
-        Ok::<(), AppError>(())
-    })?;
+            cycles.push(st.cycles as f64);
+            instr += st.ops as f64;
+            trav += st.region_cycles[isa::Region::Traversal as usize] as f64;
+            Ok::<(), AppError>(())
+        },
+    )?;
     let hz = m.clock_ghz * 1e9;
     let packets = ((RES / 8) * (RES / 8)) as f64;
     let total: f64 = cycles.iter().sum();
@@ -314,6 +327,8 @@ pub(crate) fn measure(
         fps: hz / frame_cycles,
         ci: systematic_ratio_ci(&pairs).map(|h| h * hz),
         run_cycles: cycles,
+        samples_per_ray: samples as f64 / rays,
+        classified_per_ray: classified as f64 / rays,
         instr_per_ray: instr / rays,
         cpi: total / instr.max(1.0),
         traversal_share: trav / total.max(1.0),

@@ -60,6 +60,11 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                 .unit("frame/s");
             r.paper = Some(paper);
             rows.push(r);
+            rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
+            rows.push(k(Row::new(
+                "classified_samples_per_ray",
+                c.classified_per_ray,
+            )));
             rows.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
             rows.push(k(Row::new("cpi", c.cpi)));
             rows.push(k(Row::new("psnr_vs_reference", c.psnr).unit("dB")));

@@ -61,3 +61,10 @@ pub const SCALING_AT_8: f64 = 0.97;
 
 /// "BVH traversal occupies 10%-35% of CPU time" (section 7.3).
 pub const TRAVERSAL_SHARE: (f64, f64) = (0.10, 0.35);
+
+/// Section 7.3: the BVH's footprint against the volume's by leaf size L:
+/// "48x and 4x for L = 1 and L = 2 on the neghip and bonsai, respectively",
+/// "L = 4 creates a BVH with roughly equal footprint as the original
+/// volume, and L = 8 is one eighth that size". (dataset, L, ratio)
+pub const BVH_FOOTPRINT: [(&str, u32, f64); 3] =
+    [("neghip", 1, 48.0), ("any", 4, 1.0), ("any", 8, 0.125)];

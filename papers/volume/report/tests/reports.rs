@@ -53,3 +53,37 @@ fn figure_5_checks_every_timed_pixel_and_reports_both_casters() {
         .unwrap();
     assert!(s["value"].as_f64().unwrap() > 1.2, "{s}");
 }
+
+#[test]
+fn the_bvh_shrinks_by_leaf_size_as_the_paper_says() {
+    let def = volume_report::REPORTS
+        .iter()
+        .find(|d| d.name == "volume-bvh")
+        .unwrap();
+    let g = Given {
+        quick: true,
+        tiles: Some(2),
+        ..Given::default()
+    };
+    let p = def.compute(g).expect("computed");
+    assert_eq!(p.mismatches, 0.0);
+    let j = serde_json::to_value(&p.report).unwrap();
+    let ratio = |ds: &str, l: &str| {
+        j["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| {
+                r["metric"] == "bvh_bytes_over_volume_bytes" && r["dataset"] == ds && r["leaf"] == l
+            })
+            .map(|r| r["value"].as_f64().unwrap())
+            .unwrap()
+    };
+    // Each doubling of L shrinks the tree about 8-fold; L = 8 near an eighth
+    // of the volume, L = 1 many times it.
+    for ds in ["neghip", "engine"] {
+        assert!(ratio(ds, "2") > 4.0 * ratio(ds, "4") && ratio(ds, "4") > 4.0 * ratio(ds, "8"));
+        assert!((0.05..0.25).contains(&ratio(ds, "8")), "{ds}");
+    }
+    assert!(ratio("neghip", "1") > 10.0);
+}

@@ -168,6 +168,26 @@ pub struct ReproduceArgs {
 }
 
 impl ReproduceArgs {
+    /// One core of the report's machine (`--machine`, `--set` applied),
+    /// which must have `lanes` lanes (`why`: the kernels' width, for the
+    /// error).
+    ///
+    /// # Errors
+    /// The machine's own, or a machine of another width.
+    pub fn one_core(&self, lanes: usize, why: &str) -> AppResult<sim::MachineConfig> {
+        let mut m = self.machine.load()?;
+        if m.flavour().lanes() != lanes {
+            return Err(AppError(format!(
+                "--machine {}: {why}; {} has {} lanes",
+                m.name,
+                m.flavour(),
+                m.flavour().lanes()
+            )));
+        }
+        m.cores = 1;
+        Ok(m)
+    }
+
     /// Where a figure's PNG goes: `--out DIR`, else the current directory.
     pub fn png_path(&self, name: &str) -> AppResult<PathBuf> {
         let dir = self.out.clone().unwrap_or_else(|| PathBuf::from("."));

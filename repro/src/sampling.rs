@@ -35,6 +35,20 @@ fn residuals(v: &[(f64, f64)]) -> (Vec<f64>, f64) {
     )
 }
 
+/// One unit at a seeded place in each of `groups` equal strata of `n`
+/// units in render order, with the unit before it (warmed): `(before,
+/// unit)` per stratum.
+#[must_use]
+pub fn strata_with_previous(n: usize, groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
+    let stride = (n / groups.max(1)).max(1);
+    (0..groups.min(n))
+        .map(|g| {
+            let k = g * stride + (mix(seed ^ mix(g as u64 + 1)) % stride as u64) as usize;
+            (k.checked_sub(1), k.min(n - 1))
+        })
+        .collect()
+}
+
 /// [`ratio_ci`] for a systematic sample (observations at evenly spaced
 /// places in a fixed order, e.g. bands of an image top to bottom): the
 /// variance from successive differences of the residuals (Wolter's v2

@@ -111,8 +111,24 @@ pub fn trace_ray_bvh4<M: Machine>(
     tests: &mut Tests,
     policy: HitPolicy,
 ) {
+    let bufs = (trav, isect, hits, stack);
+    trace_ray_with(m, s, bufs, (ray, start), tests, policy, None);
+}
+
+/// [`trace_ray_bvh4`] with an optional intersection filter (which keeps its
+/// state by the ray's index).
+fn trace_ray_with<M: Machine>(
+    m: &mut M,
+    s: &Bvh4Bufs,
+    (trav, isect, hits, stack): (&mut Buf, &Buf, &mut Buf, &mut Buf),
+    (ray, start): (M::S, M::S),
+    tests: &mut Tests,
+    policy: HitPolicy,
+    filter: Option<&mut dyn Filter<M>>,
+) {
     let mut st = RayState::load(m, trav, isect, hits, ray);
-    walk4(m, s, &mut st, stack, start, tests, policy);
+    let filter = filter.map(|f| (f, ray));
+    walk4_with(m, s, &mut st, (stack, start), tests, policy, filter);
     // Write the hit record and the new t_far.
     m.region(Region::SingleRay);
     st.write(m, trav, hits);
@@ -150,19 +166,9 @@ pub fn trace_bvh4_filtered<M: Machine>(
 ) {
     let root = m.int(0);
     each_ray(m, nrays, |m, ray| {
-        let mut st = RayState::load(m, trav, isect, hits, ray);
-        let policy = HitPolicy::Closest;
-        walk4_with(
-            m,
-            s,
-            &mut st,
-            (stack, root),
-            tests,
-            policy,
-            Some((filter, ray)),
-        );
-        m.region(Region::SingleRay);
-        st.write(m, trav, hits);
+        let bufs = (&mut *trav, isect, &mut *hits, &mut *stack);
+        let f: &mut dyn Filter<M> = &mut *filter;
+        trace_ray_with(m, s, bufs, (ray, root), tests, HitPolicy::Closest, Some(f));
     });
 }
 

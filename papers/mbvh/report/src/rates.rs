@@ -16,17 +16,7 @@ use std::time::Instant;
 
 /// One core of the report's machine (`--machine`, `--set` applied).
 fn one_core(a: &ReproduceArgs) -> AppResult<sim::MachineConfig> {
-    let mut m = a.machine.load()?;
-    if m.flavour().lanes() != 4 {
-        return Err(AppError(format!(
-            "--machine {}: the paper's frame rates are 4-wide (SSE); {} has {} lanes",
-            m.name,
-            m.flavour(),
-            m.flavour().lanes()
-        )));
-    }
-    m.cores = 1;
-    Ok(m)
+    a.one_core(4, "the paper's frame rates are 4-wide (SSE)")
 }
 
 /// Runs timed per frame: (groups, tiles per run).

@@ -11,7 +11,7 @@ use isa::{Detail, Machine, Placed, UnitProgram};
 use multihit_kernels::{Counters, Kernel, Method, Run, Traversal, Tree, BVH, NAIVE_CAPACITY};
 use rayon::prelude::*;
 use repro::progress::Progress;
-use repro::sampling::{mix, systematic_ratio_ci};
+use repro::sampling::{strata_with_previous, systematic_ratio_ci};
 use repro::{AppError, AppResult};
 use scene::multi_agreement::list_mismatches;
 use scene::reference::{Ray, RefHit, Reference};
@@ -85,14 +85,7 @@ fn tile_rays(cam: &Camera, k: usize) -> RayStream {
 /// strata of the frame's tiles in raster order, with the tile before it.
 fn plan(groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
     let (tw, th) = tiles_wide();
-    let n = (tw * th) as usize;
-    let stride = (n / groups.max(1)).max(1);
-    (0..groups.min(n))
-        .map(|g| {
-            let k = g * stride + (mix(seed ^ mix(g as u64 + 1)) % stride as u64) as usize;
-            (k.checked_sub(1), k.min(n - 1))
-        })
-        .collect()
+    strata_with_previous((tw * th) as usize, groups, seed)
 }
 
 impl Prepared {
@@ -362,25 +355,4 @@ fn add(c: &mut Counters, d: &Counters) {
     c.hits += d.hits;
     c.candidates += d.candidates;
     c.tests.other += d.tests.other;
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn runs_fall_in_their_strata_with_the_tile_before() {
-        let (tw, th) = tiles_wide();
-        let n = (tw * th) as usize;
-        for g in [1, 4, 16] {
-            let p = plan(g, 7);
-            assert_eq!(p.len(), g);
-            for (i, &(before, k)) in p.iter().enumerate() {
-                let stride = n / g;
-                assert!(k >= i * stride && k < (i + 1) * stride, "{g} {i} {k}");
-                assert_eq!(before, k.checked_sub(1));
-            }
-        }
-        assert_ne!(plan(4, 7), plan(4, 8));
-    }
 }

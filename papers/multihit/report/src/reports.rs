@@ -8,7 +8,7 @@ use multihit_kernels::Method;
 use rayon::prelude::*;
 use repro::plot::{Panel, Series};
 use repro::sampling::paired_ratio_systematic;
-use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
+use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::time::Instant;
 
@@ -66,17 +66,7 @@ fn measure_all(a: &ReproduceArgs, m: &sim::MachineConfig) -> AppResult<Vec<Scene
 
 /// One core of the report's machine (`--machine`, `--set` applied), 8 lanes.
 fn one_core(a: &ReproduceArgs) -> AppResult<sim::MachineConfig> {
-    let mut m = a.machine.load()?;
-    if m.flavour().lanes() != 8 {
-        return Err(AppError(format!(
-            "--machine {}: the paper's kernels are 8-wide (AVX2); {} has {} lanes",
-            m.name,
-            m.flavour(),
-            m.flavour().lanes()
-        )));
-    }
-    m.cores = 1;
-    Ok(m)
+    a.one_core(8, "the paper's kernels are 8-wide (AVX2)")
 }
 
 /// Node culling over naive at one N_query: paired over the same tiles.

@@ -259,18 +259,7 @@ fn pixel<M: Machine>(
     let base = m.s_shift(isa::Shift::Shl, i, 5);
     let org = m.load(rays, At::idx(base, 1, 0));
     let dir = m.load(rays, At::idx(base, 1, 16));
-    let one = m.splat(1.0);
-    let idir = m.div(one, dir);
-    let zero = m.splat(0.0);
-    let lo = m.sub(zero, org);
-    let t0 = m.mul(lo, idir);
-    let hi = m.sub(box_hi, org);
-    let t1 = m.mul(hi, idir);
-    let near = m.min(t0, t1);
-    let far = m.max(t0, t1);
-    let tenter = m.reduce(isa::BinOp::Max, near);
-    let texit = m.reduce(isa::BinOp::Min, far);
-    let miss = m.x_cmp(Cmp::Gt, tenter, texit);
+    let (zero, tenter, texit, miss) = clip(m, org, dir, box_hi);
     let out = if m.branch(site::BOX, miss) {
         zero
     } else {
@@ -387,18 +376,7 @@ fn start_ray<M: Machine>(
     m.region(Region::Setup);
     let org = m.load(rays, At::off(32 * i));
     let dir = m.load(rays, At::off(32 * i + 16));
-    let one = m.splat(1.0);
-    let idir = m.div(one, dir);
-    let zero = m.splat(0.0);
-    let lo = m.sub(zero, org);
-    let t0 = m.mul(lo, idir);
-    let hi = m.sub(box_hi, org);
-    let t1 = m.mul(hi, idir);
-    let near = m.min(t0, t1);
-    let far = m.max(t0, t1);
-    let tenter = m.reduce(isa::BinOp::Max, near);
-    let texit = m.reduce(isa::BinOp::Min, far);
-    let miss = m.x_cmp(Cmp::Gt, tenter, texit);
+    let (zero, tenter, _, miss) = clip(m, org, dir, box_hi);
     let st = if m.branch(site::BOX, miss) {
         let inf = m.splat(f32::INFINITY);
         dvr::State {
@@ -414,4 +392,23 @@ fn start_ray<M: Machine>(
     m.store(states, At::off(64 * k + 16), st.p);
     m.store(states, At::off(64 * k + 32), st.sdt);
     m.s_store(states, At::off(64 * k + 48), 4, st.flast);
+}
+
+/// Clip a ray to the volume's box `[0, box_hi]` by slabs, 4-wide (the w
+/// lane keeps t >= 0): a zero vector, the entry and exit distances, and
+/// whether it misses.
+fn clip<M: Machine>(m: &mut M, org: M::F, dir: M::F, box_hi: M::F) -> (M::F, M::X, M::X, M::S) {
+    let one = m.splat(1.0);
+    let idir = m.div(one, dir);
+    let zero = m.splat(0.0);
+    let lo = m.sub(zero, org);
+    let t0 = m.mul(lo, idir);
+    let hi = m.sub(box_hi, org);
+    let t1 = m.mul(hi, idir);
+    let near = m.min(t0, t1);
+    let far = m.max(t0, t1);
+    let tenter = m.reduce(isa::BinOp::Max, near);
+    let texit = m.reduce(isa::BinOp::Min, far);
+    let miss = m.x_cmp(Cmp::Gt, tenter, texit);
+    (zero, tenter, texit, miss)
 }

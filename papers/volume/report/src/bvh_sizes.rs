@@ -4,7 +4,7 @@
 
 use crate::measure::{measure, sample, Dataset, Method};
 use crate::paper::BVH_FOOTPRINT;
-use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
+use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
@@ -17,14 +17,7 @@ const CASES: [(&str, char, &[u32]); 2] =
 /// `volume-bvh`.
 pub(crate) fn volume_bvh(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
-    let mut m = a.machine.load()?;
-    if m.flavour().lanes() != 4 {
-        return Err(AppError(format!(
-            "--machine {}: Listing 2 is 4-wide SSE",
-            m.name
-        )));
-    }
-    m.cores = 1;
+    let m = crate::reports::one_core(a)?;
     let g = a.tiles.map_or(if a.quick { 8 } else { 32 }, |t| t as usize);
     let (mut rows, mut ops, mut bad) = (Vec::new(), 0u64, 0usize);
     for (name, lit, leaves) in CASES {

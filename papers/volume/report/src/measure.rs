@@ -7,7 +7,7 @@
 use isa::{Detail, Machine, Placed, UnitProgram};
 use rayon::prelude::*;
 use repro::progress::Progress;
-use repro::sampling::{mix, systematic_ratio_ci};
+use repro::sampling::{strata_with_previous, systematic_ratio_ci};
 use repro::{AppError, AppResult};
 use scene::transfer::Transfer;
 use scene::volume::Volume;
@@ -176,14 +176,7 @@ impl UnitProgram for Units {
 /// The sampled packets: one at a seeded place in each of `groups` equal
 /// strata of the frame's packets in raster order, with the packet before.
 pub(crate) fn plan(groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
-    let n = ((RES / 8) * (RES / 8)) as usize;
-    let stride = (n / groups.max(1)).max(1);
-    (0..groups.min(n))
-        .map(|g| {
-            let k = g * stride + (mix(seed ^ mix(g as u64 + 1)) % stride as u64) as usize;
-            (k.checked_sub(1), k.min(n - 1))
-        })
-        .collect()
+    strata_with_previous(((RES / 8) * (RES / 8)) as usize, groups, seed)
 }
 
 /// One method on one dataset.
@@ -336,23 +329,4 @@ pub(crate) fn measure(
         ops,
         bad,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn packets_fall_in_their_strata_with_the_one_before() {
-        let n = ((RES / 8) * (RES / 8)) as usize;
-        for g in [1, 8, 64] {
-            let p = plan(g, 7);
-            assert_eq!(p.len(), g);
-            for (i, &(before, k)) in p.iter().enumerate() {
-                let stride = n / g;
-                assert!(k >= i * stride && k < (i + 1) * stride);
-                assert_eq!(before, k.checked_sub(1));
-            }
-        }
-    }
 }

@@ -4,7 +4,7 @@
 use crate::measure::{measure, sample, Cell, Dataset, Method, HEURISTICS, PIXEL_TOL, RES};
 use crate::paper::{FIG5, SCALING_AT_8, TRAVERSAL_SHARE};
 use repro::sampling::paired_ratio_systematic;
-use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
+use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
@@ -16,18 +16,8 @@ fn groups(a: &ReproduceArgs) -> usize {
 }
 
 /// One core of the report's machine, 4 lanes (Listing 2 is SSE).
-fn one_core(a: &ReproduceArgs) -> AppResult<sim::MachineConfig> {
-    let mut m = a.machine.load()?;
-    if m.flavour().lanes() != 4 {
-        return Err(AppError(format!(
-            "--machine {}: Listing 2 is 4-wide SSE; {} has {} lanes",
-            m.name,
-            m.flavour(),
-            m.flavour().lanes()
-        )));
-    }
-    m.cores = 1;
-    Ok(m)
+pub(crate) fn one_core(a: &ReproduceArgs) -> AppResult<sim::MachineConfig> {
+    a.one_core(4, "Listing 2 is 4-wide SSE")
 }
 
 /// `volume-fig5`.

@@ -125,7 +125,31 @@ pub fn t95(df: usize) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::{ratio_ci, systematic_ratio_ci, t95};
+    use super::{ratio_ci, strata_with_previous, systematic_ratio_ci, t95};
+
+    #[test]
+    fn strata_hold_one_unit_each_with_the_one_before() {
+        for (n, g) in [
+            (4096, 1),
+            (4096, 8),
+            (4096, 64),
+            (3072, 1),
+            (3072, 4),
+            (3072, 16),
+        ] {
+            let p = strata_with_previous(n, g, 7);
+            assert_eq!(p.len(), g);
+            for (i, &(before, k)) in p.iter().enumerate() {
+                let stride = n / g;
+                assert!(k >= i * stride && k < (i + 1) * stride, "{n} {g} {i} {k}");
+                assert_eq!(before, k.checked_sub(1));
+            }
+        }
+        assert_ne!(
+            strata_with_previous(3072, 4, 7),
+            strata_with_previous(3072, 4, 8)
+        );
+    }
 
     #[test]
     fn t_quantiles_shrink_towards_the_normal() {

@@ -56,7 +56,7 @@ pub struct TraceInfo {
 pub fn info(t: &Trace) -> TraceInfo {
     let lanes = t.flavour.lanes() as u64;
     let mut per_class = [0u64; 256];
-    let mut per_region = [0u64; 8];
+    let mut per_region = [0u64; Region::COUNT];
     let mut active = 0u64;
     let mut vector_ops = 0u64;
     let mut branches = 0u64;

@@ -332,6 +332,11 @@ pub trait Machine {
     fn x_load(&mut self, buf: &Buf, at: At<Self::S>) -> Self::X;
     /// Store an f32.
     fn x_store(&mut self, buf: &mut Buf, at: At<Self::S>, v: Self::X);
+    /// The integer as an f32 (cvtsi2ss).
+    fn x_from_int(&mut self, a: Self::S) -> Self::X;
+    /// The f32 truncated toward zero to an integer (cvttss2si; saturating
+    /// here, where the hardware returns the "integer indefinite").
+    fn x_to_int(&mut self, a: Self::X) -> Self::S;
 
     // ---- control ----
 

@@ -718,6 +718,14 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
         self.log_mem(OpClass::Store, buf, off, 4);
         buf.set_f32(off, v.0);
     }
+    #[inline(always)]
+    fn x_from_int(&mut self, a: NS) -> NX {
+        NX(a.0 as f32)
+    }
+    #[inline(always)]
+    fn x_to_int(&mut self, a: NX) -> NS {
+        NS(i64::from(a.0 as i32))
+    }
 
     #[inline(always)]
     fn branch(&mut self, site: Site, c: NS) -> bool {

@@ -1332,6 +1332,20 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
 
     #[inline]
+    fn x_from_int(&mut self, a: TS) -> TX {
+        let id = self.s(OpClass::VCvt, &[a.id]);
+        TX { v: a.v as f32, id }
+    }
+    #[inline]
+    fn x_to_int(&mut self, a: TX) -> TS {
+        let id = self.s(OpClass::VCvt, &[a.id]);
+        TS {
+            v: a.v as i32 as i64,
+            id,
+        }
+    }
+
+    #[inline]
     fn branch(&mut self, site: Site, c: TS) -> bool {
         let taken = c.v != 0;
         self.emit(OpClass::Branch, &[c.id], 1, false);

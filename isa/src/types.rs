@@ -99,13 +99,26 @@ pub enum Region {
     SingleRay = 5,
     /// Shading or other per-hit work.
     Shading = 6,
-    /// Volume sampling and compositing.
+    /// Volume sampling and compositing not in a finer stage (stepping,
+    /// termination tests).
     Volume = 7,
+    /// Volume: fetching voxels (address translation and loads).
+    VoxelFetch = 8,
+    /// Volume: interpolating the sample's value.
+    Interpolation = 9,
+    /// Volume: classification (transfer-function lookup).
+    Classification = 10,
+    /// Volume: front-to-back blending.
+    Blending = 11,
+    /// Volume: the gradient and diffuse lighting.
+    Diffuse = 12,
+    /// Volume: the Phong highlight.
+    Phong = 13,
 }
 
 impl Region {
     /// Every region, in id order.
-    pub const ALL: [Region; 8] = [
+    pub const ALL: [Region; Region::COUNT] = [
         Region::Other,
         Region::Setup,
         Region::CoreLoop,
@@ -114,7 +127,15 @@ impl Region {
         Region::SingleRay,
         Region::Shading,
         Region::Volume,
+        Region::VoxelFetch,
+        Region::Interpolation,
+        Region::Classification,
+        Region::Blending,
+        Region::Diffuse,
+        Region::Phong,
     ];
+    /// How many regions there are.
+    pub const COUNT: usize = 14;
     /// Stable lower-case name, used in trace text and reports.
     #[must_use]
     pub fn name(self) -> &'static str {
@@ -127,6 +148,12 @@ impl Region {
             Region::SingleRay => "single-ray",
             Region::Shading => "shading",
             Region::Volume => "volume",
+            Region::VoxelFetch => "voxel-fetch",
+            Region::Interpolation => "interpolation",
+            Region::Classification => "classification",
+            Region::Blending => "blending",
+            Region::Diffuse => "diffuse",
+            Region::Phong => "phong",
         }
     }
     /// The region with this name.

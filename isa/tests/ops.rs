@@ -342,6 +342,10 @@ fn check_float_ops<M: Machine>(m: &mut M, a: &[f32], b: &[f32], c: &[f32]) {
     }
     let xs = m.x_sqrt(x);
     assert!(same(xs.get(), a[n - 1].sqrt()));
+    let ti = m.x_to_int(x);
+    assert_eq!(ti.get(), i64::from(a[n - 1] as i32), "cvttss2si truncates");
+    let back = m.x_from_int(ti);
+    assert!(same(back.get(), ti.get() as f32));
     let xf = m.x_fma(Fma::MAdd, x, x, x);
     let want = if fused(fl) {
         a[n - 1].mul_add(a[n - 1], a[n - 1])

@@ -53,9 +53,9 @@ pub struct Stats {
     /// Unfused uops executed.
     pub uops: u64,
     /// Instructions per code region (as [`Stats::ops`]).
-    pub region_ops: [u64; 8],
+    pub region_ops: [u64; isa::Region::COUNT],
     /// Cycles charged to each code region (retire-time deltas).
-    pub region_cycles: [u64; 8],
+    pub region_cycles: [u64; isa::Region::COUNT],
     /// Ops per class.
     pub class_ops: Vec<u64>,
     /// Cycles charged to each stall reason.

@@ -66,7 +66,7 @@ pub(crate) struct Rate {
     pub(crate) cpi: f64,
     /// Per code region (`isa::Region` order): simulated instructions and
     /// cycles of the timed units.
-    pub(crate) regions: [(f64, f64); 8],
+    pub(crate) regions: [(f64, f64); isa::Region::COUNT],
     /// Each run's cycles, in sample order (runs pair across methods timed
     /// with the same seed: the same tiles and rays).
     pub(crate) run_cycles: Vec<f64>,
@@ -193,7 +193,7 @@ pub(crate) fn frame_rates(
     let mut pairs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); depths];
     // Per depth: simulated instructions of the timed units, and per region.
     let mut instr = vec![0f64; depths];
-    let mut regions = vec![[(0f64, 0f64); 8]; depths];
+    let mut regions = vec![[(0f64, 0f64); isa::Region::COUNT]; depths];
     // Per stream kind: (cycles, rays, misses) of the timed units.
     let mut by_kind: BTreeMap<(u32, bool), (f64, f64, f64)> = BTreeMap::new();
     // The group's timed traces and each one's (stream key, rays, misses).

@@ -29,9 +29,21 @@ pub enum Lighting {
     Phong,
 }
 
+/// How a sample's value is reconstructed (Table 1's "NN" and "tril").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Filter {
+    /// The base voxel's value (the position truncated); never lit (no
+    /// gradient without the stencil).
+    Nearest,
+    /// The trilinear interpolant, truncated to an integer.
+    Trilinear,
+}
+
 /// How a ray is sampled and shaded.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sampling {
+    /// Value reconstruction.
+    pub filter: Filter,
     /// First step, in voxels.
     pub dt: f64,
     /// Growth of each step (differential sampling), in voxels; 0: uniform.
@@ -154,8 +166,12 @@ pub fn cast(vol: &Volume, tf: &Transfer, org: [f64; 3], dir: [f64; 3], s: &Sampl
     while t <= t_exit {
         let p: [f64; 3] = std::array::from_fn(|a| org[a] + t * dir[a]);
         let st = Stencil::at(vol, p);
-        if vol.at(st.i[0], st.i[1], st.i[2]) != 0 {
-            let f = st.value().clamp(0.0, 255.0) as u8;
+        let base = vol.at(st.i[0], st.i[1], st.i[2]);
+        if base != 0 {
+            let f = match s.filter {
+                Filter::Nearest => base,
+                Filter::Trilinear => st.value().clamp(0.0, 255.0) as u8,
+            };
             let c = tf.pre(last.unwrap_or(f), f).map(f64::from);
             let c = shade(c, &st, p, dir, s);
             let keep = 1.0 - rgba[3];
@@ -175,7 +191,7 @@ pub fn cast(vol: &Volume, tf: &Transfer, org: [f64; 3], dir: [f64; 3], s: &Sampl
 
 /// Lighting of one classified sample (associated colour `c`).
 fn shade(c: [f64; 4], st: &Stencil, p: [f64; 3], dir: [f64; 3], s: &Sampling) -> [f64; 4] {
-    if s.lighting == Lighting::Unlit || c[3] <= s.light_threshold {
+    if s.lighting == Lighting::Unlit || s.filter == Filter::Nearest || c[3] <= s.light_threshold {
         return c;
     }
     let n = norm(st.gradient());
@@ -216,6 +232,7 @@ mod tests {
 
     fn unlit(dt: f64, rda: f64) -> Sampling {
         Sampling {
+            filter: Filter::Trilinear,
             dt,
             rda,
             lighting: Lighting::Unlit,

@@ -20,7 +20,7 @@
 use crate::layout::{VolBufs, PRE_BYTES};
 use crate::site;
 use isa::{At, BinOp, Buf, Cmp, IOp, Machine, Region};
-use scene::volume_ref::{Lighting, Sampling};
+use scene::volume_ref::{Filter, Lighting, Sampling};
 
 /// One ray as Listing 2 takes it: origin `{x, y, z, 0}`, direction
 /// `{x, y, z, 1}` (normalised in x, y, z), entry and exit distances.
@@ -178,21 +178,30 @@ pub fn integrate<M: Machine>(
         c.bump(|k| k.samples += 1);
         let (base, val) = base_voxel(m, v, scratch, pi);
         let zero = m.int(0);
+        m.region(Region::Volume);
         if m.branch_if(site::VAL, Cmp::Ne, val, zero) {
             c.bump(|k| k.classified += 1);
-            let stn = Stencil::new(m, v, scratch, (p, pi), (base, val), c);
-            let fval = stn.value(m, scratch);
+            let (fval, stn) = match s.filter {
+                Filter::Nearest => (val, None),
+                Filter::Trilinear => {
+                    let stn = Stencil::new(m, v, scratch, (p, pi), (base, val), c);
+                    (stn.value(m, scratch), Some(stn))
+                }
+            };
+            m.region(Region::Classification);
             let from_first = m.s_cmp(Cmp::Lt, flast, zero);
             let front = m.s_select(from_first, fval, flast);
             let mut sample = classify(m, v, front, fval);
-            if s.lighting != Lighting::Unlit {
+            if let Some(stn) = stn.filter(|_| s.lighting != Lighting::Unlit) {
                 sample = light(m, &stn, (sample, p, dir), c, s.lighting);
             }
+            m.region(Region::Blending);
             let a = m.permute(rgba, &[3, 3, 3, 3]);
             let keep = m.sub(c.one, a);
             rgba = m.fmadd(sample, keep, rgba);
             flast = fval;
         }
+        m.region(Region::Volume);
         p = m.add(p, sdt);
         pi = m.to_int(p);
         if let Some(r) = srda {
@@ -228,6 +237,7 @@ fn base_voxel<M: Machine>(
     scratch: &mut Buf,
     pi: M::I,
 ) -> ([M::S; 3], M::S) {
+    m.region(Region::VoxelFetch);
     let [ix, iy, iz] = lanes_xyz(m, scratch, 0, pi);
     let off = [ix, iy, iz]
         .iter()
@@ -261,6 +271,7 @@ impl<M: Machine> Stencil<M> {
         (base, val): ([M::S; 3], M::S),
         c: &Consts<M>,
     ) -> Self {
+        m.region(Region::Interpolation);
         let pi1 = m.iop(IOp::Add, pi, c.one_i);
         let fl = m.to_float(pi);
         let pc = m.sub(p, fl);
@@ -268,6 +279,7 @@ impl<M: Machine> Stencil<M> {
         let ztmp = m.shuffle2(one_m_pc, pc, &[2, 2, 6, 6]);
         let z0101 = m.shuffle2(ztmp, ztmp, &[0, 2, 4, 6]);
         let y0011 = m.shuffle2(one_m_pc, pc, &[1, 1, 5, 5]);
+        m.region(Region::VoxelFetch);
         let [ix1, iy1, iz1] = lanes_xyz(m, scratch, 0, pi1);
         let x1 = m.s_load(&v.off[0], At::idx(ix1, 4, 0), 4, false);
         let y1 = m.s_load(&v.off[1], At::idx(iy1, 4, 0), 4, false);
@@ -296,6 +308,7 @@ impl<M: Machine> Stencil<M> {
         };
         let cx0 = load(m, scratch, 16);
         let cx1 = load(m, scratch, 32);
+        m.region(Region::Interpolation);
         Stencil {
             pc,
             one_m_pc,
@@ -347,6 +360,7 @@ fn light<M: Machine>(
     c: &Consts<M>,
     mode: Lighting,
 ) -> M::F {
+    m.region(Region::Diffuse);
     let over = m.cmp(Cmp::Gt, sample, c.light_threshold);
     let any = m.any(over);
     if !m.branch(site::LIT, any) {
@@ -370,6 +384,7 @@ fn light<M: Machine>(
     let last = m.mask(0b1000);
     let mut out = m.select(last, sample, lit);
     if mode == Lighting::Phong {
+        m.region(Region::Phong);
         let h = m.sub(l, dir);
         let h = m.mul(h, c.m1110);
         let hh = hsum(m, h, h);

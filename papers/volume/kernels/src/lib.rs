@@ -4,7 +4,9 @@
 //! CPU Volume Rendering with Coherent BVH Traversal": DVR integration as
 //! Listing 2 ([`dvr`]) over the bricked volume and preintegrated table in
 //! simulated memory ([`layout`]), and the ray caster that runs it per pixel
-//! without an acceleration structure (the paper's "sse" method, [`Run`]).
+//! without an acceleration structure (the paper's "sse" method, [`Run`]);
+//! the naive scalar baseline ("gcc", [`naive`]) and the coherent BVH
+//! traversal ("bvh", [`bvh`]).
 //! Written against `isa::Machine` on 4 lanes (SSE), traced or native.
 
 #![warn(missing_docs)]
@@ -12,6 +14,7 @@
 pub mod bvh;
 pub mod dvr;
 pub mod layout;
+pub mod naive;
 
 use isa::{At, Buf, Cmp, Machine, MemKind, Program, Region};
 use layout::VolBufs;
@@ -58,9 +61,15 @@ pub mod site {
     pub const SKIP_STEP: Site = isa::sites::VOLUME.at(15);
     /// More packets?
     pub const PACKETS: Site = isa::sites::VOLUME.at(16);
+    /// Naive caster: base voxel non-zero?
+    pub const NAIVE_VAL: Site = isa::sites::VOLUME.at(17);
+    /// Naive caster: opaque or past the exit?
+    pub const NAIVE_TERM: Site = isa::sites::VOLUME.at(18);
+    /// Naive caster: opacity above the lighting threshold?
+    pub const NAIVE_LIT: Site = isa::sites::VOLUME.at(19);
 
     /// Every site of the crate (checked for duplicates by the layout test).
-    pub const ALL: [Site; 17] = [
+    pub const ALL: [Site; 20] = [
         VAL,
         TERM,
         LIT,
@@ -78,6 +87,9 @@ pub mod site {
         SKIP_AHEAD,
         SKIP_STEP,
         PACKETS,
+        NAIVE_VAL,
+        NAIVE_TERM,
+        NAIVE_LIT,
     ];
 }
 

@@ -12,7 +12,7 @@ use repro::{AppError, AppResult};
 use scene::transfer::Transfer;
 use scene::volume::Volume;
 use scene::volume_bvh::MinMaxBvh;
-use scene::volume_ref::{cast, Lighting, Sampling};
+use scene::volume_ref::{cast, Filter, Lighting, Sampling};
 use std::sync::Arc;
 use volume_kernels::bvh::Heuristics;
 use volume_kernels::layout::VolBufs;
@@ -99,6 +99,7 @@ impl Dataset {
         let fov = 2.0 * (radius / dist).asin().to_degrees();
         let light = [c[0] * 2.0, -c[1], c[2] * 3.0];
         let sampling = Sampling {
+            filter: Filter::Trilinear,
             dt: 0.5,
             rda: 0.0,
             lighting: lighting(lit),

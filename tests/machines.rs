@@ -6,11 +6,12 @@ use common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 8] = [
+const MACHINES: [&str; 9] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",
     "core2-q6600",
+    "core2-penryn-2ghz",
     "nehalem-x5550",
     "nehalem-w5580",
     "dunnington-x7460",

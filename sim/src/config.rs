@@ -230,6 +230,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../configs/machines/core2-q6600.ron"),
     ),
     (
+        "core2-penryn-2ghz",
+        include_str!("../../configs/machines/core2-penryn-2ghz.ron"),
+    ),
+    (
         "nehalem-x5550",
         include_str!("../../configs/machines/nehalem-x5550.ron"),
     ),

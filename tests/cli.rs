@@ -295,7 +295,7 @@ fn golden_op_streams() {
 }
 
 /// Every report of the papers' registries.
-const REPORTS: [&str; 18] = [
+const REPORTS: [&str; 19] = [
     "drs-table1",
     "drs-table2",
     "drs-fig5",
@@ -313,6 +313,7 @@ const REPORTS: [&str; 18] = [
     "multihit-fig2",
     "multihit-summary",
     "volume-fig5",
+    "volume-table1",
     "volume-bvh",
 ];
 

@@ -16,6 +16,7 @@ use scene::volume_ref::{cast, Filter, Lighting, Sampling};
 use std::sync::Arc;
 use volume_kernels::bvh::Heuristics;
 use volume_kernels::layout::VolBufs;
+use volume_kernels::naive::GccRun;
 use volume_kernels::{BvhRun, Prepared, Rays, Run};
 
 /// Image side (the paper's 512^2).
@@ -32,8 +33,17 @@ pub(crate) const HEURISTICS: Heuristics = Heuristics {
     delta_p: 1.5,
 };
 
+/// The paper's differential sampling step growth, 2^-7 ("All approaches
+/// ... use differential sampling with an initial differential step of
+/// 2^-7 (rda in line 31 of Listing 2)"), in voxels as Listing 2 takes it.
+pub(crate) const RDA: f64 = 1.0 / 128.0;
+
+/// The first step: 0.5 voxels (the paper's "~2 samples per voxel").
+pub(crate) const DT: f64 = 0.5;
+
 /// A dataset made ready: its volume, transfer function, tree, view and
 /// lighting.
+#[derive(Clone)]
 pub(crate) struct Dataset {
     pub(crate) prepared: Arc<Prepared>,
     pub(crate) tree: Arc<MinMaxBvh>,
@@ -100,8 +110,8 @@ impl Dataset {
         let light = [c[0] * 2.0, -c[1], c[2] * 3.0];
         let sampling = Sampling {
             filter: Filter::Trilinear,
-            dt: 0.5,
-            rda: 0.0,
+            dt: DT,
+            rda: RDA,
             lighting: lighting(lit),
             light,
             light_threshold: 0.01,
@@ -117,9 +127,21 @@ impl Dataset {
     }
 }
 
+impl Dataset {
+    /// The same dataset sampled and shaded by `s`.
+    pub(crate) fn with_sampling(&self, s: Sampling) -> Dataset {
+        Dataset {
+            sampling: s,
+            ..self.clone()
+        }
+    }
+}
+
 /// Which caster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Method {
+    /// The naive scalar baseline.
+    Gcc,
     /// Listing 2 per pixel, no acceleration structure.
     Sse,
     /// Coherent BVH traversal.
@@ -129,6 +151,7 @@ pub(crate) enum Method {
 impl Method {
     pub(crate) fn name(self) -> &'static str {
         match self {
+            Method::Gcc => "gcc",
             Method::Sse => "sse",
             Method::Bvh => "bvh",
         }
@@ -156,6 +179,12 @@ impl UnitProgram for Units {
     fn unit<M: Machine>(&self, m: &mut M, laid: &Self::Laid, rays: &Arc<Rays>) -> Self::Out {
         let (pr, s) = (self.ds.prepared.clone(), self.ds.sampling);
         match self.method {
+            Method::Gcc => GccRun {
+                prepared: pr,
+                rays: rays.clone(),
+                sampling: s,
+            }
+            .trace_on(m, &laid.0),
             Method::Sse => Run {
                 prepared: pr,
                 rays: rays.clone(),
@@ -197,6 +226,8 @@ pub(crate) struct Cell {
     pub(crate) cpi: f64,
     /// Share of the cycles in traversal (`Region::Traversal`).
     pub(crate) traversal_share: f64,
+    /// Cycles per code region (timed packets), by region id.
+    pub(crate) region_cycles: [f64; isa::Region::COUNT],
     /// PSNR of the timed pixels against the reference.
     pub(crate) psnr: f64,
     /// Ops simulated.
@@ -272,7 +303,8 @@ pub(crate) fn measure(
         .collect();
     let mut session = sim::Session::new(m);
     let (mut ops, mut bad, mut next) = (0u64, 0usize, 0usize);
-    let (mut cycles, mut instr, mut trav) = (Vec::new(), 0f64, 0f64);
+    let (mut cycles, mut instr) = (Vec::new(), 0f64);
+    let mut regions = [0f64; isa::Region::COUNT];
     let (mut se, mut n_px) = (0f64, 0usize);
     let (mut samples, mut classified) = (0u64, 0u64);
     isa::run_units(
@@ -306,7 +338,9 @@ pub(crate) fn measure(
             isa::trace::recycle(t);
             cycles.push(st.cycles as f64);
             instr += st.ops as f64;
-            trav += st.region_cycles[isa::Region::Traversal as usize] as f64;
+            for (r, &c) in regions.iter_mut().zip(&st.region_cycles) {
+                *r += c as f64;
+            }
             Ok::<(), AppError>(())
         },
     )?;
@@ -325,7 +359,8 @@ pub(crate) fn measure(
         classified_per_ray: classified as f64 / rays,
         instr_per_ray: instr / rays,
         cpi: total / instr.max(1.0),
-        traversal_share: trav / total.max(1.0),
+        traversal_share: regions[isa::Region::Traversal as usize] / total.max(1.0),
+        region_cycles: regions,
         psnr: 10.0 * (1.0 / (se / n_px.max(1) as f64).max(1e-30)).log10(),
         ops,
         bad,

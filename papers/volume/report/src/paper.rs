@@ -68,3 +68,131 @@ pub const TRAVERSAL_SHARE: (f64, f64) = (0.10, 0.35);
 /// volume, and L = 8 is one eighth that size". (dataset, L, ratio)
 pub const BVH_FOOTPRINT: [(&str, u32, f64); 3] =
     [("neghip", 1, 48.0), ("any", 4, 1.0), ("any", 8, 0.125)];
+
+/// Table 1's stages, in its row order.
+pub const TABLE1_STAGES: [&str; 8] = [
+    "vox fetch",
+    "interp",
+    "classif",
+    "blend",
+    "BVH trav",
+    "diffuse",
+    "phong",
+    "other",
+];
+
+/// One column of Table 1: the method, its filter and lighting, the
+/// percentage of CPU time per stage (`None`: the paper leaves it blank) in
+/// [`TABLE1_STAGES`] order, and the frames per second on the 8-core i7
+/// (heptane, 512^2).
+pub struct Table1Col {
+    /// The paper's column label.
+    pub label: &'static str,
+    /// Percent of CPU time per stage.
+    pub percent: [Option<f64>; 8],
+    /// Frames per second.
+    pub fps: f64,
+}
+
+/// Table 1 (heptane): "CPU time profile for individual algorithmic stages
+/// of the naive (gcc) and hand-tuned (sse) methods".
+pub const TABLE1: [Table1Col; 7] = [
+    Table1Col {
+        label: "gcc NN",
+        percent: [
+            Some(51.7),
+            None,
+            Some(4.5),
+            Some(39.9),
+            None,
+            None,
+            None,
+            Some(3.9),
+        ],
+        fps: 1.4,
+    },
+    Table1Col {
+        label: "gcc tril",
+        percent: [
+            Some(24.8),
+            Some(61.2),
+            Some(4.0),
+            Some(8.2),
+            None,
+            None,
+            None,
+            Some(1.8),
+        ],
+        fps: 0.7,
+    },
+    Table1Col {
+        label: "sse NN",
+        percent: [
+            Some(39.6),
+            None,
+            Some(18.1),
+            Some(28.3),
+            None,
+            None,
+            None,
+            Some(14.0),
+        ],
+        fps: 3.9,
+    },
+    Table1Col {
+        label: "sse tril",
+        percent: [
+            Some(22.3),
+            Some(33.7),
+            Some(8.5),
+            Some(28.3),
+            None,
+            None,
+            None,
+            Some(7.2),
+        ],
+        fps: 3.0,
+    },
+    Table1Col {
+        label: "sse tril BVH",
+        percent: [
+            Some(10.7),
+            Some(36.6),
+            Some(10.2),
+            Some(21.0),
+            Some(18.0),
+            None,
+            None,
+            Some(3.5),
+        ],
+        fps: 5.5,
+    },
+    Table1Col {
+        label: "sse tril BVH diff.",
+        percent: [
+            Some(9.7),
+            Some(29.0),
+            Some(9.4),
+            Some(18.1),
+            Some(15.8),
+            Some(15.2),
+            None,
+            Some(2.7),
+        ],
+        fps: 4.4,
+    },
+    Table1Col {
+        label: "sse tril BVH diff. phong",
+        percent: [
+            Some(8.9),
+            Some(27.7),
+            Some(8.6),
+            Some(17.0),
+            Some(14.8),
+            Some(13.9),
+            Some(6.5),
+            Some(2.6),
+        ],
+        fps: 4.0,
+    },
+];

@@ -38,13 +38,16 @@ fn figure_5_checks_every_timed_pixel_and_reports_both_casters() {
             .unwrap_or_else(|| panic!("{ds} {me} {cores}"))
     };
     for ds in ["engine", "neghip", "skull", "dense"] {
-        for me in ["sse", "bvh"] {
+        for me in ["gcc", "sse", "bvh"] {
             assert!(get(ds, me, "1")["value"].as_f64().unwrap() > 0.0);
             assert!(
                 get(ds, me, "8")["paper"].as_f64().unwrap() > 0.0,
                 "the paper's row beside"
             );
         }
+        let mac = get(ds, "bvh", "2");
+        assert_eq!(mac["machine"], "core2-penryn-2ghz");
+        assert!(mac["paper"].as_f64().unwrap() > 0.0);
     }
     // The engine's air is transparent: the BVH skips it.
     let s = rows
@@ -86,4 +89,57 @@ fn the_bvh_shrinks_by_leaf_size_as_the_paper_says() {
         assert!((0.05..0.25).contains(&ratio(ds, "8")), "{ds}");
     }
     assert!(ratio("neghip", "1") > 10.0);
+}
+
+#[test]
+fn table_1_splits_each_column_into_the_papers_stages() {
+    let def = volume_report::REPORTS
+        .iter()
+        .find(|d| d.name == "volume-table1")
+        .unwrap();
+    let g = Given {
+        quick: true,
+        tiles: Some(6),
+        ..Given::default()
+    };
+    let p = def.compute(g).expect("computed");
+    assert_eq!(p.mismatches, 0.0);
+    let j = serde_json::to_value(&p.report).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    let pct = |col: &str, stage: &str| {
+        rows.iter()
+            .find(|r| {
+                r["metric"] == "percent_cpu_time" && r["column"] == col && r["stage"] == stage
+            })
+            .map(|r| r["value"].as_f64().unwrap())
+            .unwrap_or_else(|| panic!("{col} {stage}"))
+    };
+    let stages = [
+        "vox fetch",
+        "interp",
+        "classif",
+        "blend",
+        "BVH trav",
+        "diffuse",
+        "phong",
+        "other",
+    ];
+    for col in [
+        "gcc NN",
+        "gcc tril",
+        "sse NN",
+        "sse tril",
+        "sse tril BVH diff. phong",
+    ] {
+        let sum: f64 = stages.iter().map(|s| pct(col, s)).sum();
+        assert!((sum - 100.0).abs() < 1e-6, "{col}: {sum}");
+        assert!(pct(col, "vox fetch") > 0.0 && pct(col, "classif") > 0.0);
+    }
+    // Nearest sampling interpolates nothing; only BVH columns traverse; only
+    // the Phong column has a highlight.
+    assert_eq!(pct("gcc NN", "interp"), 0.0);
+    assert_eq!(pct("sse tril", "BVH trav"), 0.0);
+    assert!(pct("sse tril BVH", "BVH trav") > 0.0);
+    assert_eq!(pct("sse tril BVH diff.", "phong"), 0.0);
+    assert!(pct("sse tril BVH diff. phong", "phong") > 0.0);
 }

@@ -295,7 +295,7 @@ fn golden_op_streams() {
 }
 
 /// Every report of the papers' registries.
-const REPORTS: [&str; 19] = [
+const REPORTS: [&str; 21] = [
     "drs-table1",
     "drs-table2",
     "drs-fig5",
@@ -314,6 +314,8 @@ const REPORTS: [&str; 19] = [
     "multihit-summary",
     "volume-fig5",
     "volume-table1",
+    "volume-fig6",
+    "volume-fig7",
     "volume-bvh",
 ];
 

@@ -243,16 +243,21 @@ impl Volume {
     }
 
     /// `n`^3 voxels of `f` over the unit cube at voxel centres, rounded.
-    fn sample(n: u32, f: impl Fn(f64, f64, f64) -> f64) -> Volume {
+    /// Slices are filled in parallel (each voxel depends only on its
+    /// position: the same bytes for any number of threads).
+    fn sample(n: u32, f: impl Fn(f64, f64, f64) -> f64 + Sync) -> Volume {
+        use rayon::prelude::*;
         let c = |i: u32| (f64::from(i) + 0.5) / f64::from(n);
-        let mut data = Vec::with_capacity((n as usize).pow(3));
-        for z in 0..n {
-            for y in 0..n {
-                for x in 0..n {
-                    data.push(f(c(x), c(y), c(z)).round().clamp(0.0, 255.0) as u8);
+        let side = n as usize;
+        let mut data = vec![0u8; side.pow(3)];
+        data.par_chunks_mut(side * side)
+            .enumerate()
+            .for_each(|(z, slice)| {
+                for (k, v) in slice.iter_mut().enumerate() {
+                    let (x, y) = ((k % side) as u32, (k / side) as u32);
+                    *v = f(c(x), c(y), c(z as u32)).round().clamp(0.0, 255.0) as u8;
                 }
-            }
-        }
+            });
         Volume {
             dims: [n; 3],
             spacing: [1.0; 3],

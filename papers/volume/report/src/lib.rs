@@ -12,6 +12,7 @@ mod images;
 mod measure;
 pub mod paper;
 mod reports;
+mod scaling;
 mod table1;
 
 use repro::{Opt, ReportDef};
@@ -29,7 +30,7 @@ const OPTIONS: &[Opt] = &[
 ];
 
 /// The volume paper's reports.
-pub const REPORTS: [ReportDef; 3] = [
+pub const REPORTS: [ReportDef; 5] = [
     ReportDef {
         name: "volume-fig5",
         about: "Volume rendering Figure 5: fps at 512^2 per dataset, gcc, sse and bvh on the 8-core X5550 workstation and bvh on the 2-core Core 2 Duo (PNG per dataset in --out DIR)",
@@ -43,6 +44,20 @@ pub const REPORTS: [ReportDef; 3] = [
         machine: MACHINE,
         options: OPTIONS,
         run: table1::volume_table1,
+    },
+    ReportDef {
+        name: "volume-fig6",
+        about: "Volume rendering Figure 6: the mixing layer (Richtmyer-Meshkov stand-in) at 256^3, 512^3, 1024^3 (256^3 at --quick), far / medium / close views at 1024^2, gcc / sse / bvh on the X5550 and bvh on the Core 2 Duo",
+        machine: MACHINE,
+        options: OPTIONS,
+        run: scaling::volume_fig6,
+    },
+    ReportDef {
+        name: "volume-fig7",
+        about: "Volume rendering Figure 7: differential sampling rda = 2^-8 .. 2^-5 on the mixing layer, fps (bvh, X5550) and image error against uniform sampling",
+        machine: MACHINE,
+        options: OPTIONS,
+        run: scaling::volume_fig7,
     },
     ReportDef {
         name: "volume-bvh",

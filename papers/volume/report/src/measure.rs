@@ -53,6 +53,8 @@ pub(crate) struct Dataset {
     pub(crate) sampling: Sampling,
     /// Host seconds the tree took to build (varies run to run).
     pub(crate) build_seconds: f64,
+    /// Image side in pixels.
+    pub(crate) res: u32,
 }
 
 fn lighting(c: char) -> Lighting {
@@ -65,34 +67,46 @@ fn lighting(c: char) -> Lighting {
 
 impl Dataset {
     /// Load dataset `name` (lighting `lit`, leaves of `leaf`^3); `quick`
-    /// makes the generated field 64^3 instead of 128^3.
-    pub(crate) fn load(
-        name: &'static str,
-        (lit, leaf): (char, u32),
-        quick: bool,
-    ) -> AppResult<Dataset> {
+    /// makes the generated dense field 64^3 instead of 128^3. `mixingN`
+    /// is the seeded mixing layer at N^3.
+    pub(crate) fn load(name: &str, (lit, leaf): (char, u32), quick: bool) -> AppResult<Dataset> {
         let data = scene::scene::data_root().join("volumes");
+        let file = |f: &str| Volume::load(&data.join(f)).map_err(|e| AppError(e.to_string()));
         let (vol, tf) = match name {
             "engine" => (
-                Volume::load(&data.join("engine_256x256x128_uint8.raw.gz")),
+                file("engine_256x256x128_uint8.raw.gz")?,
                 include_str!("../../../../configs/transfer/engine.ron"),
             ),
             "neghip" => (
-                Volume::load(&data.join("neghip_66x66x66_uint8.raw.gz")),
+                file("neghip_66x66x66_uint8.raw.gz")?,
                 include_str!("../../../../configs/transfer/neghip.ron"),
             ),
             "skull" => (
-                Volume::load(&data.join("skull_64x64x64_float32le.raw.gz")),
+                file("skull_64x64x64_float32le.raw.gz")?,
                 include_str!("../../../../configs/transfer/skull.ron"),
             ),
-            _ => (
-                Ok(Volume::noisy(if quick { 64 } else { 128 }, 5)),
+            "dense" => (
+                Volume::noisy(if quick { 64 } else { 128 }, 5),
                 include_str!("../../../../configs/transfer/dense.ron"),
             ),
+            _ => {
+                let n = name
+                    .strip_prefix("mixing")
+                    .and_then(|n| n.parse().ok())
+                    .ok_or_else(|| AppError(format!("unknown volume dataset '{name}'")))?;
+                (
+                    Volume::mixing_layer(n, MIXING_SEED),
+                    include_str!("../../../../configs/transfer/mixing.ron"),
+                )
+            }
         };
-        let vol = vol.map_err(|e| AppError(e.to_string()))?;
         let tf =
             Transfer::parse(tf).map_err(|e| AppError(format!("{name} transfer function: {e}")))?;
+        Ok(Dataset::new(vol, tf, (lit, leaf)))
+    }
+
+    /// `vol` classified by `tf`, its tree, seen from the default view.
+    fn new(vol: Volume, tf: Transfer, (lit, leaf): (char, u32)) -> Dataset {
         let t0 = std::time::Instant::now();
         let tree = MinMaxBvh::build(&vol, leaf);
         let build_seconds = t0.elapsed().as_secs_f64();
@@ -116,18 +130,17 @@ impl Dataset {
             light,
             light_threshold: 0.01,
         };
-        Ok(Dataset {
+        Dataset {
             fov,
             prepared: Arc::new(Prepared::new(vol, tf)),
             tree: Arc::new(tree),
             eye,
             sampling,
             build_seconds,
-        })
+            res: RES,
+        }
     }
-}
 
-impl Dataset {
     /// The same dataset sampled and shaded by `s`.
     pub(crate) fn with_sampling(&self, s: Sampling) -> Dataset {
         Dataset {
@@ -135,7 +148,27 @@ impl Dataset {
             ..self.clone()
         }
     }
+
+    /// The same dataset rendered at `res` x `res`, the eye moved towards
+    /// the volume's centre to `closer` of its distance (1: the default
+    /// view), the field of view kept.
+    pub(crate) fn with_view(&self, res: u32, closer: f64) -> Dataset {
+        let c = self
+            .prepared
+            .volume
+            .dims
+            .map(|x| (f64::from(x) - 1.0) / 2.0);
+        let eye = std::array::from_fn(|a| c[a] + (self.eye[a] - c[a]) * closer);
+        Dataset {
+            eye,
+            res,
+            ..self.clone()
+        }
+    }
 }
+
+/// The seed of the generated mixing layer.
+pub(crate) const MIXING_SEED: u64 = 11;
 
 /// Which caster.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -205,8 +238,8 @@ impl UnitProgram for Units {
 
 /// The sampled packets: one at a seeded place in each of `groups` equal
 /// strata of the frame's packets in raster order, with the packet before.
-pub(crate) fn plan(groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
-    strata_with_previous(((RES / 8) * (RES / 8)) as usize, groups, seed)
+pub(crate) fn plan(res: u32, groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
+    strata_with_previous(((res / 8) * (res / 8)) as usize, groups, seed)
 }
 
 /// One method on one dataset.
@@ -253,12 +286,12 @@ pub(crate) type Sample = Vec<(Option<Arc<Rays>>, Arc<Rays>, Vec<[f64; 4]>)>;
 /// Rays and reference answers of the plan's packets.
 pub(crate) fn sample(ds: &Dataset, groups: usize, seed: u64) -> Sample {
     let dims = ds.prepared.volume.dims;
-    let per_row = RES / 8;
+    let (res, per_row) = (ds.res, ds.res / 8);
     let packet = |k: usize| {
         let (px, py) = (k as u32 % per_row, k as u32 / per_row);
-        Arc::new(Rays::packet(dims, ds.eye, ds.fov, (RES, RES), (px, py)))
+        Arc::new(Rays::packet(dims, ds.eye, ds.fov, (res, res), (px, py)))
     };
-    plan(groups, seed)
+    plan(res, groups, seed)
         .into_iter()
         .map(|(before, k)| {
             let timed = packet(k);
@@ -345,7 +378,7 @@ pub(crate) fn measure(
         },
     )?;
     let hz = m.clock_ghz * 1e9;
-    let packets = ((RES / 8) * (RES / 8)) as f64;
+    let packets = ((ds.res / 8) * (ds.res / 8)) as f64;
     let total: f64 = cycles.iter().sum();
     let frame_cycles = total / cycles.len() as f64 * packets;
     // Frames per cycle per packet as a ratio of sums: (1 / packets, cycles).

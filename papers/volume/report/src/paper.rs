@@ -196,3 +196,53 @@ pub const TABLE1: [Table1Col; 7] = [
         fps: 4.0,
     },
 ];
+
+/// One row of Figure 6 (the Richtmyer-Meshkov data at 1024^2, Phong,
+/// rda 2^-7): resolution, leaf size L, view, Core 2 Duo "bvh" (None: not
+/// run) and Core i7 8-core "gcc", "sse", "bvh" frames per second.
+pub struct Fig6Row {
+    /// Voxels per side.
+    pub n: u32,
+    /// Leaf size L.
+    pub leaf: u32,
+    /// far, medium or close.
+    pub view: &'static str,
+    /// Core 2 Duo "bvh".
+    pub core2_bvh: Option<f64>,
+    /// Core i7 "gcc", "sse", "bvh".
+    pub i7: [f64; 3],
+}
+
+const fn f6(n: u32, leaf: u32, view: &'static str, core2: Option<f64>, i7: [f64; 3]) -> Fig6Row {
+    Fig6Row {
+        n,
+        leaf,
+        view,
+        core2_bvh: core2,
+        i7,
+    }
+}
+
+/// Figure 6's rows.
+pub const FIG6: [Fig6Row; 12] = [
+    f6(2048, 8, "far", None, [0.124, 0.59, 6.6]),
+    f6(2048, 8, "medium", None, [0.091, 0.37, 3.5]),
+    f6(2048, 8, "close", None, [0.104, 0.29, 2.4]),
+    f6(1024, 8, "far", Some(1.5), [0.20, 0.92, 10.8]),
+    f6(1024, 8, "medium", Some(0.71), [0.11, 0.62, 4.6]),
+    f6(1024, 8, "close", Some(0.38), [0.088, 2.2, 2.4]),
+    f6(512, 4, "far", Some(1.9), [0.64, 2.2, 12.9]),
+    f6(512, 4, "medium", Some(1.0), [0.18, 1.0, 5.1]),
+    f6(512, 4, "close", Some(0.86), [0.19, 0.82, 3.7]),
+    f6(256, 2, "far", Some(2.0), [1.2, 5.3, 14.0]),
+    f6(256, 2, "medium", Some(0.98), [0.44, 1.8, 5.6]),
+    f6(256, 2, "close", Some(0.90), [0.36, 1.5, 4.0]),
+];
+
+/// Figure 7: differential sampling steps rda = 2^-8 .. 2^-5 and the
+/// frames per second (2k^3 Richtmyer-Meshkov at 512^2, 8-core i7).
+pub const FIG7: [(i32, f64); 4] = [(-8, 6.2), (-7, 10.0), (-6, 11.1), (-5, 15.8)];
+
+/// Section 7.1: "Doubling the sampling rate typically incurs only
+/// 1.2x-1.8x decrease in performance."
+pub const DOUBLING_COST: (f64, f64) = (1.2, 1.8);

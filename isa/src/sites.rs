@@ -61,7 +61,7 @@ pub const MBVH_PACKET: SiteBlock = SiteBlock::new("mbvh_kernels::packet", 150, 2
 /// Multi-hit intersection filters and the post-traversal sort (`multihit_kernels`).
 pub const MULTIHIT: SiteBlock = SiteBlock::new("multihit_kernels", 170, 20);
 /// Volume ray casting (`volume_kernels`).
-pub const VOLUME: SiteBlock = SiteBlock::new("volume_kernels", 190, 20);
+pub const VOLUME: SiteBlock = SiteBlock::new("volume_kernels", 190, 40);
 
 /// Every block, in order.
 pub const PLAN: [SiteBlock; 12] = [

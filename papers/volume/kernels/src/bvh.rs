@@ -14,12 +14,16 @@
 //! the volume's box and steps on), so the BVH only removes samples: those in
 //! nodes eq. 5 calls empty (and the classification chain through them).
 //!
+//! A node whose range is constant for the transfer function (eq. 7) is
+//! integrated whole by the constant-subvolume routine ([`crate::constant`]).
+//!
 //! Not yet (named in the paper's README): the interval-arithmetic frustum
 //! test after a failed speculative test (every following packlet is tested
-//! instead), and the constant-subvolume routine (eq. 7).
+//! instead).
 
+use crate::constant::{constant_node, packlet as constant_packlet, ConstNode};
 use crate::dvr::{integrate, Consts, State};
-use crate::layout::{VolBufs, PRE_BYTES};
+use crate::layout::{VolBufs, PRE_BYTES, STATE_BYTES};
 use crate::site;
 use isa::{At, Buf, Cmp, Int, Machine, MemKind, Region, Shift};
 use scene::volume_bvh::{MinMaxBvh, VNODE_BYTES};
@@ -33,8 +37,6 @@ pub const PACKLETS: usize = 16;
 const LEAF: u32 = 1 << 31;
 /// Bytes of one packlet's SoA record: org, dir, idir, 3 rows each.
 const PACKLET_BYTES: usize = 9 * 16;
-/// Bytes of one ray's integration state: rgba, p, sdt, flast (+ pad).
-const STATE_BYTES: usize = 64;
 
 /// The BVH's nodes in simulated memory: per node its box (6 f32), its
 /// range and split axis (`min | max << 8 | axis << 16`) and its first
@@ -63,6 +65,8 @@ pub struct Heuristics {
     pub delta_c: f32,
     /// Eq. 6's pruning threshold delta_p.
     pub delta_p: f32,
+    /// Eq. 7's constant-subvolume threshold delta_sv (0: never).
+    pub delta_sv: f32,
 }
 
 /// One packet's buffers.
@@ -127,6 +131,7 @@ pub fn trace_packet<M: Machine>(
     let mut sp = m.int(1);
     let dc = m.float(h.delta_c);
     let dp_vol = m.float(h.delta_p / vol_diag);
+    let dsv = m.float(h.delta_sv);
     loop {
         m.region(Region::Traversal);
         if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
@@ -148,6 +153,18 @@ pub fn trace_packet<M: Machine>(
         let Some(first) = first_hit(m, packlets, &bx, first) else {
             continue;
         };
+        if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
+            constant(
+                m,
+                (packlets, &mut *states, &mut *scratch),
+                &bx,
+                first,
+                &cn,
+                (c, s),
+            );
+            continue;
+        }
+        m.region(Region::Traversal);
         let child = m.s_load(nodes, At::idx(nb, 1, 28), 4, false);
         let leaf_flag = m.int(i64::from(LEAF));
         let is_leaf = m.s_and(child, leaf_flag);
@@ -327,6 +344,30 @@ fn leaf<M: Machine>(
             let b1 = m.s_addi(bits, -1);
             bits = m.s_and(bits, b1);
         }
+        k = m.s_addi(k, 1);
+        if !m.branch_if(site::PACKLET, Cmp::Lt, k, end) {
+            break;
+        }
+    }
+}
+
+/// A constant node (eq. 7): every packlet from `first` clipped to the box
+/// and integrated by the constant-subvolume routine.
+fn constant<M: Machine>(
+    m: &mut M,
+    (packlets, states, scratch): (&Buf, &mut Buf, &mut Buf),
+    bx: &NodeBox<M>,
+    first: M::S,
+    cn: &ConstNode<M>,
+    (c, s): (&Consts<M>, &Sampling),
+) {
+    let end = m.int(PACKLETS as i64);
+    let mut k = first;
+    loop {
+        m.region(Region::Traversal);
+        let io = bx.test(m, packlets, k);
+        constant_packlet(m, (&mut *states, &mut *scratch), k, io, cn, c, s);
+        m.region(Region::Traversal);
         k = m.s_addi(k, 1);
         if !m.branch_if(site::PACKLET, Cmp::Lt, k, end) {
             break;

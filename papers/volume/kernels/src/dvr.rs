@@ -82,6 +82,20 @@ impl<M: Machine> Consts<M> {
         self.rda
     }
 
+    /// A sample's colour lit where the gradient vanishes (a constant
+    /// field): Listing 2's diffuse term `0.15 + |n . l|` with n = 0 on its
+    /// colour if its opacity is above the lighting threshold.
+    pub fn ambient_only(&self, m: &mut M, colour: M::F) -> M::F {
+        let over = m.cmp(Cmp::Gt, colour, self.light_threshold);
+        let any = m.any(over);
+        if !m.branch(site::CONST_LIT, any) {
+            return colour;
+        }
+        let lit = m.mul(colour, self.ambient);
+        let last = m.mask(0b1000);
+        m.select(last, colour, lit)
+    }
+
     /// The constants for sampling `s`.
     pub fn new(m: &mut M, s: &Sampling) -> Self {
         assert_eq!(M::LANES, 4, "Listing 2 is 4-wide AoS (SSE)");

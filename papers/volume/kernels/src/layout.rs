@@ -12,6 +12,11 @@ use scene::volume_bvh::Bricked;
 /// Bytes of one preintegrated entry (RGBA f32).
 pub const PRE_BYTES: usize = 16;
 
+/// Bytes of one ray's integration state between BVH leaves: rgba at 0, the
+/// next sample `p` at 16, the step `sdt` at 32, the last classified value
+/// at 48 (+ pad).
+pub const STATE_BYTES: usize = 64;
+
 /// A volume and its transfer function laid out.
 #[derive(Clone)]
 pub struct VolBufs {

@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 
 pub mod bvh;
+pub mod constant;
 pub mod dvr;
 pub mod layout;
 pub mod naive;
@@ -67,9 +68,19 @@ pub mod site {
     pub const NAIVE_TERM: Site = isa::sites::VOLUME.at(18);
     /// Naive caster: opacity above the lighting threshold?
     pub const NAIVE_LIT: Site = isa::sites::VOLUME.at(19);
+    /// BVH: node not constant for eq. 7?
+    pub const CONSTANT: Site = isa::sites::VOLUME.at(20);
+    /// Constant subvolume: a ray still before the box?
+    pub const CONST_SKIP: Site = isa::sites::VOLUME.at(21);
+    /// Constant subvolume: a ray still inside and not opaque?
+    pub const CONST_STEP: Site = isa::sites::VOLUME.at(22);
+    /// Constant subvolume: another ray to write back?
+    pub const CONST_RAY: Site = isa::sites::VOLUME.at(23);
+    /// Constant subvolume: the colour opaque enough to light?
+    pub const CONST_LIT: Site = isa::sites::VOLUME.at(24);
 
     /// Every site of the crate (checked for duplicates by the layout test).
-    pub const ALL: [Site; 20] = [
+    pub const ALL: [Site; 25] = [
         VAL,
         TERM,
         LIT,
@@ -90,6 +101,11 @@ pub mod site {
         NAIVE_VAL,
         NAIVE_TERM,
         NAIVE_LIT,
+        CONSTANT,
+        CONST_SKIP,
+        CONST_STEP,
+        CONST_RAY,
+        CONST_LIT,
     ];
 }
 

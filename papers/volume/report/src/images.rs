@@ -2,7 +2,7 @@
 //! the same code, its ops not timed) beside the f64 reference's, their
 //! agreement over every pixel, and a PNG.
 
-use crate::measure::{Dataset, HEURISTICS};
+use crate::measure::Dataset;
 use rayon::prelude::*;
 use repro::{AppResult, ReproduceArgs};
 use scene::volume_ref::cast;
@@ -20,10 +20,11 @@ pub(crate) struct Agreement {
 }
 
 /// Render `ds` at `res` x `res` with the bvh caster (natively) and the
-/// reference; write the caster's frame to `<report>-<dataset>.png`.
+/// reference; write the caster's frame to `<report>-<name>.png` if `png`
+/// names them.
 pub(crate) fn frame(
     a: &ReproduceArgs,
-    (report, name): (&str, &str),
+    png: Option<(&str, &str)>,
     ds: &Dataset,
     res: u32,
     tol: f64,
@@ -61,7 +62,7 @@ pub(crate) fn frame(
                 tree: ds.tree.clone(),
                 rays: Arc::new(part),
                 sampling: ds.sampling,
-                heuristics: HEURISTICS,
+                heuristics: ds.heuristics,
             };
             isa::run_native(&run, isa::FlavourId::Sse4).0
         })
@@ -90,8 +91,10 @@ pub(crate) fn frame(
             rgb[3 * pixel[i] + c] = (g[c].clamp(0.0, 1.0) * 255.0).round() as u8;
         }
     }
-    let path = a.png_path(&format!("{report}-{name}"))?;
-    repro::io::write_atomic(&path, &repro::png::encode(res, res, &rgb))?;
+    if let Some((report, name)) = png {
+        let path = a.png_path(&format!("{report}-{name}"))?;
+        repro::io::write_atomic(&path, &repro::png::encode(res, res, &rgb))?;
+    }
     let n = got.len().max(1) as f64;
     Ok(Agreement {
         max,

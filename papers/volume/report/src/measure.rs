@@ -27,10 +27,13 @@ pub(crate) const RES: u32 = 512;
 /// rounding stays below it; see the paper's README).
 pub(crate) const PIXEL_TOL: f64 = 0.3;
 
-/// The paper's heuristics' defaults: delta_c < 1e-3, delta_p = 1.5.
+/// The paper's heuristics' defaults: delta_c < 1e-3, delta_p = 1.5,
+/// delta_sv < 1e-4 ("Relatively small delta_sv < 1e-4 consistently produce
+/// good results").
 pub(crate) const HEURISTICS: Heuristics = Heuristics {
     delta_c: 1e-3,
     delta_p: 1.5,
+    delta_sv: 1e-4,
 };
 
 /// The paper's differential sampling step growth, 2^-7 ("All approaches
@@ -55,6 +58,8 @@ pub(crate) struct Dataset {
     pub(crate) build_seconds: f64,
     /// Image side in pixels.
     pub(crate) res: u32,
+    /// The BVH caster's heuristics (eqs. 5-7).
+    pub(crate) heuristics: Heuristics,
 }
 
 fn lighting(c: char) -> Lighting {
@@ -138,6 +143,7 @@ impl Dataset {
             sampling,
             build_seconds,
             res: RES,
+            heuristics: HEURISTICS,
         }
     }
 
@@ -145,6 +151,14 @@ impl Dataset {
     pub(crate) fn with_sampling(&self, s: Sampling) -> Dataset {
         Dataset {
             sampling: s,
+            ..self.clone()
+        }
+    }
+
+    /// The same dataset with the BVH heuristics `h`.
+    pub(crate) fn with_heuristics(&self, h: Heuristics) -> Dataset {
+        Dataset {
+            heuristics: h,
             ..self.clone()
         }
     }
@@ -229,7 +243,7 @@ impl UnitProgram for Units {
                 tree: self.ds.tree.clone(),
                 rays: rays.clone(),
                 sampling: s,
-                heuristics: HEURISTICS,
+                heuristics: self.ds.heuristics,
             }
             .trace_on(m, &laid.0, &laid.1),
         }
@@ -254,6 +268,10 @@ pub(crate) struct Cell {
     /// packets).
     pub(crate) samples_per_ray: f64,
     pub(crate) classified_per_ray: f64,
+    /// BVH nodes popped per packet and rays integrated through a leaf per
+    /// ray (timed packets; 0 without the BVH).
+    pub(crate) nodes_per_packet: f64,
+    pub(crate) leaf_rays_per_ray: f64,
     /// Instructions per ray and CPI of the timed packets.
     pub(crate) instr_per_ray: f64,
     pub(crate) cpi: f64,
@@ -340,6 +358,7 @@ pub(crate) fn measure(
     let mut regions = [0f64; isa::Region::COUNT];
     let (mut se, mut n_px) = (0f64, 0usize);
     let (mut samples, mut classified) = (0u64, 0u64);
+    let (mut nodes, mut leaf_rays) = (0u64, 0u64);
     isa::run_units(
         &prog,
         m.flavour(),
@@ -367,6 +386,8 @@ pub(crate) fn measure(
             }
             samples += cn.samples;
             classified += cn.classified;
+            nodes += cn.nodes;
+            leaf_rays += cn.leaf_rays;
             let st = session.timed_queue(&[&t]).map_err(AppError)?;
             isa::trace::recycle(t);
             cycles.push(st.cycles as f64);
@@ -390,6 +411,8 @@ pub(crate) fn measure(
         run_cycles: cycles,
         samples_per_ray: samples as f64 / rays,
         classified_per_ray: classified as f64 / rays,
+        nodes_per_packet: nodes as f64 / (rays / 64.0).max(1.0),
+        leaf_rays_per_ray: leaf_rays as f64 / rays,
         instr_per_ray: instr / rays,
         cpi: total / instr.max(1.0),
         traversal_share: regions[isa::Region::Traversal as usize] / total.max(1.0),

@@ -17,9 +17,9 @@
 //! A node whose range is constant for the transfer function (eq. 7) is
 //! integrated whole by the constant-subvolume routine ([`crate::constant`]).
 //!
-//! Not yet (named in the paper's README): the interval-arithmetic frustum
-//! test after a failed speculative test (every following packlet is tested
-//! instead).
+//! After a failed speculative test, the packet's interval-arithmetic
+//! frustum (its rays' origin and inverse-direction ranges) is tested
+//! against the box: if every ray misses, the node is done.
 
 use crate::constant::{constant_node, packlet as constant_packlet, ConstNode};
 use crate::dvr::{integrate, Consts, State};
@@ -132,6 +132,7 @@ pub fn trace_packet<M: Machine>(
     let dc = m.float(h.delta_c);
     let dp_vol = m.float(h.delta_p / vol_diag);
     let dsv = m.float(h.delta_sv);
+    let frustum = Frustum::of(m, packlets);
     loop {
         m.region(Region::Traversal);
         if !m.branch_if(site::STACK, Cmp::Gt, sp, zero) {
@@ -150,7 +151,7 @@ pub fn trace_packet<M: Machine>(
             continue;
         }
         let bx = NodeBox::load(m, nodes, nb);
-        let Some(first) = first_hit(m, packlets, &bx, first) else {
+        let Some(first) = first_hit(m, (packlets, &frustum), (&bx, nb, nodes), (first, c)) else {
             continue;
         };
         if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
@@ -258,16 +259,133 @@ fn m_int<M: Machine>(m: &mut M, v: usize) -> M::S {
     m.int(v as i64)
 }
 
-/// The first packlet from `first` that hits the box (speculatively the
-/// first itself), or `None`.
-fn first_hit<M: Machine>(m: &mut M, packlets: &Buf, bx: &NodeBox<M>, first: M::S) -> Option<M::S> {
+/// The packet's frustum as intervals (Wald et al. 2007): per axis (lanes
+/// x, y, z) the range of its rays' origins and inverse directions, and
+/// which axes the interval test may use (inverse directions finite and of
+/// one sign).
+struct Frustum<M: Machine> {
+    omin: M::F,
+    omax: M::F,
+    idmin: M::F,
+    idmax: M::F,
+    usable: M::K,
+}
+
+impl<M: Machine> Frustum<M> {
+    /// Bound the packet's 16 packlet records.
+    fn of(m: &mut M, packlets: &Buf) -> Self {
+        let axes = |m: &mut M, first_row: usize| -> (M::F, M::F) {
+            let mut lo = [m.splat(f32::INFINITY); 3];
+            let mut hi = [m.splat(f32::NEG_INFINITY); 3];
+            for k in 0..PACKLETS {
+                for a in 0..3 {
+                    let r = m.load(packlets, At::off(k * PACKLET_BYTES + 16 * (first_row + a)));
+                    lo[a] = m.min(lo[a], r);
+                    hi[a] = m.max(hi[a], r);
+                }
+            }
+            let lo = lo.map(|v| m.hmin(v));
+            let hi = hi.map(|v| m.hmax(v));
+            (xyz(m, lo), xyz(m, hi))
+        };
+        let (omin, omax) = axes(m, row::ORG);
+        let (idmin, idmax) = axes(m, row::IDIR);
+        let big = m.splat(1e30);
+        let nbig = m.splat(-1e30);
+        let zero = m.splat(0.0);
+        let finite = {
+            let a = m.cmp(Cmp::Gt, idmin, nbig);
+            let b = m.cmp(Cmp::Lt, idmax, big);
+            m.kand(a, b)
+        };
+        let one_sign = {
+            let a = m.cmp(Cmp::Ge, idmin, zero);
+            let b = m.cmp(Cmp::Le, idmax, zero);
+            m.kor(a, b)
+        };
+        let xyz_lanes = m.mask(0b0111);
+        let usable = m.kand(finite, one_sign);
+        let usable = m.kand(usable, xyz_lanes);
+        Frustum {
+            omin,
+            omax,
+            idmin,
+            idmax,
+            usable,
+        }
+    }
+
+    /// Whether every ray of the packet misses the box at `nb` (interval
+    /// arithmetic over the slabs; conservative: `false` when unsure).
+    fn misses(&self, m: &mut M, nodes: &Buf, nb: M::S) -> M::S {
+        let lo = m.loadu(nodes, At::idx(nb, 1, 0));
+        let hi = m.loadu(nodes, At::idx(nb, 1, 12));
+        let slab = |m: &mut M, b: M::F| -> (M::F, M::F) {
+            // [b - omax, b - omin] * [idmin, idmax]
+            let x0 = m.sub(b, self.omax);
+            let x1 = m.sub(b, self.omin);
+            let p = [
+                m.mul(x0, self.idmin),
+                m.mul(x0, self.idmax),
+                m.mul(x1, self.idmin),
+                m.mul(x1, self.idmax),
+            ];
+            let l01 = m.min(p[0], p[1]);
+            let l23 = m.min(p[2], p[3]);
+            let h01 = m.max(p[0], p[1]);
+            let h23 = m.max(p[2], p[3]);
+            (m.min(l01, l23), m.max(h01, h23))
+        };
+        let (lo_l, lo_h) = slab(m, lo);
+        let (hi_l, hi_h) = slab(m, hi);
+        let near = m.min(lo_l, hi_l);
+        let far = m.max(lo_h, hi_h);
+        let ninf = m.splat(f32::NEG_INFINITY);
+        let inf = m.splat(f32::INFINITY);
+        let near = m.select(self.usable, near, ninf);
+        let far = m.select(self.usable, far, inf);
+        let tn = m.hmax(near);
+        let tf = m.hmin(far);
+        let apart = m.x_cmp(Cmp::Gt, tn, tf);
+        let z = m.float(0.0);
+        let behind = m.x_cmp(Cmp::Lt, tf, z);
+        m.s_op(isa::SOp::Or, apart, behind)
+    }
+}
+
+/// `{x, y, z, 0}` from three scalars.
+fn xyz<M: Machine>(m: &mut M, v: [M::X; 3]) -> M::F {
+    let b = v.map(|x| m.broadcast(x));
+    let zero = m.splat(0.0);
+    let xy = m.shuffle2(b[0], b[1], &[0, 0, 4, 4]);
+    let z0 = m.shuffle2(b[2], zero, &[0, 0, 4, 4]);
+    m.shuffle2(xy, z0, &[0, 2, 4, 6])
+}
+
+/// The first packlet from `first` that hits the box, or `None`: the first
+/// itself tested speculatively; if it misses, the packet's frustum (all
+/// rays miss: done), then the following packlets in turn.
+fn first_hit<M: Machine>(
+    m: &mut M,
+    (packlets, frustum): (&Buf, &Frustum<M>),
+    (bx, nb, nodes): (&NodeBox<M>, M::S, &Buf),
+    (first, c): (M::S, &Consts<M>),
+) -> Option<M::S> {
     let end = m.int(PACKLETS as i64);
     let mut k = first;
+    let mut speculative = true;
     loop {
         let (_, _, hit) = bx.test(m, packlets, k);
         let any = m.any(hit);
         if m.branch(site::PACKLET_HIT, any) {
             return Some(k);
+        }
+        if std::mem::take(&mut speculative) {
+            let miss = frustum.misses(m, nodes, nb);
+            if m.branch(site::FRUSTUM, miss) {
+                c.bump(|x| x.frustum_culls += 1);
+                return None;
+            }
         }
         k = m.s_addi(k, 1);
         if !m.branch_if(site::PACKLET, Cmp::Lt, k, end) {

@@ -49,6 +49,8 @@ pub struct Counters {
     pub nodes: u64,
     /// Rays integrated through a leaf.
     pub leaf_rays: u64,
+    /// Nodes the packet's frustum test culled.
+    pub frustum_culls: u64,
 }
 
 /// The routine's constants (globals in Listing 2), made once per frame,

@@ -78,9 +78,11 @@ pub mod site {
     pub const CONST_RAY: Site = isa::sites::VOLUME.at(23);
     /// Constant subvolume: the colour opaque enough to light?
     pub const CONST_LIT: Site = isa::sites::VOLUME.at(24);
+    /// BVH: the packet's frustum misses the box (interval arithmetic)?
+    pub const FRUSTUM: Site = isa::sites::VOLUME.at(25);
 
     /// Every site of the crate (checked for duplicates by the layout test).
-    pub const ALL: [Site; 25] = [
+    pub const ALL: [Site; 26] = [
         VAL,
         TERM,
         LIT,
@@ -106,6 +108,7 @@ pub mod site {
         CONST_STEP,
         CONST_RAY,
         CONST_LIT,
+        FRUSTUM,
     ];
 }
 

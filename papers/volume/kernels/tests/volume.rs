@@ -263,7 +263,7 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
             counts.samples <= sse_counts.samples,
             "{counts:?} {sse_counts:?}"
         );
-        assert!(counts.nodes > 0 && counts.leaf_rays > 0);
+        assert!(counts.nodes > 0 && counts.leaf_rays > 0 && counts.frustum_culls > 0);
         let mut img = vec![[0f32; 4]; rays.len()];
         for (i, &j) in order.iter().enumerate() {
             img[j] = packed_img[i];

@@ -543,8 +543,8 @@ fn one_ray<M: Machine>(
 
 /// Move a ray's next sample up to the leaf's entry `tenter` along its own
 /// sample sequence (the samples between lie in nodes the traversal
-/// skipped): uniform steps in closed form (`k = ceil((tenter - t) / dt)`),
-/// differential ones step by step.
+/// skipped), in closed form: uniform steps `k = ceil((tenter - t) / dt)`,
+/// differential ones by the quadratic's root.
 fn skip_to<M: Machine>(
     m: &mut M,
     st: &mut State<M>,
@@ -574,15 +574,43 @@ fn skip_to<M: Machine>(
         st.p = m.fmadd(k, st.sdt, st.p);
         return;
     }
-    let srda = m.mul(dir, c.rda_vec());
+    // Differential steps: sample j ahead lies at t + j w + j (j - 1) / 2 rda
+    // (w the step now); the first at or past the entry solves a quadratic.
+    // Its floor (f32 may round it one low) in closed form, as the
+    // constant-subvolume routine moves a state, then single steps.
+    let tv = m.permute(st.p, &[3, 3, 3, 3]);
+    let w = m.permute(st.sdt, &[3, 3, 3, 3]);
+    let rda = c.rda_vec();
+    let half = m.splat(0.5);
+    let hr = m.mul(rda, half);
+    let b = m.sub(w, hr);
+    let gap = m.sub(te, tv);
+    let two_r = m.add(rda, rda);
+    let bb = m.mul(b, b);
+    let disc = m.fmadd(two_r, gap, bb);
+    let root = m.sqrt(disc);
+    let num = m.sub(root, b);
+    let j = m.div(num, rda);
+    let ji = m.to_int(j);
+    let j = m.to_float(ji);
+    let r = m.div(rda, w);
+    let one = m.splat(1.0);
+    let jm1 = m.sub(j, one);
+    let tri = m.mul(j, jm1);
+    let tri = m.mul(tri, half);
+    let fk = m.fmadd(tri, r, j);
+    let gk = m.fmadd(j, r, one);
+    st.p = m.fmadd(st.sdt, fk, st.p);
+    st.sdt = m.mul(st.sdt, gk);
+    let srda = m.mul(dir, rda);
     loop {
-        st.p = m.add(st.p, st.sdt);
-        st.sdt = m.add(st.sdt, srda);
         let t = m.extract(st.p, 3);
-        let more = m_lt(m, t, tenter);
-        if !m.branch(site::SKIP_STEP, more) {
+        let short = m_lt(m, t, tenter);
+        if !m.branch(site::SKIP_STEP, short) {
             break;
         }
+        st.p = m.add(st.p, st.sdt);
+        st.sdt = m.add(st.sdt, srda);
     }
 }
 

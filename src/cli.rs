@@ -39,6 +39,10 @@ pub enum Cmd {
     Fidelity(FidelityCli),
     /// Render primary hits of a scene with the reference intersector (PNG).
     Render(RenderCli),
+    /// Cast a volume through the volume paper's casters (gcc, sse, bvh):
+    /// timed on one core of a machine, the bvh frame checked against the f64
+    /// reference (PNG with --out).
+    Volume(VolumeCli),
     /// List what is built in.
     List {
         /// What to list.
@@ -408,4 +412,62 @@ pub fn with_registries(cmd: clap::Command, reports: &[&ReportDef]) -> clap::Comm
         .mut_arg("name", |a| a.help(report_help))
     })
     .mut_subcommand("run", |c| c.mut_arg("kernel", |a| a.help(kernel_help)))
+}
+
+#[derive(Args)]
+pub struct VolumeCli {
+    /// A raw volume named `name_WxHxD_type.raw[.gz]` (type uint8, uint16,
+    /// int16 or float32, le or be) or a RON sidecar (file, dims, voxel).
+    #[arg(long)]
+    pub volume: PathBuf,
+    /// Transfer function (RON: `(points: [(value: 0.0, rgba: (r, g, b, a)), ...])`).
+    #[arg(long)]
+    pub transfer: PathBuf,
+    /// Lighting: unlit, diffuse or phong.
+    #[arg(long, default_value = "unlit")]
+    pub lighting: String,
+    /// Leaf size L of the implicit BVH (1, 2, 4 or 8).
+    #[arg(long, default_value_t = 4)]
+    pub leaf: u32,
+    /// Image side in pixels (a multiple of 8).
+    #[arg(long, default_value_t = 512)]
+    pub res: u32,
+    /// 8x8 packets timed per caster.
+    #[arg(long, default_value_t = 16)]
+    pub packets: u32,
+    /// A built-in machine or a RON config (default: the paper's nehalem-x5550).
+    #[arg(long, default_value = "nehalem-x5550")]
+    pub machine: String,
+    /// Override a machine config field: `--set core.width=6`.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    pub sets: Vec<String>,
+    /// Sample seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// PNG of the bvh caster's frame.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+impl VolumeCli {
+    /// The library's options.
+    pub fn args(&self) -> volume_report::VolumeArgs {
+        volume_report::VolumeArgs {
+            volume: self.volume.clone(),
+            transfer: self.transfer.clone(),
+            lighting: self.lighting.clone(),
+            leaf: self.leaf,
+            res: self.res,
+            packets: self.packets,
+            machine: repro::MachineSpec {
+                machine: self.machine.clone(),
+                sets: self.sets.clone(),
+            },
+            seed: self.seed,
+            out: self.out.clone(),
+        }
+    }
 }

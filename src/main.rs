@@ -158,6 +158,7 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             show(r, a.format)
         }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),
+        Cmd::Volume(a) => show(volume_report::volume(&a.args())?, a.format),
         Cmd::List {
             what,
             names,

@@ -4,7 +4,7 @@
 
 use crate::measure::Dataset;
 use rayon::prelude::*;
-use repro::{AppResult, ReproduceArgs};
+use repro::AppResult;
 use scene::volume_ref::cast;
 use std::sync::Arc;
 use volume_kernels::{BvhRun, Rays};
@@ -17,14 +17,14 @@ pub(crate) struct Agreement {
     pub(crate) off: f64,
     /// Pixels differing by more than `tol` in a channel.
     pub(crate) bad: usize,
+    /// The caster's frame, RGB rows.
+    pub(crate) rgb: Vec<u8>,
 }
 
 /// Render `ds` at `res` x `res` with the bvh caster (natively) and the
-/// reference; write the caster's frame to `<report>-<name>.png` if `png`
-/// names them.
+/// reference; write the caster's frame to `png` if given.
 pub(crate) fn frame(
-    a: &ReproduceArgs,
-    png: Option<(&str, &str)>,
+    png: Option<std::path::PathBuf>,
     ds: &Dataset,
     res: u32,
     tol: f64,
@@ -91,9 +91,8 @@ pub(crate) fn frame(
             rgb[3 * pixel[i] + c] = (g[c].clamp(0.0, 1.0) * 255.0).round() as u8;
         }
     }
-    if let Some((report, name)) = png {
-        let path = a.png_path(&format!("{report}-{name}"))?;
-        repro::io::write_atomic(&path, &repro::png::encode(res, res, &rgb))?;
+    if let Some(path) = png {
+        write_png(&path, res, &rgb)?;
     }
     let n = got.len().max(1) as f64;
     Ok(Agreement {
@@ -101,5 +100,11 @@ pub(crate) fn frame(
         psnr: 10.0 * (1.0 / (se / (4.0 * n)).max(1e-30)).log10(),
         off: off as f64 / n,
         bad,
+        rgb,
     })
+}
+
+/// Write a square frame's RGB rows as a PNG (atomically).
+pub(crate) fn write_png(path: &std::path::Path, res: u32, rgb: &[u8]) -> AppResult<()> {
+    repro::io::write_atomic(path, &repro::png::encode(res, res, rgb))
 }

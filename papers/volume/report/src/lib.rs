@@ -8,6 +8,7 @@
 #![warn(missing_docs)]
 
 mod bvh_sizes;
+mod custom;
 mod images;
 mod measure;
 pub mod paper;
@@ -15,6 +16,7 @@ mod reports;
 mod scaling;
 mod table1;
 
+pub use custom::{volume, VolumeArgs};
 use repro::{Opt, ReportDef};
 
 /// The paper's workstation (one core of it is simulated).

@@ -111,7 +111,7 @@ impl Dataset {
     }
 
     /// `vol` classified by `tf`, its tree, seen from the default view.
-    fn new(vol: Volume, tf: Transfer, (lit, leaf): (char, u32)) -> Dataset {
+    pub(crate) fn new(vol: Volume, tf: Transfer, (lit, leaf): (char, u32)) -> Dataset {
         let t0 = std::time::Instant::now();
         let tree = MinMaxBvh::build(&vol, leaf);
         let build_seconds = t0.elapsed().as_secs_f64();

@@ -126,7 +126,12 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(r);
         }
         let res = if a.quick { RES / 2 } else { RES };
-        let fr = crate::images::frame(a, Some(("volume-fig5", row.name)), &ds, res, PIXEL_TOL)?;
+        let fr = crate::images::frame(
+            Some(a.png_path(&format!("volume-fig5-{}", row.name))?),
+            &ds,
+            res,
+            PIXEL_TOL,
+        )?;
         bad += fr.bad;
         let k = |r: Row| {
             r.key("dataset", row.name)

@@ -132,8 +132,12 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                 (&shot, format!("mixing{n}-{view}")),
                 (&exact, String::new()),
             ] {
-                let png = (!name.is_empty()).then_some(("volume-fig6", name.as_str()));
-                let fr = frame(a, png, d, frame_res, PIXEL_TOL)?;
+                let png = if name.is_empty() {
+                    None
+                } else {
+                    Some(a.png_path(&format!("volume-fig6-{name}"))?)
+                };
+                let fr = frame(png, d, frame_res, PIXEL_TOL)?;
                 bad += fr.bad;
                 let k = |r: Row| {
                     k0(r)

@@ -1,0 +1,162 @@
+//! `rtsim volume`: a researcher's own volume through the paper's casters.
+//! The volume (a raw file named `name_WxHxD_type.raw[.gz]`, or a RON
+//! sidecar) and a transfer function (RON) are loaded and checked, the bvh
+//! caster's frame is rendered natively and held to the f64 reference (and
+//! written as a PNG), and gcc, sse and bvh are timed on sampled packets on
+//! one core of a machine. Every input error names its file, field or line;
+//! nothing is written unless everything succeeded.
+
+use crate::images::{frame, write_png};
+use crate::measure::{measure, sample, Dataset, Method, PIXEL_TOL};
+use repro::progress::Progress;
+use repro::{AppError, AppResult, MachineSpec, Report, Row};
+use scene::transfer::Transfer;
+use scene::volume::Volume;
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// What `rtsim volume` is given.
+#[derive(Clone, Debug)]
+pub struct VolumeArgs {
+    /// The raw volume or its RON sidecar.
+    pub volume: PathBuf,
+    /// The transfer function (RON).
+    pub transfer: PathBuf,
+    /// `unlit`, `diffuse` or `phong`.
+    pub lighting: String,
+    /// Leaf size L of the implicit BVH.
+    pub leaf: u32,
+    /// Image side in pixels.
+    pub res: u32,
+    /// Packets timed per caster.
+    pub packets: u32,
+    /// The machine one core of which times the casters.
+    pub machine: MachineSpec,
+    /// The sample's seed.
+    pub seed: u64,
+    /// PNG of the bvh caster's frame.
+    pub out: Option<PathBuf>,
+}
+
+fn lighting_code(s: &str) -> AppResult<char> {
+    match s {
+        "unlit" => Ok('u'),
+        "diffuse" => Ok('d'),
+        "phong" => Ok('p'),
+        _ => Err(AppError(format!(
+            "--lighting: '{s}' is not unlit, diffuse or phong"
+        ))),
+    }
+}
+
+/// Check the options that need no file.
+fn check(a: &VolumeArgs) -> AppResult<char> {
+    if ![1, 2, 4, 8].contains(&a.leaf) {
+        return Err(AppError(format!("--leaf: {} is not 1, 2, 4 or 8", a.leaf)));
+    }
+    if a.res < 8 || a.res > 4096 || a.res % 8 != 0 {
+        return Err(AppError(format!(
+            "--res: {} is not a multiple of 8 from 8 to 4096",
+            a.res
+        )));
+    }
+    if a.packets == 0 || a.packets > 1024 {
+        return Err(AppError(format!(
+            "--packets: {} is not 1 to 1024",
+            a.packets
+        )));
+    }
+    if let Some(out) = &a.out {
+        if out.extension().is_none_or(|e| e != "png") {
+            return Err(AppError(format!(
+                "--out {}: not a .png path",
+                out.display()
+            )));
+        }
+    }
+    lighting_code(&a.lighting)
+}
+
+/// Run `rtsim volume`.
+///
+/// # Errors
+/// A bad option, volume or transfer function (named), or a failed write.
+pub fn volume(a: &VolumeArgs) -> AppResult<Report> {
+    let start = Instant::now();
+    let lit = check(a)?;
+    let m0 = a.machine.load()?;
+    if m0.flavour().lanes() != 4 {
+        return Err(AppError(format!(
+            "--machine {}: Listing 2 is 4-wide SSE; {} has {} lanes",
+            m0.name,
+            m0.flavour(),
+            m0.flavour().lanes()
+        )));
+    }
+    let mut m = m0.clone();
+    m.cores = 1;
+    let vol = Volume::load(&a.volume).map_err(|e| AppError(e.to_string()))?;
+    let text = std::fs::read_to_string(&a.transfer)
+        .map_err(|e| AppError(format!("{}: {e}", a.transfer.display())))?;
+    let tf =
+        Transfer::parse(&text).map_err(|e| AppError(format!("{}: {e}", a.transfer.display())))?;
+    let ds = Arc::new(Dataset::new(vol, tf, (lit, a.leaf)).with_view(a.res, 1.0));
+    let smp = sample(&ds, a.packets as usize, a.seed);
+    let progress = Progress::hidden();
+    let mut rows = Vec::new();
+    let mut bad = 0usize;
+    let mut ops = 0u64;
+    for me in [Method::Gcc, Method::Sse, Method::Bvh] {
+        let c = measure(&m, &ds, &smp, me, &progress)?;
+        ops += c.ops;
+        bad += c.bad;
+        let k = |r: Row| r.key("method", me.name());
+        let mut r = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
+        r.ci95 = c.ci;
+        rows.push(r);
+        rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
+        rows.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
+        rows.push(k(Row::new("cpi", c.cpi)));
+        rows.push(k(Row::new("pixels_off_reference", c.bad as f64)));
+        if me == Method::Bvh {
+            rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
+        }
+    }
+    let fr = frame(None, &ds, a.res, PIXEL_TOL)?;
+    bad += fr.bad;
+    rows.push(Row::new("frame_psnr_vs_reference", fr.psnr).unit("dB"));
+    rows.push(Row::new("frame_max_difference", fr.max));
+    rows.push(Row::new("bvh_nodes", ds.tree.nodes.len() as f64).key("leaf", a.leaf));
+    if bad > 0 {
+        return Err(AppError(format!(
+            "{} pixels differ from the f64 reference by more than {PIXEL_TOL}",
+            bad
+        )));
+    }
+    if let Some(out) = &a.out {
+        write_png(out, a.res, &fr.rgb)?;
+    }
+    let mut s = BTreeMap::new();
+    s.insert(
+        "design".into(),
+        serde_json::json!(format!(
+            "{} packets of 8x8 pixels at {}^2, timed on one core after warming; the bvh frame rendered natively and compared with the f64 reference",
+            a.packets, a.res
+        )),
+    );
+    s.insert("seed".into(), serde_json::json!(a.seed));
+    Ok(Report {
+        report: "volume".into(),
+        machine: Some(m.name.clone()),
+        isa: Some(m.flavour().name().into()),
+        fidelity: "full".into(),
+        sample: Some(s),
+        input: Some(a.volume.display().to_string()),
+        ops_simulated: ops,
+        host_seconds: start.elapsed().as_secs_f64(),
+        rows,
+        notes: vec![],
+    })
+}

@@ -56,7 +56,7 @@ fn check(a: &VolumeArgs) -> AppResult<char> {
     if ![1, 2, 4, 8].contains(&a.leaf) {
         return Err(AppError(format!("--leaf: {} is not 1, 2, 4 or 8", a.leaf)));
     }
-    if a.res < 8 || a.res > 4096 || a.res % 8 != 0 {
+    if a.res < 8 || a.res > 4096 || !a.res.is_multiple_of(8) {
         return Err(AppError(format!(
             "--res: {} is not a multiple of 8 from 8 to 4096",
             a.res

@@ -143,3 +143,84 @@ fn table_1_splits_each_column_into_the_papers_stages() {
     assert_eq!(pct("sse tril BVH diff.", "phong"), 0.0);
     assert!(pct("sse tril BVH diff. phong", "phong") > 0.0);
 }
+
+#[test]
+fn figures_6_and_7_scale_with_resolution_view_and_sampling_rate() {
+    let find = |name: &str| {
+        volume_report::REPORTS
+            .iter()
+            .find(|d| d.name == name)
+            .unwrap()
+    };
+    let dir = std::env::temp_dir().join(format!("volume-fig6-test-{}", std::process::id()));
+    let g = Given {
+        quick: true,
+        tiles: Some(1),
+        out: Some(dir.clone()),
+        ..Given::default()
+    };
+    let p = find("volume-fig6").compute(g).expect("computed");
+    assert_eq!(p.mismatches, 0.0);
+    let j = serde_json::to_value(&p.report).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    for view in ["far", "medium", "close"] {
+        assert!(dir
+            .join(format!("volume-fig6-mixing256-{view}.png"))
+            .exists());
+        for me in ["gcc", "sse", "bvh"] {
+            let r = rows
+                .iter()
+                .find(|r| {
+                    r["metric"] == "fps"
+                        && r["view"] == view
+                        && r["method"] == me
+                        && r["cores"] == "8"
+                })
+                .unwrap_or_else(|| panic!("{view} {me}"));
+            assert!(r["value"].as_f64().unwrap() > 0.0);
+            assert!(r["paper"].as_f64().unwrap() > 0.0, "the paper's 256^3 row");
+        }
+        // Eq. 7 approximates: the exact traversal is at least as close.
+        let psnr = |dsv: &str| {
+            rows.iter()
+                .find(|r| {
+                    r["metric"] == "frame_psnr_vs_reference"
+                        && r["view"] == view
+                        && r["delta_sv"] == dsv
+                })
+                .unwrap()["value"]
+                .as_f64()
+                .unwrap()
+        };
+        assert!(psnr("0") >= psnr("0.0001"), "{view}");
+    }
+    let g = Given {
+        quick: true,
+        tiles: Some(2),
+        ..Given::default()
+    };
+    let p = find("volume-fig7").compute(g).expect("computed");
+    assert_eq!(p.mismatches, 0.0);
+    let j = serde_json::to_value(&p.report).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    let per = |metric: &str| -> Vec<f64> {
+        ["2^-8", "2^-7", "2^-6", "2^-5"]
+            .iter()
+            .map(|e| {
+                rows.iter()
+                    .find(|r| r["metric"] == metric && r["rda"] == *e && r["cores"] != "8")
+                    .unwrap()["value"]
+                    .as_f64()
+                    .unwrap()
+            })
+            .collect()
+    };
+    // Longer steps: fewer samples and a larger error against uniform
+    // sampling.
+    let samples = per("samples_per_ray");
+    let psnr = per("psnr_vs_uniform_sampling");
+    for w in 0..3 {
+        assert!(samples[w] > samples[w + 1], "{samples:?}");
+        assert!(psnr[w] > psnr[w + 1], "{psnr:?}");
+    }
+}

@@ -224,3 +224,36 @@ fn figures_6_and_7_scale_with_resolution_view_and_sampling_rate() {
         assert!(psnr[w] > psnr[w + 1], "{psnr:?}");
     }
 }
+
+/// Report `name` on a pool of `n` host threads, host-measured figures left
+/// out.
+fn on_threads(n: usize, name: &str, g: Given) -> serde_json::Value {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap();
+    let def = volume_report::REPORTS
+        .iter()
+        .find(|d| d.name == name)
+        .unwrap();
+    let p = pool.install(|| def.compute(g)).expect("computed");
+    let mut j = serde_json::to_value(&p.report).unwrap();
+    let o = j.as_object_mut().unwrap();
+    o.remove("host_seconds");
+    let rows = o["rows"].as_array_mut().unwrap();
+    rows.retain(|r| r["unit"] != "host-measured");
+    j
+}
+
+#[test]
+fn one_and_two_host_threads_give_identical_reports() {
+    let dir = std::env::temp_dir().join(format!("volume-threads-{}", std::process::id()));
+    let g = || Given {
+        quick: true,
+        tiles: Some(2),
+        out: Some(dir.clone()),
+        ..Given::default()
+    };
+    let one = on_threads(1, "volume-fig5", g());
+    assert_eq!(one, on_threads(2, "volume-fig5", g()));
+}

@@ -422,3 +422,65 @@ pub(crate) fn measure(
         bad,
     })
 }
+
+/// Cores running packets at once against one alone: the packets of `smp`
+/// (timed ones) cast by `method`, each timed alone on one core of `m`, then
+/// in steps of `k` at once on `k` cores (shared caches and memory), each
+/// session warmed with every packet first. Per `k`: the packets' cycles
+/// alone over their cycles beside the others (1: no contention; load
+/// balance is not part of it).
+pub(crate) fn contention(
+    m: &sim::MachineConfig,
+    ds: &Arc<Dataset>,
+    smp: &Sample,
+    method: Method,
+    cores: &[u32],
+) -> AppResult<Vec<(u32, f64, u64)>> {
+    let prog = Units {
+        method,
+        ds: ds.clone(),
+    };
+    let placed = smp.iter().map(|(_, timed, _)| {
+        (
+            Placed {
+                thread: 0,
+                unit: timed.clone(),
+            },
+            Detail::Timed,
+        )
+    });
+    let mut traces = Vec::new();
+    isa::run_units(&prog, m.flavour(), "volume", placed, |_, _, t, _| {
+        traces.push(t);
+        Ok::<(), AppError>(())
+    })?;
+    let time = |k: u32| -> AppResult<(Vec<u64>, u64)> {
+        let mut mk = m.clone();
+        mk.cores = k;
+        let mut s = sim::Session::new(&mk);
+        let mut ops = 0u64;
+        for t in &traces {
+            s.warm(&[(0, t)]).map_err(AppError)?;
+        }
+        let mut own = Vec::new();
+        for chunk in traces.chunks(k as usize) {
+            let units: Vec<(usize, &isa::Trace)> = chunk.iter().enumerate().collect();
+            let (_, each) = s.timed_each(&units).map_err(AppError)?;
+            own.extend(each);
+            ops += chunk.iter().map(|t| t.ops.len() as u64).sum::<u64>();
+        }
+        Ok((own, ops))
+    };
+    let (alone, ops1) = time(1)?;
+    let total_alone: u64 = alone.iter().sum();
+    let mut out = vec![(1, 1.0, ops1)];
+    for &k in cores.iter().filter(|&&k| k > 1) {
+        let (beside, ops) = time(k)?;
+        out.push((
+            k,
+            total_alone as f64 / beside.iter().sum::<u64>() as f64,
+            ops,
+        ));
+    }
+    Ok(out)
+}

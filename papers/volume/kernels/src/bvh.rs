@@ -534,7 +534,13 @@ fn one_ray<M: Machine>(
     };
     c.bump(|k| k.leaf_rays += 1);
     skip_to(m, &mut st, (dir, tenter), c, s);
-    integrate(m, (v, scratch), c, &mut st, (dir, texit), s);
+    // The ray may cross the leaf between two samples: its next one then
+    // belongs to a later node (and may lie outside the volume).
+    let t = m.extract(st.p, 3);
+    let past = m.x_cmp(Cmp::Gt, t, texit);
+    if !m.branch(site::SKIP_PAST, past) {
+        integrate(m, (v, scratch), c, &mut st, (dir, texit), s);
+    }
     m.store(states, At::idx(sb, 1, 0), st.rgba);
     m.store(states, At::idx(sb, 1, 16), st.p);
     m.store(states, At::idx(sb, 1, 32), st.sdt);

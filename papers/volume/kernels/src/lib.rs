@@ -80,9 +80,11 @@ pub mod site {
     pub const CONST_LIT: Site = isa::sites::VOLUME.at(24);
     /// BVH: the packet's frustum misses the box (interval arithmetic)?
     pub const FRUSTUM: Site = isa::sites::VOLUME.at(25);
+    /// BVH leaf: the ray's next sample past the leaf after the skip?
+    pub const SKIP_PAST: Site = isa::sites::VOLUME.at(26);
 
     /// Every site of the crate (checked for duplicates by the layout test).
-    pub const ALL: [Site; 26] = [
+    pub const ALL: [Site; 27] = [
         VAL,
         TERM,
         LIT,
@@ -109,6 +111,7 @@ pub mod site {
         CONST_RAY,
         CONST_LIT,
         FRUSTUM,
+        SKIP_PAST,
     ];
 }
 

@@ -254,6 +254,7 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         r.paper = Some(paper);
         rows.push(r);
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
+        rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
         rows.push(k(Row::new(
             "psnr_vs_uniform_sampling",
             psnr_between(&smp, &truth),

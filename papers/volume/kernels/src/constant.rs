@@ -153,6 +153,7 @@ pub fn packlet<M: Machine>(
         c.bump(|x| {
             x.samples += u64::from(n);
             x.classified += u64::from(n);
+            x.constant_samples += u64::from(n);
         });
         m.region(Region::Blending);
         let keep = m.sub(one, st.rgba[3]);

@@ -51,6 +51,8 @@ pub struct Counters {
     pub leaf_rays: u64,
     /// Nodes the packet's frustum test culled.
     pub frustum_culls: u64,
+    /// Samples the constant-subvolume routine took (of `samples`).
+    pub constant_samples: u64,
 }
 
 /// The routine's constants (globals in Listing 2), made once per frame,

@@ -272,6 +272,8 @@ pub(crate) struct Cell {
     /// ray (timed packets; 0 without the BVH).
     pub(crate) nodes_per_packet: f64,
     pub(crate) leaf_rays_per_ray: f64,
+    /// Share of the visited samples the constant-subvolume routine took.
+    pub(crate) constant_share: f64,
     /// Instructions per ray and CPI of the timed packets.
     pub(crate) instr_per_ray: f64,
     pub(crate) cpi: f64,
@@ -358,7 +360,7 @@ pub(crate) fn measure(
     let mut regions = [0f64; isa::Region::COUNT];
     let (mut se, mut n_px) = (0f64, 0usize);
     let (mut samples, mut classified) = (0u64, 0u64);
-    let (mut nodes, mut leaf_rays) = (0u64, 0u64);
+    let (mut nodes, mut leaf_rays, mut constant) = (0u64, 0u64, 0u64);
     isa::run_units(
         &prog,
         m.flavour(),
@@ -388,6 +390,7 @@ pub(crate) fn measure(
             classified += cn.classified;
             nodes += cn.nodes;
             leaf_rays += cn.leaf_rays;
+            constant += cn.constant_samples;
             let st = session.timed_queue(&[&t]).map_err(AppError)?;
             isa::trace::recycle(t);
             cycles.push(st.cycles as f64);
@@ -413,6 +416,7 @@ pub(crate) fn measure(
         classified_per_ray: classified as f64 / rays,
         nodes_per_packet: nodes as f64 / (rays / 64.0).max(1.0),
         leaf_rays_per_ray: leaf_rays as f64 / rays,
+        constant_share: constant as f64 / samples.max(1) as f64,
         instr_per_ray: instr / rays,
         cpi: total / instr.max(1.0),
         traversal_share: regions[isa::Region::Traversal as usize] / total.max(1.0),

@@ -107,6 +107,10 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             if me == Method::Bvh {
                 rows.push(k(Row::new("bvh_nodes_per_packet", c.nodes_per_packet)));
                 rows.push(k(Row::new("leaf_rays_per_ray", c.leaf_rays_per_ray)));
+                rows.push(k(Row::new(
+                    "constant_subvolume_sample_share",
+                    c.constant_share,
+                )));
                 let mut r = k(Row::new("traversal_cycle_share", c.traversal_share));
                 r.paper = Some(TRAVERSAL_SHARE.1);
                 rows.push(r);

@@ -121,6 +121,10 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                 rows.push(k(Row::new("pixels_off_reference", c.bad as f64)));
                 if me == Method::Bvh {
                     rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
+                    rows.push(k(Row::new(
+                        "constant_subvolume_sample_share",
+                        c.constant_share,
+                    )));
                 }
             }
             // The frame with the paper's heuristics (the PNG), and without
@@ -255,6 +259,10 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         rows.push(r);
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
         rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
+        rows.push(k(Row::new(
+            "constant_subvolume_sample_share",
+            c.constant_share,
+        )));
         rows.push(k(Row::new(
             "psnr_vs_uniform_sampling",
             psnr_between(&smp, &truth),

@@ -197,9 +197,13 @@ fn figures_6_and_7_scale_with_resolution_view_and_sampling_rate() {
     let g = Given {
         quick: true,
         tiles: Some(2),
+        out: Some(dir.clone()),
         ..Given::default()
     };
     let p = find("volume-fig7").compute(g).expect("computed");
+    for e in -8..=-5 {
+        assert!(dir.join(format!("volume-fig7-rda2^{e}.png")).exists());
+    }
     assert_eq!(p.mismatches, 0.0);
     let j = serde_json::to_value(&p.report).unwrap();
     let rows = j["rows"].as_array().unwrap();

@@ -9,6 +9,7 @@ use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
+use volume_kernels::bvh::Heuristics;
 
 /// Packets timed per cell: `--tiles`, else 16 (`--quick`) or 64.
 fn groups(a: &ReproduceArgs) -> usize {
@@ -145,6 +146,18 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
         rows.push(k(Row::new("frame_psnr_vs_reference", fr.psnr).unit("dB")));
         rows.push(k(Row::new("frame_max_difference", fr.max)));
         rows.push(k(Row::new("frame_share_off_by_0.05", fr.off)));
+        // What the heuristics change: the same frame with eqs. 5-7 off (every
+        // node descended, nothing culled, pruned or taken as constant).
+        let exact = ds.with_heuristics(Heuristics {
+            delta_c: 0.0,
+            delta_p: f32::INFINITY,
+            delta_sv: 0.0,
+        });
+        let fx = crate::images::frame(None, &exact, res, PIXEL_TOL)?;
+        bad += fx.bad;
+        rows.push(
+            k(Row::new("frame_psnr_vs_reference", fx.psnr).unit("dB")).key("heuristics", "off"),
+        );
         rows.push(
             Row::new(
                 "samples_per_ray_without_termination",

@@ -435,7 +435,7 @@ pub struct VolumeCli {
     /// 8x8 packets timed per caster.
     #[arg(long, default_value_t = 16)]
     pub packets: u32,
-    /// A built-in machine or a RON config (default: the paper's nehalem-x5550).
+    /// A built-in machine or a RON config, 4 lanes (the paper's X5550 by default).
     #[arg(long, default_value = "nehalem-x5550")]
     pub machine: String,
     /// Override a machine config field: `--set core.width=6`.

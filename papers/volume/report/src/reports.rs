@@ -88,19 +88,7 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                 "classified_samples_per_ray",
                 c.classified_per_ray,
             )));
-            // Cycles per ray on one core: ours from the sample, the paper's
-            // implied by its whole-machine rate at the same scaling.
-            let per_frame = mm.clock_ghz * 1e9 / f64::from(RES * RES);
-            let mut r = k(Row::new("cycles_per_ray", per_frame / c.fps)).unit("cycles");
-            r.paper = Some(per_frame * whole_machine(1.0, cores) / paper);
-            rows.push(r);
-            rows.push(
-                k(Row::new(
-                    "cycles_per_visited_sample",
-                    per_frame / c.fps / c.samples_per_ray.max(1e-9),
-                ))
-                .unit("cycles"),
-            );
+            rows.extend(cost_rows(k, (mm, cores), (c, Some(paper)), RES));
             rows.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
             rows.push(k(Row::new("cpi", c.cpi)));
             rows.push(k(Row::new("psnr_vs_reference", c.psnr).unit("dB")));
@@ -238,4 +226,23 @@ pub(crate) fn untermined_samples(ds: &Dataset) -> f64 {
         })
         .sum();
     total as f64 / rays.len() as f64
+}
+
+/// Cycles per ray on one core of `m` (ours from the sample; the paper's
+/// implied by its whole-machine rate `paper` on `cores` at the same
+/// scaling) and per visited sample, at `res` x `res`.
+pub(crate) fn cost_rows(
+    k: impl Fn(Row) -> Row,
+    (m, cores): (&sim::MachineConfig, u32),
+    (c, paper): (&Cell, Option<f64>),
+    res: u32,
+) -> Vec<Row> {
+    let per_frame = m.clock_ghz * 1e9 / f64::from(res * res);
+    let mut r = k(Row::new("cycles_per_ray", per_frame / c.fps)).unit("cycles");
+    r.paper = paper.map(|p| per_frame * whole_machine(1.0, cores) / p);
+    let per_sample = per_frame / c.fps / c.samples_per_ray.max(1e-9);
+    vec![
+        r,
+        k(Row::new("cycles_per_visited_sample", per_sample)).unit("cycles"),
+    ]
 }

@@ -9,7 +9,7 @@ use crate::measure::{
     contention, measure, sample, Dataset, Method, Sample, MIXING_SEED, PIXEL_TOL,
 };
 use crate::paper::{DOUBLING_COST, FIG6, FIG7, SCALING_AT_8};
-use crate::reports::{laptop_core, one_core, whole_machine, LAPTOP};
+use crate::reports::{cost_rows, laptop_core, one_core, whole_machine, LAPTOP};
 use rayon::prelude::*;
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::volume_ref::cast;
@@ -118,6 +118,7 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                 r.paper = paper;
                 rows.push(r);
                 rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
+                rows.extend(cost_rows(k, (mm, cores), (&c, paper), ds.res));
                 rows.push(k(Row::new("pixels_off_reference", c.bad as f64)));
                 if me == Method::Bvh {
                     rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));

@@ -158,7 +158,16 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             show(r, a.format)
         }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),
-        Cmd::Volume(a) => show(volume_report::volume(&a.args())?, a.format),
+        Cmd::Volume(a) => {
+            let (r, bad) = volume_report::volume(&a.args())?;
+            show(r, a.format)?;
+            if bad > 0 {
+                return Err(AppError(format!(
+                    "{bad} pixels differ from the f64 reference by more than the tolerance"
+                )));
+            }
+            Ok(())
+        }
         Cmd::List {
             what,
             names,

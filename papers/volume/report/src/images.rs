@@ -7,6 +7,7 @@ use rayon::prelude::*;
 use repro::AppResult;
 use scene::volume_ref::cast;
 use std::sync::Arc;
+use volume_kernels::bvh::Heuristics;
 use volume_kernels::{BvhRun, Rays};
 
 /// A frame's agreement with the reference: the largest difference in a
@@ -29,13 +30,36 @@ pub(crate) fn frame(
     res: u32,
     tol: f64,
 ) -> AppResult<Agreement> {
+    let fr = frames(ds, res, tol, &[ds.heuristics]).remove(0);
+    if let Some(path) = png {
+        write_png(&path, res, &fr.rgb)?;
+    }
+    Ok(fr)
+}
+
+/// The frame of `ds` at `res` x `res` rendered by the bvh caster once per
+/// heuristics in `variants`, each held to the one reference frame.
+pub(crate) fn frames(ds: &Dataset, res: u32, tol: f64, variants: &[Heuristics]) -> Vec<Agreement> {
+    let (rays, pixel) = frame_rays(ds, res);
+    let want: Vec<[f64; 4]> = (0..rays.len())
+        .into_par_iter()
+        .map(|i| {
+            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+            cast(&ds.prepared.volume, &ds.prepared.tf, o, d, &ds.sampling)
+        })
+        .collect();
+    variants
+        .iter()
+        .map(|&h| agreement(&render(ds, &rays, h), &want, (&pixel, res), tol))
+        .collect()
+}
+
+/// The frame's rays in packet order and each one's pixel.
+fn frame_rays(ds: &Dataset, res: u32) -> (Rays, Vec<usize>) {
     let dims = ds.prepared.volume.dims;
     let per = res / 8;
-    let packets: Vec<(u32, u32)> = (0..per)
-        .flat_map(|y| (0..per).map(move |x| (x, y)))
-        .collect();
     let (mut org, mut dir, mut pixel) = (Vec::new(), Vec::new(), Vec::new());
-    for &(px, py) in &packets {
+    for (px, py) in (0..per).flat_map(|y| (0..per).map(move |x| (x, y))) {
         let r = Rays::packet(dims, ds.eye, ds.fov, (res, res), (px, py));
         org.extend(r.org);
         dir.extend(r.dir);
@@ -45,14 +69,17 @@ pub(crate) fn frame(
             pixel.push((y * res + x) as usize);
         }
     }
-    let rays = Arc::new(Rays { org, dir });
-    // Packets in parallel chunks (each a run of its own), results in order.
-    let chunks: Vec<Vec<[f32; 4]>> = (0..packets.len())
-        .collect::<Vec<_>>()
-        .par_chunks(64)
+    (Rays { org, dir }, pixel)
+}
+
+/// The bvh caster's colours of `rays` (whole packets) with heuristics `h`:
+/// runs of 64 packets in parallel, results in order.
+fn render(ds: &Dataset, rays: &Rays, h: Heuristics) -> Vec<[f32; 4]> {
+    let per_run = 64 * 64;
+    (0..rays.len().div_ceil(per_run))
+        .into_par_iter()
         .map(|c| {
-            let lo = 64 * c[0];
-            let hi = 64 * (c[c.len() - 1] + 1);
+            let (lo, hi) = (c * per_run, ((c + 1) * per_run).min(rays.len()));
             let part = Rays {
                 org: rays.org[lo..hi].to_vec(),
                 dir: rays.dir[lo..hi].to_vec(),
@@ -62,22 +89,26 @@ pub(crate) fn frame(
                 tree: ds.tree.clone(),
                 rays: Arc::new(part),
                 sampling: ds.sampling,
-                heuristics: ds.heuristics,
+                heuristics: h,
             };
             isa::run_native(&run, isa::FlavourId::Sse4).0
         })
-        .collect();
-    let got: Vec<[f32; 4]> = chunks.into_iter().flatten().collect();
-    let want: Vec<[f64; 4]> = (0..rays.len())
-        .into_par_iter()
-        .map(|i| {
-            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
-            cast(&ds.prepared.volume, &ds.prepared.tf, o, d, &ds.sampling)
-        })
-        .collect();
+        .collect::<Vec<_>>()
+        .into_iter()
+        .flatten()
+        .collect()
+}
+
+/// `got` against `want` pixel by pixel, and `got` as RGB rows.
+fn agreement(
+    got: &[[f32; 4]],
+    want: &[[f64; 4]],
+    (pixel, res): (&[usize], u32),
+    tol: f64,
+) -> Agreement {
     let mut rgb = vec![0u8; (res * res * 3) as usize];
     let (mut max, mut se, mut off, mut bad) = (0f64, 0f64, 0usize, 0usize);
-    for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+    for (i, (g, w)) in got.iter().zip(want).enumerate() {
         let mut px = 0f64;
         for c in 0..4 {
             let d = (f64::from(g[c]) - w[c]).abs();
@@ -91,17 +122,14 @@ pub(crate) fn frame(
             rgb[3 * pixel[i] + c] = (g[c].clamp(0.0, 1.0) * 255.0).round() as u8;
         }
     }
-    if let Some(path) = png {
-        write_png(&path, res, &rgb)?;
-    }
     let n = got.len().max(1) as f64;
-    Ok(Agreement {
+    Agreement {
         max,
         psnr: 10.0 * (1.0 / (se / (4.0 * n)).max(1e-30)).log10(),
         off: off as f64 / n,
         bad,
         rgb,
-    })
+    }
 }
 
 /// Write a square frame's RGB rows as a PNG (atomically).

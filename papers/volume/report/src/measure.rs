@@ -155,14 +155,6 @@ impl Dataset {
         }
     }
 
-    /// The same dataset with the BVH heuristics `h`.
-    pub(crate) fn with_heuristics(&self, h: Heuristics) -> Dataset {
-        Dataset {
-            heuristics: h,
-            ..self.clone()
-        }
-    }
-
     /// The same dataset rendered at `res` x `res`, the eye moved towards
     /// the volume's centre to `closer` of its distance (1: the default
     /// view), the field of view kept.

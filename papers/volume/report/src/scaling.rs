@@ -4,7 +4,7 @@
 //! `volume-fig7` (sampling rate: rda = 2^-8 .. 2^-5, frames per second and
 //! the image's error against dense uniform sampling).
 
-use crate::images::frame;
+use crate::images::{frame, frames, write_png};
 use crate::measure::{
     contention, measure, sample, Dataset, Method, Sample, MIXING_SEED, PIXEL_TOL,
 };
@@ -131,26 +131,23 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
             // The frame with the paper's heuristics (the PNG), and without
             // eq. 7: what the constant-subvolume routine changes.
             let shot = ds.with_view(frame_res, closer);
-            let exact = shot.with_heuristics(Heuristics {
-                delta_sv: 0.0,
-                ..shot.heuristics
-            });
-            for (d, name) in [
-                (&shot, format!("mixing{n}-{view}")),
-                (&exact, String::new()),
-            ] {
-                let png = if name.is_empty() {
-                    None
-                } else {
-                    Some(a.png_path(&format!("volume-fig6-{name}"))?)
-                };
-                let fr = frame(png, d, frame_res, PIXEL_TOL)?;
+            let variants = [
+                shot.heuristics,
+                Heuristics {
+                    delta_sv: 0.0,
+                    ..shot.heuristics
+                },
+            ];
+            let both = frames(&shot, frame_res, PIXEL_TOL, &variants);
+            let png = a.png_path(&format!("volume-fig6-mixing{n}-{view}"))?;
+            write_png(&png, frame_res, &both[0].rgb)?;
+            for (h, fr) in variants.iter().zip(&both) {
                 bad += fr.bad;
                 let k = |r: Row| {
                     k0(r)
                         .key("view", view)
                         .key("frame", format!("{frame_res}x{frame_res}"))
-                        .key("delta_sv", d.heuristics.delta_sv)
+                        .key("delta_sv", h.delta_sv)
                 };
                 rows.push(k(Row::new("frame_psnr_vs_reference", fr.psnr).unit("dB")));
                 rows.push(k(Row::new("frame_max_difference", fr.max)));

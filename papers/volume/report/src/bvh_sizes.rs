@@ -4,6 +4,7 @@
 
 use crate::measure::{measure, sample, Dataset, Method};
 use crate::paper::BVH_FOOTPRINT;
+use crate::reports::fps_rows;
 use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -37,9 +38,7 @@ pub(crate) fn volume_bvh(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(r);
             rows.push(k(Row::new("bvh_nodes", ds.tree.nodes.len() as f64)));
             rows.push(k(Row::new("bvh_build_seconds", ds.build_seconds)).unit("host-measured"));
-            let mut r = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
-            r.ci95 = c.ci;
-            rows.push(r);
+            rows.extend(fps_rows(&k, &c, None));
             rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
         }
     }

@@ -8,6 +8,7 @@
 
 use crate::images::{frame, write_png};
 use crate::measure::{measure, sample, Dataset, Method, PIXEL_TOL};
+use crate::reports::fps_rows;
 use repro::progress::Progress;
 use repro::{AppError, AppResult, MachineSpec, Report, Row};
 use scene::transfer::Transfer;
@@ -114,9 +115,7 @@ pub fn volume(a: &VolumeArgs) -> AppResult<(Report, usize)> {
         ops += c.ops;
         bad += c.bad;
         let k = |r: Row| r.key("method", me.name());
-        let mut r = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
-        r.ci95 = c.ci;
-        rows.push(r);
+        rows.extend(fps_rows(&k, &c, None));
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
         rows.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
         rows.push(k(Row::new("cpi", c.cpi)));

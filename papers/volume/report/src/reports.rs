@@ -76,14 +76,7 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("method", me.name())
                     .key("machine", mm.name.clone())
             };
-            let mut r = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
-            r.ci95 = c.ci;
-            rows.push(r);
-            let mut r = k(Row::new("fps", whole_machine(c.fps, cores)))
-                .key("cores", cores)
-                .unit("frame/s");
-            r.paper = Some(paper);
-            rows.push(r);
+            rows.extend(fps_rows(&k, c, Some((cores, Some(paper)))));
             rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
             rows.push(k(Row::new(
                 "classified_samples_per_ray",
@@ -251,3 +244,24 @@ pub(crate) const EXACT: Heuristics = Heuristics {
     delta_p: f32::INFINITY,
     delta_sv: 0.0,
 };
+
+/// A cell's frames per second: on one simulated core (with its 95%
+/// interval) and, if `whole` gives the machine's cores and the paper's
+/// rate, on the whole machine beside the paper's.
+pub(crate) fn fps_rows(
+    k: impl Fn(Row) -> Row,
+    c: &Cell,
+    whole: Option<(u32, Option<f64>)>,
+) -> Vec<Row> {
+    let mut one = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
+    one.ci95 = c.ci;
+    let mut rows = vec![one];
+    if let Some((cores, paper)) = whole {
+        let mut r = k(Row::new("fps", whole_machine(c.fps, cores)))
+            .key("cores", cores)
+            .unit("frame/s");
+        r.paper = paper;
+        rows.push(r);
+    }
+    rows
+}

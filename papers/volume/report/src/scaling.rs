@@ -9,7 +9,7 @@ use crate::measure::{
     contention, measure, sample, Dataset, Method, Sample, MIXING_SEED, PIXEL_TOL,
 };
 use crate::paper::{DOUBLING_COST, FIG6, FIG7, SCALING_AT_8};
-use crate::reports::{cost_rows, laptop_core, one_core, whole_machine, LAPTOP};
+use crate::reports::{cost_rows, fps_rows, laptop_core, one_core, LAPTOP};
 use rayon::prelude::*;
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::volume_ref::cast;
@@ -109,14 +109,7 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                         .key("method", me.name())
                         .key("machine", mm.name.clone())
                 };
-                let mut r = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
-                r.ci95 = c.ci;
-                rows.push(r);
-                let mut r = k(Row::new("fps", whole_machine(c.fps, cores)))
-                    .key("cores", cores)
-                    .unit("frame/s");
-                r.paper = paper;
-                rows.push(r);
+                rows.extend(fps_rows(&k, &c, Some((cores, paper))));
                 rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
                 rows.extend(cost_rows(k, (mm, cores), (&c, paper), ds.res));
                 rows.push(k(Row::new("pixels_off_reference", c.bad as f64)));
@@ -247,14 +240,7 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         ops += c.ops;
         bad += c.bad;
         let k = |r: Row| r.key("rda", format!("2^{e}"));
-        let mut r = k(Row::new("fps", c.fps)).key("cores", 1).unit("frame/s");
-        r.ci95 = c.ci;
-        rows.push(r);
-        let mut r = k(Row::new("fps", whole_machine(c.fps, chip)))
-            .key("cores", chip)
-            .unit("frame/s");
-        r.paper = Some(paper);
-        rows.push(r);
+        rows.extend(fps_rows(&k, &c, Some((chip, Some(paper)))));
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
         rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
         rows.push(k(Row::new(

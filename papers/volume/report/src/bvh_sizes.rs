@@ -38,7 +38,7 @@ pub(crate) fn volume_bvh(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(r);
             rows.push(k(Row::new("bvh_nodes", ds.tree.nodes.len() as f64)));
             rows.push(k(Row::new("bvh_build_seconds", ds.build_seconds)).unit("host-measured"));
-            rows.extend(fps_rows(&k, &c, None));
+            rows.extend(fps_rows(k, &c, None));
             rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
         }
     }

@@ -115,7 +115,7 @@ pub fn volume(a: &VolumeArgs) -> AppResult<(Report, usize)> {
         ops += c.ops;
         bad += c.bad;
         let k = |r: Row| r.key("method", me.name());
-        rows.extend(fps_rows(&k, &c, None));
+        rows.extend(fps_rows(k, &c, None));
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
         rows.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
         rows.push(k(Row::new("cpi", c.cpi)));

@@ -76,7 +76,7 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("method", me.name())
                     .key("machine", mm.name.clone())
             };
-            rows.extend(fps_rows(&k, c, Some((cores, Some(paper)))));
+            rows.extend(fps_rows(k, c, Some((cores, Some(paper)))));
             rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
             rows.push(k(Row::new(
                 "classified_samples_per_ray",

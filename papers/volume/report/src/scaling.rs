@@ -109,7 +109,7 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
                         .key("method", me.name())
                         .key("machine", mm.name.clone())
                 };
-                rows.extend(fps_rows(&k, &c, Some((cores, paper))));
+                rows.extend(fps_rows(k, &c, Some((cores, paper))));
                 rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
                 rows.extend(cost_rows(k, (mm, cores), (&c, paper), ds.res));
                 rows.push(k(Row::new("pixels_off_reference", c.bad as f64)));
@@ -240,7 +240,7 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         ops += c.ops;
         bad += c.bad;
         let k = |r: Row| r.key("rda", format!("2^{e}"));
-        rows.extend(fps_rows(&k, &c, Some((chip, Some(paper)))));
+        rows.extend(fps_rows(k, &c, Some((chip, Some(paper)))));
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
         rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
         rows.push(k(Row::new(

@@ -35,6 +35,37 @@ fn compare(a: &[[f32; 4]], b: &[[f64; 4]]) -> (f64, f64, f64) {
     )
 }
 
+/// The f64 reference's colour for every ray.
+fn reference(pr: &Prepared, rays: &Rays, s: &Sampling) -> Vec<[f64; 4]> {
+    (0..rays.len())
+        .map(|i| {
+            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+            cast(&pr.volume, &pr.tf, o, d, s)
+        })
+        .collect()
+}
+
+/// The rays of the 2x2 packets at the corner of a 16x16 image of a
+/// `dims` volume seen from `eye`.
+fn corner_packets(dims: [u32; 3], eye: [f64; 3]) -> Arc<Rays> {
+    let (mut org, mut dir) = (Vec::new(), Vec::new());
+    for py in 0..2 {
+        for px in 0..2 {
+            let r = Rays::packet(dims, eye, 40.0, (16, 16), (px, py));
+            org.extend(r.org);
+            dir.extend(r.dir);
+        }
+    }
+    Arc::new(Rays { org, dir })
+}
+
+/// The paper's heuristics: delta_c 1e-3, delta_p 1.5, delta_sv 1e-4.
+const PAPER: volume_kernels::bvh::Heuristics = volume_kernels::bvh::Heuristics {
+    delta_c: 1e-3,
+    delta_p: 1.5,
+    delta_sv: 1e-4,
+};
+
 /// Which caster a check runs.
 #[derive(Clone, Copy, Debug)]
 enum Caster {
@@ -81,13 +112,7 @@ fn check_with(
     };
     assert_eq!(counts.rays, rays.len() as u64);
     assert!(counts.classified > 0 && counts.classified <= counts.samples);
-    let want: Vec<[f64; 4]> = (0..rays.len())
-        .map(|i| {
-            let o = rays.org[i].map(f64::from);
-            let d = rays.dir[i].map(f64::from);
-            cast(&pr.volume, &pr.tf, o, d, &s)
-        })
-        .collect();
+    let want = reference(&pr, &rays, &s);
     assert!(
         want.iter().filter(|p| p[3] > 0.05).count() > 100,
         "the volume is in view"
@@ -201,17 +226,7 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
         light: [0.0; 3],
         light_threshold: 0.01,
     };
-    let want: Vec<[f64; 4]> = (0..rays.len())
-        .map(|i| {
-            cast(
-                &pr.volume,
-                &pr.tf,
-                rays.org[i].map(f64::from),
-                rays.dir[i].map(f64::from),
-                &s,
-            )
-        })
-        .collect();
+    let want = reference(&pr, &rays, &s);
     let sse = Run {
         prepared: pr.clone(),
         rays: rays.clone(),
@@ -288,7 +303,6 @@ fn the_constant_subvolume_routine_is_exact_on_a_constant_field() {
     // lighting are exactly what the reference computes per sample; only
     // f32 stepping differs (the routine's closed-form positions).
     use scene::volume_bvh::MinMaxBvh;
-    use volume_kernels::bvh::Heuristics;
     use volume_kernels::BvhRun;
     let n = 24u32;
     let vol = Volume {
@@ -301,16 +315,7 @@ fn the_constant_subvolume_routine_is_exact_on_a_constant_field() {
     let pr = Arc::new(Prepared::new(vol, Transfer::parse(TF).unwrap()));
     let c = [f64::from(n); 3];
     let eye = [c[0] * 1.9, -c[1] * 0.7, c[2] * 1.4];
-    let mut org = Vec::new();
-    let mut dir = Vec::new();
-    for py in 0..2 {
-        for px in 0..2 {
-            let r = Rays::packet([n; 3], eye, 40.0, (16, 16), (px, py));
-            org.extend(r.org);
-            dir.extend(r.dir);
-        }
-    }
-    let rays = Arc::new(Rays { org, dir });
+    let rays = corner_packets([n; 3], eye);
     for (lighting, rda) in [(Lighting::Unlit, 0.0), (Lighting::Diffuse, 0.01)] {
         let s = Sampling {
             filter: Filter::Trilinear,
@@ -325,25 +330,11 @@ fn the_constant_subvolume_routine_is_exact_on_a_constant_field() {
             tree: tree.clone(),
             rays: rays.clone(),
             sampling: s,
-            heuristics: Heuristics {
-                delta_c: 1e-3,
-                delta_p: 1.5,
-                delta_sv: 1e-4,
-            },
+            heuristics: PAPER,
         };
         let (img, counts) = traced_equals_native(&run);
         assert!(counts.classified > 0);
-        let want: Vec<[f64; 4]> = (0..rays.len())
-            .map(|i| {
-                cast(
-                    &pr.volume,
-                    &pr.tf,
-                    rays.org[i].map(f64::from),
-                    rays.dir[i].map(f64::from),
-                    &s,
-                )
-            })
-            .collect();
+        let want = reference(&pr, &rays, &s);
         assert!(want.iter().filter(|p| p[3] > 0.05).count() > 50);
         let (max, psnr, _) = compare(&img, &want);
         eprintln!("constant field {lighting:?}: max {max:.5}, PSNR {psnr:.1} dB");
@@ -359,7 +350,6 @@ fn long_steps_through_small_leaves_never_sample_outside_the_volume() {
     // voxel: a ray crosses whole leaves between two samples, the last one
     // at the volume's far face (its next sample lies outside the volume).
     use scene::volume_bvh::MinMaxBvh;
-    use volume_kernels::bvh::Heuristics;
     use volume_kernels::BvhRun;
     let vol = Volume::mixing_layer(16, 3);
     let dims = vol.dims;
@@ -367,15 +357,7 @@ fn long_steps_through_small_leaves_never_sample_outside_the_volume() {
     let pr = Arc::new(Prepared::new(vol, Transfer::parse(TF).unwrap()));
     let c = dims.map(f64::from);
     let eye = [c[0] * 1.9, -c[1] * 0.7, c[2] * 1.4];
-    let (mut org, mut dir) = (Vec::new(), Vec::new());
-    for py in 0..2 {
-        for px in 0..2 {
-            let r = Rays::packet(dims, eye, 40.0, (16, 16), (px, py));
-            org.extend(r.org);
-            dir.extend(r.dir);
-        }
-    }
-    let rays = Arc::new(Rays { org, dir });
+    let rays = corner_packets(dims, eye);
     let s = Sampling {
         filter: Filter::Trilinear,
         dt: 0.9,
@@ -389,25 +371,11 @@ fn long_steps_through_small_leaves_never_sample_outside_the_volume() {
         tree,
         rays: rays.clone(),
         sampling: s,
-        heuristics: Heuristics {
-            delta_c: 1e-3,
-            delta_p: 1.5,
-            delta_sv: 1e-4,
-        },
+        heuristics: PAPER,
     };
     let (img, counts) = traced_equals_native(&run);
     assert!(counts.leaf_rays > 0);
-    let want: Vec<[f64; 4]> = (0..rays.len())
-        .map(|i| {
-            cast(
-                &pr.volume,
-                &pr.tf,
-                rays.org[i].map(f64::from),
-                rays.dir[i].map(f64::from),
-                &s,
-            )
-        })
-        .collect();
+    let want = reference(&pr, &rays, &s);
     let (max, psnr, _) = compare(&img, &want);
     eprintln!("long steps: max {max:.4}, PSNR {psnr:.1} dB");
     // Measured: 53.4 dB, largest 0.021; sampling past a leaf's exit (the

@@ -258,6 +258,32 @@ impl ReportDef {
         (self.run)(&self.resolve(g)?)
     }
 
+    /// Compute the report on a pool of `threads` host threads: its JSON with
+    /// what the host measures left out (host time, rows in unit
+    /// `host-measured`), for tests that the figures do not depend on the
+    /// thread count.
+    ///
+    /// # Errors
+    /// As [`ReportDef::compute`].
+    ///
+    /// # Panics
+    /// If the thread pool cannot be built.
+    pub fn on_threads(&self, threads: usize, g: Given) -> AppResult<serde_json::Value> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool");
+        let p = pool.install(|| self.compute(g))?;
+        let mut j = serde_json::to_value(&p.report).expect("a report is JSON");
+        if let Some(o) = j.as_object_mut() {
+            o.remove("host_seconds");
+            if let Some(rows) = o.get_mut("rows").and_then(|r| r.as_array_mut()) {
+                rows.retain(|r| r["unit"] != "host-measured");
+            }
+        }
+        Ok(j)
+    }
+
     /// Compute the report with `a`, print it, and with `--out` write it to
     /// DIR/NAME.{txt,json,csv}; an error if any ray differed from the reference.
     pub fn produce(&self, a: &ReproduceArgs) -> AppResult<()> {

@@ -61,23 +61,14 @@ fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
 }
 
 /// Report `name` on a pool of `n` host threads, host-measured figures
-/// (host time, Embree's native ratios) left out.
+/// left out.
 fn on_threads(n: usize, name: &str, g: Given) -> serde_json::Value {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .unwrap();
-    let def = multihit_report::REPORTS
+    multihit_report::REPORTS
         .iter()
         .find(|d| d.name == name)
-        .unwrap();
-    let p = pool.install(|| def.compute(g)).expect("computed");
-    let mut j = serde_json::to_value(&p.report).unwrap();
-    let o = j.as_object_mut().unwrap();
-    o.remove("host_seconds");
-    let rows = o["rows"].as_array_mut().unwrap();
-    rows.retain(|r| r["unit"] != "host-measured");
-    j
+        .unwrap()
+        .on_threads(n, g)
+        .expect("computed")
 }
 
 #[test]

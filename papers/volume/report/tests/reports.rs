@@ -229,24 +229,15 @@ fn figures_6_and_7_scale_with_resolution_view_and_sampling_rate() {
     }
 }
 
-/// Report `name` on a pool of `n` host threads, host-measured figures left
-/// out.
+/// Report `name` on a pool of `n` host threads, host-measured figures
+/// left out.
 fn on_threads(n: usize, name: &str, g: Given) -> serde_json::Value {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(n)
-        .build()
-        .unwrap();
-    let def = volume_report::REPORTS
+    volume_report::REPORTS
         .iter()
         .find(|d| d.name == name)
-        .unwrap();
-    let p = pool.install(|| def.compute(g)).expect("computed");
-    let mut j = serde_json::to_value(&p.report).unwrap();
-    let o = j.as_object_mut().unwrap();
-    o.remove("host_seconds");
-    let rows = o["rows"].as_array_mut().unwrap();
-    rows.retain(|r| r["unit"] != "host-measured");
-    j
+        .unwrap()
+        .on_threads(n, g)
+        .expect("computed")
 }
 
 #[test]

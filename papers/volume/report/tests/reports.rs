@@ -114,16 +114,7 @@ fn table_1_splits_each_column_into_the_papers_stages() {
             .map(|r| r["value"].as_f64().unwrap())
             .unwrap_or_else(|| panic!("{col} {stage}"))
     };
-    let stages = [
-        "vox fetch",
-        "interp",
-        "classif",
-        "blend",
-        "BVH trav",
-        "diffuse",
-        "phong",
-        "other",
-    ];
+    let stages = volume_report::paper::TABLE1_STAGES;
     for col in [
         "gcc NN",
         "gcc tril",

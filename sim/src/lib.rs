@@ -20,7 +20,7 @@ pub mod stats;
 
 pub use config::{CoreKind, MachineConfig};
 pub use memory::Hierarchy;
-pub use session::Session;
+pub use session::{Session, UnitTimed};
 pub use stats::{PerRay, Stall, Stats};
 
 use isa::{OpClass, Trace, ValId};

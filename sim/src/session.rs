@@ -24,6 +24,37 @@ const _: () = assert!(
 /// A unit's ops arriving in chunks ([`Session::timed_streams`]).
 pub type Chunks<'a> = &'a mut dyn Iterator<Item = Trace>;
 
+/// What one unit of a timed step ran: its own cycles (as
+/// [`Session::timed_each`] gives them) and what its ops count, so a caller
+/// of [`Session::timed_streams`] needs no second pass over the chunks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct UnitTimed {
+    /// Cycles from the step's common start to the unit's end.
+    pub cycles: u64,
+    /// Ops (trace records).
+    pub records: u64,
+    /// Instructions (as [`Stats::ops`] counts them).
+    pub instructions: u64,
+    /// Instructions per code region (as [`Stats::region_ops`]).
+    pub region_instructions: [u64; isa::Region::COUNT],
+}
+
+impl UnitTimed {
+    /// The counts of a whole trace (cycles left 0).
+    fn of(t: &Trace) -> UnitTimed {
+        let mut u = UnitTimed {
+            records: t.ops.len() as u64,
+            ..UnitTimed::default()
+        };
+        for o in &t.ops {
+            let i = stats::instructions(o.class);
+            u.instructions += i;
+            u.region_instructions[o.region as usize] += i;
+        }
+        u
+    }
+}
+
 /// A machine's state between steps.
 pub struct Session {
     m: MachineConfig,
@@ -219,7 +250,7 @@ impl Session {
     pub fn timed_streams(
         &mut self,
         units: &mut [(usize, Chunks<'_>)],
-    ) -> Result<(Stats, Vec<u64>), String> {
+    ) -> Result<(Stats, Vec<UnitTimed>), String> {
         let mut firsts = Vec::with_capacity(units.len());
         for (slot, it) in units.iter_mut() {
             firsts.push((
@@ -239,12 +270,21 @@ impl Session {
                 }
             }
             let step: Vec<(usize, &Trace)> = whole.iter().map(|(c, t)| (*c, t)).collect();
-            return self.timed_each(&step);
+            let (s, own) = self.timed_each(&step)?;
+            let each = step
+                .iter()
+                .zip(own)
+                .map(|(u, cycles)| UnitTimed {
+                    cycles,
+                    ..UnitTimed::of(u.1)
+                })
+                .collect();
+            return Ok((s, each));
         }
         self.mem.reset_counters();
         let mut s = Stats::new(self.m.flavour().lanes());
         let own = self.timed_ooo_streams(firsts, units, &mut s)?;
-        s.cycles = own.iter().copied().max().unwrap_or(0);
+        s.cycles = own.iter().map(|u| u.cycles).max().unwrap_or(0);
         self.mem_stats(&mut s);
         Ok((s, own))
     }
@@ -256,13 +296,14 @@ impl Session {
         firsts: Vec<(usize, Trace)>,
         units: &mut [(usize, Chunks<'_>)],
         s: &mut Stats,
-    ) -> Result<Vec<u64>, String> {
+    ) -> Result<Vec<UnitTimed>, String> {
         let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
         for c in &mut self.ooo {
             c.advance_to(start);
         }
         let mut cur: Vec<(usize, Option<Trace>, usize)> =
             firsts.into_iter().map(|(c, t)| (c, Some(t), 0)).collect();
+        let mut each = vec![UnitTimed::default(); cur.len()];
         loop {
             for (u, (_, it)) in cur.iter_mut().zip(units.iter_mut()) {
                 while let Some(t) = u.1.as_ref().filter(|t| u.2 >= t.ops.len()) {
@@ -291,10 +332,24 @@ impl Session {
             let (slot, pos) = (cur[k].0, cur[k].2);
             let t = cur[k].1.as_ref().expect("a unit with ops left");
             let end = (pos + PIECE).min(t.ops.len());
+            let (ops, regions) = (s.ops, s.region_ops);
             self.ooo[slot].run(t, pos..end, &mut self.mem, s, 0);
+            let u = &mut each[k];
+            u.records += (end - pos) as u64;
+            u.instructions += s.ops - ops;
+            for (r, (now, before)) in u
+                .region_instructions
+                .iter_mut()
+                .zip(s.region_ops.iter().zip(regions))
+            {
+                *r += now - before;
+            }
             cur[k].2 = end;
         }
-        Ok(cur.iter().map(|u| self.ooo[u.0].now - start).collect())
+        for (u, c) in each.iter_mut().zip(&cur) {
+            u.cycles = self.ooo[c.0].now - start;
+        }
+        Ok(each)
     }
 
     /// Functional warming of `units` (slot, trace): caches, prefetchers and
@@ -377,7 +432,7 @@ mod tests {
             g.push_src(ValId(v));
             v += 1;
             g.dst = ValId(v);
-            let mut cmp = Op::new(OpClass::Cmp, Region::CoreLoop);
+            let mut cmp = Op::new(OpClass::Cmp, Region::Traversal);
             cmp.push_src(ValId(v));
             v += 1;
             cmp.dst = ValId(v);
@@ -424,8 +479,17 @@ mod tests {
                 .enumerate()
                 .map(|(k, c)| (k, c as Chunks<'_>))
                 .collect();
-            let got = b.timed_streams(&mut units).unwrap();
-            assert_eq!(got, want, "step {step}");
+            let (s, each) = b.timed_streams(&mut units).unwrap();
+            let cycles: Vec<u64> = each.iter().map(|u| u.cycles).collect();
+            assert_eq!((s, cycles), want, "step {step}");
+            for (u, t) in each.iter().zip(&traces) {
+                let whole = UnitTimed::of(t);
+                assert_eq!(
+                    (u.records, u.instructions, u.region_instructions),
+                    (whole.records, whole.instructions, whole.region_instructions),
+                    "step {step}: a unit's counts are its trace's"
+                );
+            }
         }
         // Joined again, the chunks are the trace.
         let parts = chunks(&traces[0], 300);

@@ -460,27 +460,6 @@ fn frame_steps<'a>(
     (steps, slots)
 }
 
-/// What a timed unit's chunks held, tallied as they were timed.
-#[derive(Clone, Copy, Default)]
-struct Tally {
-    ops: u64,
-    instructions: u64,
-    core_instructions: u64,
-}
-
-impl Tally {
-    fn add(&mut self, t: &isa::Trace) {
-        self.ops += t.ops.len() as u64;
-        for o in &t.ops {
-            let i = sim::stats::instructions(o.class);
-            self.instructions += i;
-            if o.region == Region::CoreLoop {
-                self.core_instructions += i;
-            }
-        }
-    }
-}
-
 /// The stream kind's name in the report.
 fn kind_name(k: StreamKind) -> &'static str {
     match k {
@@ -555,12 +534,7 @@ pub(crate) fn measure_kernel(
         },
         |units, rxs| {
             let m = &mut *st.borrow_mut();
-            let mut tallies = vec![Tally::default(); units.len()];
-            let mut chunks: Vec<_> = rxs
-                .iter_mut()
-                .zip(&mut tallies)
-                .map(|(rx, tally)| rx.iter().inspect(move |c| tally.add(c)))
-                .collect();
+            let mut chunks: Vec<_> = rxs.iter_mut().map(|rx| rx.iter()).collect();
             let mut step: Vec<(usize, sim::session::Chunks<'_>)> = units
                 .iter()
                 .zip(&mut chunks)
@@ -569,28 +543,27 @@ pub(crate) fn measure_kernel(
             let timed = m.session.timed_streams(&mut step).map_err(AppError)?;
             drop(step);
             drop(chunks);
-            Ok((timed, tallies))
+            Ok(timed)
         },
-        |units, outs, ((s, own), tallies)| {
+        |units, outs, (s, own)| {
             let m = &mut *st.borrow_mut();
             m.ac.ops += s.ops;
             m.ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
             m.ac.core_ops += s.region_ops[Region::CoreLoop as usize];
             m.ac.dram += s.dram_read + s.dram_written;
-            for ((u, (hits, tests)), (&c, tally)) in
-                units.iter().zip(outs).zip(own.iter().zip(tallies))
-            {
+            for ((u, (hits, tests)), tally) in units.iter().zip(outs).zip(own) {
                 let slot = &slots[m.next];
                 m.next += 1;
                 check(m, slot, &u.unit, &hits);
-                m.ops_total += tally.ops;
+                m.ops_total += tally.records;
+                let c = tally.cycles;
                 m.ac.core_tests += tests.core_loop;
                 m.ac.node_tests += tests.node_tests();
                 let rays = u.unit.len() as u64;
                 let work = Work {
                     rays,
                     instructions: tally.instructions,
-                    core_instructions: tally.core_instructions,
+                    core_instructions: tally.region_instructions[Region::CoreLoop as usize],
                     node_tests: tests.node_tests(),
                     core_tests: tests.core_loop,
                 };

@@ -58,6 +58,16 @@ pub struct CoreConfig {
     /// slot, executed once on the branch's ports.
     #[serde(default)]
     pub macro_fusion: bool,
+    /// A taken branch ends its issue group: the next op dispatches in the
+    /// next cycle, however few slots the branch's cycle used (OoO; the
+    /// front end delivers one taken branch's uops per cycle, as Intel's loop
+    /// buffer does: a loop of 5 fused uops takes 2 cycles per iteration).
+    #[serde(default)]
+    pub taken_branch_ends_issue: bool,
+    /// Ports a taken branch's uop may use, where they are fewer than the
+    /// branch class's (OoO; Haswell: port 6 only). Empty: the class's ports.
+    #[serde(default)]
+    pub taken_branch_ports: Vec<u32>,
     /// Hardware threads (in-order), interleaved on the core.
     #[serde(default = "one")]
     pub threads: u32,
@@ -414,6 +424,20 @@ impl MachineConfig {
             }
         } else if c.threads == 0 || c.threads > 16 {
             return e("core.threads", "must be 1 to 16");
+        }
+        if let Some(p) = c.taken_branch_ports.iter().find(|&&p| p >= c.ports) {
+            return Err((
+                "core.taken_branch_ports".into(),
+                format!("port {p} does not exist (core.ports = {})", c.ports),
+            ));
+        }
+        if c.kind != CoreKind::OutOfOrder
+            && (c.taken_branch_ends_issue || !c.taken_branch_ports.is_empty())
+        {
+            return e(
+                "core.taken_branch_ends_issue",
+                "the taken-branch rules are modelled on out-of-order cores",
+            );
         }
         if c.history_bits > 24 || c.predictor_bits == 0 || c.predictor_bits > 24 {
             return e(

@@ -128,6 +128,10 @@ pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
     class_table_of(m, false)
 }
 
+/// Where [`OooCore`]'s class tables hold a taken branch's timing (after
+/// every class's).
+const TAKEN_BRANCH: usize = OpClass::ALL.len();
+
 /// The class table, with the narrow-operand timings where a class has
 /// them if `narrow`.
 fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
@@ -369,12 +373,27 @@ impl Values {
     }
 }
 
+/// `table` with a taken branch's timing appended (at [`TAKEN_BRANCH`]):
+/// the branch class's, its uops on `core.taken_branch_ports` if given.
+fn with_taken_branch(mut table: Vec<ClassT>, m: &MachineConfig) -> Vec<ClassT> {
+    let mut t = table[OpClass::Branch as usize].clone();
+    let ports = &m.core.taken_branch_ports;
+    if !ports.is_empty() {
+        let each: Vec<Vec<u32>> = vec![ports.clone(); t.uops.len()];
+        t.uops = Uops::of(&each);
+    }
+    table.push(t);
+    table
+}
+
 /// An out-of-order core's state between ops.
 pub struct OooCore {
     core: usize,
     classes: Vec<ClassT>,
     /// The class table for ops on operands of at most 16 bytes.
     narrow: Vec<ClassT>,
+    /// A taken branch ends its dispatch group.
+    taken_ends_issue: bool,
     width: u32,
     retire_width: u32,
     rob: u64,
@@ -426,8 +445,9 @@ impl OooCore {
         let c = &m.core;
         OooCore {
             core,
-            classes: class_table(m),
-            narrow: class_table_of(m, true),
+            classes: with_taken_branch(class_table(m), m),
+            narrow: with_taken_branch(class_table_of(m, true), m),
+            taken_ends_issue: c.taken_branch_ends_issue,
             width: c.width,
             retire_width: c.retire_width,
             rob: u64::from(c.rob),
@@ -482,8 +502,11 @@ impl OooCore {
                 && op.class == OpClass::Cmp
                 && i + 1 < end
                 && fuses(op, &t.ops[i + 1]);
+            let taken_branch = op.class == OpClass::Branch && op.taken();
             let ct = if fused {
                 &FUSED_CMP
+            } else if taken_branch {
+                &classes[TAKEN_BRANCH]
             } else if op.bytes != 0 && op.bytes <= 16 && !op.class.is_mem() {
                 &narrow[op.class as usize]
             } else {
@@ -491,6 +514,10 @@ impl OooCore {
             };
             let counted = i >= count_from;
             let (d, f, mut why) = self.dispatch(ct);
+            if taken_branch && self.taken_ends_issue {
+                // The next op dispatches in the next cycle.
+                self.dcount = self.width;
+            }
             let (first, last, gather_lat) = self.issue(t, op, ct, d, mem);
             let mut done = if fused {
                 first

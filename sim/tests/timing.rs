@@ -513,3 +513,57 @@ fn moves_and_zero_idioms_are_done_at_rename_on_haswell() {
     let s = simulate(&hsw, &[&t], &SimOptions::default()).unwrap();
     assert_eq!((s.uops, s.cycles), (0, 2));
 }
+
+/// `n` iterations of a loop body: four independent ALU ops and a branch
+/// (`taken` or `not-taken`) closing it.
+fn alu_loop(n: u32, branch: &str) -> String {
+    (0..n)
+        .map(|i| {
+            let alus: String = (1..=4).map(|k| format!("%{} = alu\n", 4 * i + k)).collect();
+            format!("{alus}branch site=1 {branch}\n")
+        })
+        .collect()
+}
+
+/// Cycles per `n` more iterations of a loop (its steady state).
+fn per_iterations(m: &MachineConfig, body: impl Fn(u32) -> String, n: u32) -> u64 {
+    cycles(m, &body(2 * n)) - cycles(m, &body(n))
+}
+
+#[test]
+fn a_taken_branch_ends_its_issue_group_on_haswell() {
+    let m = hsw();
+    let off = m
+        .with_sets(&["core.taken_branch_ends_issue=false".into()])
+        .unwrap();
+    let taken = |n| alu_loop(n, "taken");
+    let not_taken = |n| alu_loop(n, "not-taken");
+    // Five uops an iteration on the four ALU ports, four issue slots a
+    // cycle: 64 iterations take 128 cycles when the loop's taken branch ends
+    // each group (4 | 1 slots), 80 when groups run across it (5 uops on
+    // four ports and four slots: 1.25 cycles each).
+    assert_eq!(per_iterations(&m, taken, 64), 128);
+    assert_eq!(per_iterations(&off, taken, 64), 80);
+    // A branch not taken does not end the group.
+    assert_eq!(per_iterations(&m, not_taken, 64), 80);
+}
+
+#[test]
+fn a_taken_branch_issues_on_port_6_only_on_haswell() {
+    let m = hsw()
+        .with_sets(&["core.taken_branch_ends_issue=false".into()])
+        .unwrap();
+    let any_port = m.with_sets(&["core.taken_branch_ports=[]".into()]).unwrap();
+    let branches = |taken: &'static str| {
+        move |n: u32| {
+            (0..n)
+                .map(|_| format!("branch site=1 {taken}\n"))
+                .collect::<String>()
+        }
+    };
+    // Taken: one branch unit (p6), one a cycle; not taken: p0 and p6, two.
+    assert_eq!(per_iterations(&m, branches("taken"), 64), 64);
+    assert_eq!(per_iterations(&m, branches("not-taken"), 64), 32);
+    // With the class's ports for taken branches too: two a cycle.
+    assert_eq!(per_iterations(&any_port, branches("taken"), 64), 32);
+}

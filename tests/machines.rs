@@ -332,6 +332,20 @@ fn bad_configs_name_file_line_and_field() {
             && e.contains(&line_of("\"vadd\": (lat: 3")),
         "{e}"
     );
+    let e = bad_config("fetch.ron", "fetch_bytes: 16,", "fetch_bytes: 12,");
+    assert!(
+        e.contains("fetch.ron") && e.contains("core.legacy_decode.fetch_bytes"),
+        "{e}"
+    );
+    let e = bad_config(
+        "tport.ron",
+        "taken_branch_ports: [6],",
+        "taken_branch_ports: [8],",
+    );
+    assert!(
+        e.contains("core.taken_branch_ports") && e.contains("port 8"),
+        "{e}"
+    );
     let e = err(&rtsim(&[
         "calibrate",
         "--machine",

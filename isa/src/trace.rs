@@ -38,6 +38,10 @@ pub struct Op {
     pub bytes: u32,
     /// Memory region accessed.
     pub mem: MemId,
+    /// Instruction length in bytes (1 to 15) for the legacy decoders of a
+    /// machine's front end; 0 (what recorded kernels have): unknown, the
+    /// op's uops come from the uop cache.
+    pub ilen: u8,
     /// Branch site, a load's static site (0: none; a memory-dependence
     /// predictor learns per site), or first lane address index for
     /// gather/scatter.
@@ -51,6 +55,11 @@ pub const FLAG_TAKEN: u8 = 1;
 /// `Op::flags`: a store's first source is its address (the rest its data);
 /// without it a store's address is known when it dispatches.
 pub const FLAG_ADDR: u8 = 2;
+/// `Op::flags`: the instruction has a length-changing prefix (a 16-bit
+/// immediate after `66h`): the legacy predecoder takes its slow path.
+pub const FLAG_LCP: u8 = 4;
+/// Longest x86 instruction, in bytes.
+pub const MAX_ILEN: u8 = 15;
 
 impl Op {
     /// A blank op of `class` in `region`.
@@ -67,6 +76,7 @@ impl Op {
             addr: Addr(0),
             bytes: 0,
             mem: MemId(0),
+            ilen: 0,
             aux: 0,
         }
     }
@@ -95,6 +105,12 @@ impl Op {
     #[inline]
     pub fn taken(&self) -> bool {
         self.flags & FLAG_TAKEN != 0
+    }
+    /// Whether the instruction has a length-changing prefix ([`FLAG_LCP`]).
+    #[must_use]
+    #[inline]
+    pub fn lcp(&self) -> bool {
+        self.flags & FLAG_LCP != 0
     }
     /// Whether a store's first source is its address ([`FLAG_ADDR`]).
     #[must_use]

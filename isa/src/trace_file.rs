@@ -1,4 +1,4 @@
-//! Binary trace files (`.rtt`), format version 2 (version 1 still read). `traces/FORMAT.md` is the
+//! Binary trace files (`.rtt`), format version 3 (versions 1 and 2 still read). `traces/FORMAT.md` is the
 //! specification; this is its implementation.
 //!
 //! ```text
@@ -11,18 +11,25 @@
 use crate::class::OpClass;
 use crate::flavour::FlavourId;
 use crate::mem::MemRegion;
-use crate::trace::{Op, Trace, FLAG_ADDR, FLAG_TAKEN, MAX_SRCS};
+use crate::trace::{Op, Trace, FLAG_ADDR, FLAG_LCP, FLAG_TAKEN, MAX_ILEN, MAX_SRCS};
 use crate::types::{Addr, LaneMask, MemId, MemKind, Region, ValId};
 use std::fmt;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"RTSIMTRC";
 /// Format version written and read.
-pub const VERSION: u16 = 2;
-/// The oldest version still read (version 1 has no operand widths).
+pub const VERSION: u16 = 3;
+/// The oldest version still read (version 1 has no operand widths,
+/// version 2 no instruction lengths).
 pub const OLDEST: u16 = 1;
-/// Class byte bit: an operand width (varint bytes) follows the mask (version 2).
-const C_WIDTH: u8 = 0x80;
+/// Class byte bit: an extension varint follows the mask (version 3:
+/// operand width << 5 | length-changing prefix << 4 | instruction length;
+/// version 2: the operand width alone).
+const C_EXT: u8 = 0x80;
+/// Extension bit: a length-changing prefix (version 3).
+const X_LCP: u64 = 0x10;
+/// Extension bits: the instruction length (version 3).
+const X_ILEN: u64 = 0x0F;
 
 const F_NSRC: u8 = 0b0000_0111;
 const F_DST: u8 = 0b0000_1000;
@@ -108,8 +115,8 @@ pub fn encode(t: &Trace) -> Vec<u8> {
     let mut region = Region::Other;
     let mut prev_addr = 0u64;
     for op in &t.ops {
-        let width = !op.class.is_mem() && op.bytes != 0;
-        out.push(op.class as u8 | if width { C_WIDTH } else { 0 });
+        let ext = extension(op);
+        out.push(op.class as u8 | if ext != 0 { C_EXT } else { 0 });
         let implicit = last_dst + 1;
         let mut flags = op.nsrc & F_NSRC;
         if op.dst.is_some() {
@@ -142,8 +149,8 @@ pub fn encode(t: &Trace) -> Vec<u8> {
         if flags & F_MASK != 0 {
             put_varint(&mut out, u64::from(op.mask.0));
         }
-        if width {
-            put_varint(&mut out, u64::from(op.bytes));
+        if ext != 0 {
+            put_varint(&mut out, ext);
         }
         if op.class.is_mem() {
             put_varint(&mut out, u64::from(op.mem.0));
@@ -390,12 +397,8 @@ fn read_op(
     let full = LaneMask::full(flavour.lanes());
     let at = r.pos;
     let byte = r.u8("op")?;
-    let width = byte & C_WIDTH != 0 && st.version >= 2;
-    let c = if st.version >= 2 {
-        byte & !C_WIDTH
-    } else {
-        byte
-    };
+    let ext = byte & C_EXT != 0 && st.version >= 2;
+    let c = if st.version >= 2 { byte & !C_EXT } else { byte };
     let class = OpClass::from_id(c).ok_or_else(|| FormatError {
         offset: at,
         msg: format!("op {i}: unknown op class {c}"),
@@ -454,13 +457,8 @@ fn read_op(
     } else {
         default_mask(class, full)
     };
-    if width {
-        let wat = r.pos;
-        let w = r.u32v("operand width")?;
-        if class.is_mem() || !w.is_power_of_two() || w > 4 * flavour.lanes() as u32 {
-            return r.err(wat, format!("op {i}: bad operand width {w} on a {class}"));
-        }
-        op.bytes = w;
+    if ext {
+        read_extension(r, &mut op, i, flavour, st.version)?;
     }
     if flags & F_TAKEN != 0 {
         if class != OpClass::Branch {
@@ -478,6 +476,53 @@ fn read_op(
         st.last_dst = op.dst.0;
     }
     Ok(op)
+}
+
+/// An op's extension word (version 3): operand width, length-changing
+/// prefix and instruction length; 0 when it has none of them.
+fn extension(op: &Op) -> u64 {
+    let width = if op.class.is_mem() {
+        0
+    } else {
+        u64::from(op.bytes)
+    };
+    width << 5 | if op.lcp() { X_LCP } else { 0 } | u64::from(op.ilen)
+}
+
+/// The extension varint after the mask: version 2 the operand width alone,
+/// version 3 [`extension`]'s word.
+fn read_extension(
+    r: &mut Reader<'_>,
+    op: &mut Op,
+    i: u64,
+    flavour: FlavourId,
+    version: u16,
+) -> Result<(), FormatError> {
+    let wat = r.pos;
+    let word = r.varint("operand width")?;
+    let (w, lcp, ilen) = if version >= 3 {
+        (word >> 5, word & X_LCP != 0, (word & X_ILEN) as u8)
+    } else {
+        (word, false, 0)
+    };
+    let class = op.class;
+    if w != 0 && (class.is_mem() || !w.is_power_of_two() || w > 4 * flavour.lanes() as u64)
+        || version < 3 && w == 0
+    {
+        return r.err(wat, format!("op {i}: bad operand width {w} on a {class}"));
+    }
+    if ilen > MAX_ILEN || lcp && ilen == 0 || version >= 3 && word == 0 {
+        return r.err(
+            wat,
+            format!("op {i}: bad instruction length {ilen} (lcp {lcp})"),
+        );
+    }
+    op.bytes = if class.is_mem() { op.bytes } else { w as u32 };
+    op.ilen = ilen;
+    if lcp {
+        op.flags |= FLAG_LCP;
+    }
+    Ok(())
 }
 
 /// A memory op's region, size and address (per lane for gathers and

@@ -122,6 +122,12 @@ pub fn write(t: &Trace) -> String {
         if !op.class.is_mem() && op.bytes != 0 {
             let _ = write!(s, " w={}", op.bytes);
         }
+        if op.ilen != 0 {
+            let _ = write!(s, " len={}", op.ilen);
+        }
+        if op.lcp() {
+            s.push_str(" lcp");
+        }
         if op.class == OpClass::Branch {
             let _ = write!(
                 s,
@@ -284,7 +290,7 @@ fn directive(t: &mut Trace, st: &mut TextState, key: &str, rest: &str) -> Result
 }
 
 /// An op line: `[%D =] CLASS [%S ...] [@REGION+OFFSET:BYTES ...] [addr=%A]
-/// [mask=M] [w=BYTES] [site=N] [taken|not-taken]`.
+/// [mask=M] [w=BYTES] [len=BYTES [lcp]] [site=N] [taken|not-taken]`.
 fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
     let err = |msg: String| msg;
     let mut toks = line.split_whitespace().peekable();
@@ -380,6 +386,19 @@ fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
                 .parse()
                 .map_err(|_| err(format!("bad branch site '{v}'")))?;
             has_site = true;
+        } else if let Some(v) = tok.strip_prefix("len=") {
+            op.ilen = v
+                .parse()
+                .ok()
+                .filter(|l| (1..=crate::trace::MAX_ILEN).contains(l))
+                .ok_or_else(|| {
+                    err(format!(
+                        "bad instruction length 'len={v}' (bytes: 1 to {})",
+                        crate::trace::MAX_ILEN
+                    ))
+                })?;
+        } else if tok == "lcp" {
+            op.flags |= crate::trace::FLAG_LCP;
         } else if tok == "taken" || tok == "not-taken" {
             if op.class != OpClass::Branch {
                 return Err(err(format!("'{tok}' on an op that is not a branch")));
@@ -398,6 +417,11 @@ fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
     }
     if op.class == OpClass::Branch && !has_site {
         return Err(err("branch needs site=N".into()));
+    }
+    if op.lcp() && op.ilen == 0 {
+        return Err(err(
+            "lcp needs len=N (a length-changing prefix is a legacy-decode fact)".into(),
+        ));
     }
     if op.class.is_per_lane_mem() {
         let n = t.lane_addrs.len() - op.aux as usize;

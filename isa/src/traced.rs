@@ -249,6 +249,7 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
             addr: Addr(0),
             bytes: 0,
             mem: MemId(0),
+            ilen: 0,
             aux: 0,
         });
         id

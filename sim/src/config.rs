@@ -68,6 +68,11 @@ pub struct CoreConfig {
     /// branch class's (OoO; Haswell: port 6 only). Empty: the class's ports.
     #[serde(default)]
     pub taken_branch_ports: Vec<u32>,
+    /// The legacy decode pipeline, for ops that carry an instruction length
+    /// (`len=` in a trace; OoO). None, or an op without a length: its uops
+    /// come from the uop cache at the dispatch width.
+    #[serde(default)]
+    pub legacy_decode: Option<LegacyDecode>,
     /// Hardware threads (in-order), interleaved on the core.
     #[serde(default = "one")]
     pub threads: u32,
@@ -84,6 +89,22 @@ pub struct CoreConfig {
 
 fn one() -> u32 {
     1
+}
+
+/// The legacy (x86 instruction) decoders of an out-of-order core's front
+/// end: one fetch block of instruction bytes is predecoded per cycle, the
+/// decoders take instructions in order, and only the first decoder takes
+/// one of several fused uops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LegacyDecode {
+    /// Bytes fetched and predecoded per cycle (an aligned block).
+    pub fetch_bytes: u32,
+    /// Instructions decoded per cycle.
+    pub decoders: u32,
+    /// Extra predecode cycles of an instruction with a length-changing
+    /// prefix (it and everything after it wait).
+    pub lcp_penalty: u32,
 }
 
 /// Most unfused uops one class may have (a config with more is rejected).
@@ -431,12 +452,28 @@ impl MachineConfig {
                 format!("port {p} does not exist (core.ports = {})", c.ports),
             ));
         }
+        if let Some(l) = c.legacy_decode {
+            if !l.fetch_bytes.is_power_of_two() || l.fetch_bytes < 16 || l.fetch_bytes > 64 {
+                return e(
+                    "core.legacy_decode.fetch_bytes",
+                    "must be 16, 32 or 64 (an aligned block at least one instruction long)",
+                );
+            }
+            if l.decoders == 0 || l.decoders > 16 {
+                return e("core.legacy_decode.decoders", "must be 1 to 16");
+            }
+            if l.lcp_penalty > 100 {
+                return e("core.legacy_decode.lcp_penalty", "must be 0 to 100");
+            }
+        }
         if c.kind != CoreKind::OutOfOrder
-            && (c.taken_branch_ends_issue || !c.taken_branch_ports.is_empty())
+            && (c.taken_branch_ends_issue
+                || !c.taken_branch_ports.is_empty()
+                || c.legacy_decode.is_some())
         {
             return e(
-                "core.taken_branch_ends_issue",
-                "the taken-branch rules are modelled on out-of-order cores",
+                "core",
+                "the front-end rules (taken_branch_ends_issue, taken_branch_ports, legacy_decode) are modelled on out-of-order cores",
             );
         }
         if c.history_bits > 24 || c.predictor_bits == 0 || c.predictor_bits > 24 {

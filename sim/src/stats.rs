@@ -18,16 +18,20 @@ pub enum Stall {
     Core = 3,
     /// ROB or scheduler full.
     Resources = 4,
+    /// The legacy decoders had not delivered the op yet (fetch bytes,
+    /// decoder slots, a length-changing prefix).
+    FrontEnd = 5,
 }
 
 impl Stall {
     /// All reasons.
-    pub const ALL: [Stall; 5] = [
+    pub const ALL: [Stall; 6] = [
         Stall::Issue,
         Stall::Branch,
         Stall::Memory,
         Stall::Core,
         Stall::Resources,
+        Stall::FrontEnd,
     ];
     /// Stable name.
     #[must_use]
@@ -38,6 +42,7 @@ impl Stall {
             Stall::Memory => "memory",
             Stall::Core => "core",
             Stall::Resources => "resources",
+            Stall::FrontEnd => "front-end",
         }
     }
 }
@@ -59,7 +64,7 @@ pub struct Stats {
     /// Ops per class.
     pub class_ops: Vec<u64>,
     /// Cycles charged to each stall reason.
-    pub stalls: [u64; 5],
+    pub stalls: [u64; 6],
     /// Conditional branches.
     pub branches: u64,
     /// Of which mispredicted.

@@ -567,3 +567,68 @@ fn a_taken_branch_issues_on_port_6_only_on_haswell() {
     // With the class's ports for taken branches too: two a cycle.
     assert_eq!(per_iterations(&any_port, branches("taken"), 64), 32);
 }
+
+/// `n` independent `class` ops (no sources), each with `extra` tokens.
+fn straight(n: u32, class: &str, extra: &str) -> String {
+    (1..=n)
+        .map(|i| format!("%{i} = {class} {extra}\n"))
+        .collect()
+}
+
+#[test]
+fn legacy_decode_fetches_sixteen_bytes_a_cycle_on_haswell() {
+    let m = hsw();
+    // Seven-byte ALU ops: 32 of them are 224 bytes, 14 fetch blocks, 14
+    // cycles; from the uop cache (no length) four a cycle, 8 cycles.
+    let long = |n| straight(n, "alu", "len=7");
+    let cached = |n| straight(n, "alu", "");
+    assert_eq!(per_iterations(&m, long, 32), 14);
+    assert_eq!(per_iterations(&m, cached, 32), 8);
+    // Three-byte ops: five a block, but four decoders: 8 cycles again.
+    assert_eq!(per_iterations(&m, |n| straight(n, "alu", "len=3"), 32), 8);
+    // Without the legacy decoders in the config, lengths are ignored.
+    let none = m.with_sets(&["core.legacy_decode=null".into()]).unwrap();
+    assert_eq!(per_iterations(&none, long, 32), 8);
+}
+
+#[test]
+fn only_the_first_decoder_takes_a_multi_uop_instruction_on_haswell() {
+    let m = hsw();
+    // cmov: 2 fused uops. From the legacy decoders one a cycle (the complex
+    // decoder); from the uop cache two a cycle (4 slots; p0156 and p06
+    // keep up).
+    assert_eq!(per_iterations(&m, |n| straight(n, "cmov", "len=4"), 32), 32);
+    assert_eq!(per_iterations(&m, |n| straight(n, "cmov", ""), 32), 16);
+    // A cmov and the two single-uop moves after it (eliminated at rename:
+    // no port) decode in one cycle, the next cmov in the next: 8 groups of
+    // 4 fused uops, 8 cycles, as from the uop cache (16 if the moves had to
+    // wait for a cycle of their own).
+    let groups = |extra: &'static str| {
+        move |n: u32| {
+            (0..n)
+                .map(|i| {
+                    let b = 3 * i;
+                    format!(
+                        "%{} = cmov {extra}\n%{} = mov {extra}\n%{} = mov {extra}\n",
+                        b + 1,
+                        b + 2,
+                        b + 3
+                    )
+                })
+                .collect::<String>()
+        }
+    };
+    assert_eq!(per_iterations(&m, groups("len=4"), 8), 8);
+    assert_eq!(per_iterations(&m, groups(""), 8), 8);
+}
+
+#[test]
+fn a_length_changing_prefix_stalls_the_predecoder_on_haswell() {
+    let m = hsw();
+    // Four-byte ops, four a block and a cycle; each with a length-changing
+    // prefix (add r16, imm16) costs 5 more cycles: 8 ops, 2 + 8 * 5 cycles.
+    let lcp = |n| straight(n, "alu", "len=4 lcp");
+    let plain = |n| straight(n, "alu", "len=4");
+    assert_eq!(per_iterations(&m, plain, 8), 2);
+    assert_eq!(per_iterations(&m, lcp, 8), 2 + 8 * 5);
+}

@@ -586,11 +586,10 @@ impl OooCore {
                 &classes[op.class as usize]
             };
             let counted = i >= count_from;
-            let decoded = match &mut self.legacy {
-                Some(l) if op.ilen != 0 => {
-                    l.decode(op, ct.fused, taken_branch, (self.d, self.fetch_block))
-                }
-                _ => 0,
+            let decoded = if op.ilen == 0 {
+                0
+            } else {
+                self.legacy_decoded(op, ct.fused, taken_branch)
             };
             let (d, f, mut why) = self.dispatch(ct, decoded);
             if taken_branch && self.taken_ends_issue {
@@ -635,6 +634,18 @@ impl OooCore {
         }
         self.classes = classes;
         self.narrow = narrow;
+    }
+
+    /// The first cycle an op with an instruction length may dispatch,
+    /// from the legacy decoders (0 without them). Out of line: recorded
+    /// kernels carry no lengths.
+    #[inline(never)]
+    fn legacy_decoded(&mut self, op: &Op, fused: u32, taken: bool) -> u64 {
+        let (d, redirect) = (self.d, self.fetch_block);
+        match &mut self.legacy {
+            Some(l) => l.decode(op, fused, taken, (d, redirect)),
+            None => 0,
+        }
     }
 
     /// Functional warming: `t`'s ops update the caches, the prefetcher and

@@ -11,6 +11,7 @@
 #![warn(missing_docs)]
 
 pub mod config;
+mod frontend;
 pub mod inorder;
 pub mod memory;
 pub mod ooo;

@@ -373,76 +373,6 @@ impl Values {
     }
 }
 
-/// The legacy decode pipeline's state: instruction bytes laid out one
-/// after another from the trace's first op with a length (a taken branch's
-/// target starts a fetch block: loop heads are aligned), one aligned block
-/// predecoded per cycle, `decoders` instructions decoded per cycle of which
-/// only the first may have several fused uops (Intel's one complex
-/// decoder). The predecoder's six instructions per cycle, the instruction
-/// queue's and the decoded-uop queue's capacities and the microcode
-/// sequencer are not modelled.
-struct Legacy {
-    cfg: crate::config::LegacyDecode,
-    /// Byte offset of the next instruction.
-    pc: u64,
-    /// The block predecoded last, and the cycle its instructions are ready.
-    block: Option<u64>,
-    ready: u64,
-    /// The decode cycle of the last instruction, and how many it holds.
-    cycle: u64,
-    count: u32,
-}
-
-impl Legacy {
-    fn new(cfg: crate::config::LegacyDecode) -> Legacy {
-        Legacy {
-            cfg,
-            pc: 0,
-            block: None,
-            ready: 0,
-            cycle: 0,
-            count: 0,
-        }
-    }
-
-    /// Decode an instruction of `fused` uops (0: folded into its neighbour,
-    /// no decoder of its own); the first cycle its uops may dispatch. `d`
-    /// is the core's dispatch cycle (the fetch starts no earlier), `redirect`
-    /// the cycle fetch resumes after a mispredict.
-    fn decode(&mut self, op: &Op, fused: u32, taken: bool, (d, redirect): (u64, u64)) -> u64 {
-        let bytes = u64::from(self.cfg.fetch_bytes);
-        let end = self.pc + u64::from(op.ilen);
-        // Available once the block holding its last byte is predecoded.
-        let block = (end - 1) / bytes;
-        if self.block != Some(block) {
-            let next = self.block.map_or(d, |_| self.ready + 1);
-            self.ready = next.max(redirect);
-            self.block = Some(block);
-        }
-        if op.lcp() {
-            // The slow length decoder: this block's rest and what follows wait.
-            self.ready += u64::from(self.cfg.lcp_penalty);
-        }
-        if self.ready > self.cycle {
-            self.cycle = self.ready;
-            self.count = 0;
-        }
-        if fused > 0 {
-            if self.count >= self.cfg.decoders || (fused > 1 && self.count > 0) {
-                self.cycle += 1;
-                self.count = 0;
-            }
-            self.count += 1;
-        }
-        self.pc = if taken {
-            end.div_ceil(bytes) * bytes
-        } else {
-            end
-        };
-        self.cycle + 1
-    }
-}
-
 /// `table` with a taken branch's timing appended (at [`TAKEN_BRANCH`]):
 /// the branch class's, its uops on `core.taken_branch_ports` if given.
 fn with_taken_branch(mut table: Vec<ClassT>, m: &MachineConfig) -> Vec<ClassT> {
@@ -465,7 +395,7 @@ pub struct OooCore {
     /// A taken branch ends its dispatch group.
     taken_ends_issue: bool,
     /// The legacy decoders, for ops with an instruction length.
-    legacy: Option<Legacy>,
+    legacy: Option<crate::frontend::Legacy>,
     width: u32,
     retire_width: u32,
     rob: u64,
@@ -520,7 +450,7 @@ impl OooCore {
             classes: with_taken_branch(class_table(m), m),
             narrow: with_taken_branch(class_table_of(m, true), m),
             taken_ends_issue: c.taken_branch_ends_issue,
-            legacy: c.legacy_decode.map(Legacy::new),
+            legacy: c.legacy_decode.map(crate::frontend::Legacy::new),
             width: c.width,
             retire_width: c.retire_width,
             rob: u64::from(c.rob),

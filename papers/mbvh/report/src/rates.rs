@@ -8,6 +8,7 @@ use crate::timing::{design, frame_rates, Rate};
 use mbvh_kernels::layout::RayForm;
 use mbvh_kernels::stream::{Order, StreamConfig};
 use mbvh_kernels::Kernel;
+use rayon::prelude::*;
 use repro::plot::{Panel, Series};
 use repro::sampling::paired_ratio_systematic;
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
@@ -137,11 +138,49 @@ pub fn mbvh_fig3(a: &ReproduceArgs) -> AppResult<Produced> {
     let (mut ops, mut bad) = (0, 0);
     let mut points = Vec::new();
     let rs = Kernel::Stream(StreamConfig::default());
+    // The paper's two design measurements and its group sizes, at 3 bounces.
+    let b3 = 3;
+    let variants = [
+        (
+            "unordered",
+            StreamConfig {
+                order: Order::Unordered,
+                ..StreamConfig::default()
+            },
+            ORDERED_SPEEDUP,
+        ),
+        (
+            "compact rays",
+            StreamConfig {
+                form: RayForm::Compact,
+                ..StreamConfig::default()
+            },
+            REPLICATED_SPEEDUP,
+        ),
+    ];
+    let groups = [16usize, 64, 1024, 4096];
+    // Every run is independent (its own session): all at once, in order.
+    let jobs: Vec<(Kernel, u32)> = (1..=max)
+        .map(|b| (rs, b))
+        .chain(variants.iter().map(|v| (Kernel::Stream(v.1), b3)))
+        .chain(groups.iter().map(|&group| {
+            let cfg = StreamConfig {
+                group,
+                ..StreamConfig::default()
+            };
+            (Kernel::Stream(cfg), b3)
+        }))
+        .collect();
+    let mut runs = jobs
+        .par_iter()
+        .map(|&(k, b)| frame_rates(&m, &pr, k, (b, g, per), (a.seed, &a.progress)))
+        .collect::<AppResult<Vec<_>>>()?
+        .into_iter();
     let mut base = None;
     let mut own = Vec::new();
     let mut deepest = Vec::new();
     for b in 1..=max {
-        let mut all = frame_rates(&m, &pr, rs, (b, g, per), (a.seed, &a.progress))?;
+        let mut all = runs.next().expect("a run per depth");
         let r = all.pop().expect("at least one bounce");
         ops += r.ops;
         bad += r.bad;
@@ -168,41 +207,16 @@ pub fn mbvh_fig3(a: &ReproduceArgs) -> AppResult<Produced> {
         rows.push(row);
         worst = worst.max((r.mrays / own[b as usize - 1] - 1.0).abs());
     }
-    // The paper's two design measurements, at 3 bounces.
-    let b = 3;
+    let b = b3;
     // The paper's configuration at 3 bounces is the loop's frame (same sample).
     let base = base.expect("the loop reaches 3 bounces");
     rows.extend(region_rows(&base, b));
-    let variants = [
-        (
-            "unordered",
-            StreamConfig {
-                order: Order::Unordered,
-                ..StreamConfig::default()
-            },
-            ORDERED_SPEEDUP,
-        ),
-        (
-            "compact rays",
-            StreamConfig {
-                form: RayForm::Compact,
-                ..StreamConfig::default()
-            },
-            REPLICATED_SPEEDUP,
-        ),
-    ];
     let mut notes = vec![format!(
         "frames to fewer bounces read off the {max}-bounce frame (as mbvh-fig2 and the tables do) differ from their own frames by at most {:.1}%",
         100.0 * worst
     )];
-    for (label, cfg, paper) in variants {
-        let r = last(frame_rates(
-            &m,
-            &pr,
-            Kernel::Stream(cfg),
-            (b, g, per),
-            (a.seed, &a.progress),
-        )?);
+    for (label, _, paper) in variants {
+        let r = last(runs.next().expect("a run per variant"));
         ops += r.ops;
         bad += r.bad;
         rows.extend(rate_rows("conference", b, &format!("MBVH RS {label}"), &r));
@@ -227,18 +241,8 @@ pub fn mbvh_fig3(a: &ReproduceArgs) -> AppResult<Produced> {
     // The paper's group-size choice (2^8 best overall), at 3 bounces: the
     // tile's 4096 primary rays bound the group.
     let mut best = (base.mrays, 256usize);
-    for group in [16usize, 64, 1024, 4096] {
-        let cfg = StreamConfig {
-            group,
-            ..StreamConfig::default()
-        };
-        let r = last(frame_rates(
-            &m,
-            &pr,
-            Kernel::Stream(cfg),
-            (b, g, per),
-            (a.seed, &a.progress),
-        )?);
+    for group in groups {
+        let r = last(runs.next().expect("a run per group size"));
         ops += r.ops;
         bad += r.bad;
         rows.extend(rate_rows(
@@ -308,9 +312,16 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
     let rs = Kernel::Stream(StreamConfig::default());
     let (mut rows, mut notes, mut series) = (Vec::new(), Vec::new(), Vec::new());
     let (mut ops, mut bad) = (0, 0);
-    for scene in SCENES {
-        let pr = Prepared::new(scene, res)?;
-        let rates = frame_rates(&m, &pr, rs, (TABLE_BOUNCES, g, per), (a.seed, &a.progress))?;
+    // The scenes are independent runs: all at once, results in order.
+    let per_scene = SCENES
+        .par_iter()
+        .map(|&scene| {
+            let pr = Prepared::new(scene, res)?;
+            let rates = frame_rates(&m, &pr, rs, (TABLE_BOUNCES, g, per), (a.seed, &a.progress))?;
+            Ok((pr.scene.mesh.len(), rates))
+        })
+        .collect::<AppResult<Vec<_>>>()?;
+    for (scene, (triangles, rates)) in SCENES.into_iter().zip(per_scene) {
         ops += rates[0].ops;
         bad += rates[0].bad;
         for (b, r) in (1..).zip(&rates) {
@@ -320,8 +331,7 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
         let first = rates[0].mrays;
         let lastr = rates[rates.len() - 1].mrays;
         notes.push(format!(
-            "{scene} ({} triangles): {first:.2} Mray/s at 1 bounce, {lastr:.2} at {TABLE_BOUNCES} ({:+.0}%)",
-            pr.scene.mesh.len(),
+            "{scene} ({triangles} triangles): {first:.2} Mray/s at 1 bounce, {lastr:.2} at {TABLE_BOUNCES} ({:+.0}%)",
             100.0 * (lastr / first - 1.0)
         ));
         series.push(Series {
@@ -374,11 +384,19 @@ pub fn mbvh_table1_2(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut core_m = None;
     for scene in SCENES {
         let pr = Prepared::new(scene, res)?;
-        for (table, mname, paper) in machines {
-            let mut m = sim::MachineConfig::load(mname).map_err(|e| AppError(e.to_string()))?;
-            let cores = m.cores;
-            m.cores = 1;
-            let rates = frame_rates(&m, &pr, rs, (TABLE_BOUNCES, g, per), (a.seed, &a.progress))?;
+        // The two machines are independent runs: at once, results in order.
+        let per_machine = machines
+            .par_iter()
+            .map(|&(_, mname, _)| {
+                let mut m = sim::MachineConfig::load(mname).map_err(|e| AppError(e.to_string()))?;
+                let cores = m.cores;
+                m.cores = 1;
+                let rates =
+                    frame_rates(&m, &pr, rs, (TABLE_BOUNCES, g, per), (a.seed, &a.progress))?;
+                Ok((m, cores, rates))
+            })
+            .collect::<AppResult<Vec<_>>>()?;
+        for ((table, mname, paper), (m, cores, rates)) in machines.into_iter().zip(per_machine) {
             ops += rates[0].ops;
             bad += rates[0].bad;
             let pfps = paper.iter().find(|p| p.0 == scene).map(|p| p.1);

@@ -143,3 +143,20 @@ fn counts_are_the_same_on_one_and_two_host_threads() {
     };
     assert_eq!(run(1), run(2));
 }
+
+#[test]
+fn timed_runs_are_the_same_on_one_and_two_host_threads() {
+    // Figure 3's ten runs (depths, variants, group sizes) run at once.
+    let dir = std::env::temp_dir().join(format!("mbvh-fig3-threads-{}", std::process::id()));
+    let g = || Given {
+        res: Some(64),
+        ..small(&dir)
+    };
+    let def = mbvh_report::REPORTS
+        .iter()
+        .find(|d| d.name == "mbvh-fig3")
+        .unwrap();
+    let one = def.on_threads(1, g()).expect("computed");
+    assert_eq!(one, def.on_threads(2, g()).expect("computed"));
+    std::fs::remove_dir_all(&dir).ok();
+}

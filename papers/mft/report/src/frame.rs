@@ -358,6 +358,7 @@ impl<'a> Frame<'a> {
 /// One scene made ready for the MFT reports: at `res` x `res`, its quad
 /// light, the shallow (MFT) and deep (packet) BVHs, the primary frusta sets
 /// and the soft-shadow sets with a hit.
+#[derive(Clone)]
 pub(crate) struct Prepared {
     pub(crate) scene: Scene,
     pub(crate) light: [[f32; 3]; 3],

@@ -7,6 +7,7 @@
 use crate::frame::{lrb_machine, sampled_cycles, zero_interval_share, Frame, Prepared};
 use crate::shading::{pixel_hits, shadow_sets, Hits};
 use mft_kernels::{mismatches_of, Frusta, MftStats, Shrink};
+use rayon::prelude::*;
 use repro::progress::Progress;
 use repro::AppResult;
 use repro::Produced;
@@ -51,20 +52,26 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut s_isec = Vec::new();
     let mut s_ratio = Vec::new();
     for scene_name in SCENES {
-        let mut pr = Prepared::new(scene_name, res, name, false)?;
+        let pr = Prepared::new(scene_name, res, name, false)?;
         let (pout, _) = isa::run_native(&pr.frusta(pr.primary.clone(), false, Shrink::None), fl);
         let hits = pixel_hits(&pr.primary, &pout, res as usize);
         let [c, e1, e2] = pr.light;
         let centre = [0, 1, 2].map(|i| f64::from(c[i]) + 0.5 * f64::from(e1[i] + e2[i]));
         let (mut tris, mut isec, mut ratio) = (Vec::new(), Vec::new(), Vec::new());
-        for s in SCALES {
-            let p = light_point(
-                &m,
-                (&mut pr, scene_name, res),
-                &hits,
-                (centre, e1, e2, s),
-                (batches, per, check_every, (a.seed, &a.progress)),
-            )?;
+        // The light sizes are independent runs: all at once, in order.
+        let points = SCALES
+            .par_iter()
+            .map(|&s| {
+                light_point(
+                    &m,
+                    (&pr, scene_name, res),
+                    &hits,
+                    (centre, e1, e2, s),
+                    (batches, per, check_every, (a.seed, &a.progress)),
+                )
+            })
+            .collect::<AppResult<Vec<_>>>()?;
+        for (s, p) in SCALES.into_iter().zip(points) {
             let (fst, pst, cf, cp) = (p.frusta, p.packets, p.frusta_cycles, p.packet_cycles);
             bad_total += p.bad;
             ops_total += p.ops;
@@ -97,7 +104,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         }
         let (point, placed) = placement_sweep(
             &m,
-            (&mut pr, scene_name, res),
+            (&pr, scene_name, res),
             &hits,
             (centre, e1, e2),
             (batches, per, check_every, (a.seed, &a.progress)),
@@ -187,7 +194,7 @@ struct Swept {
 /// cycles, reductions and the zero-interval share per offset.
 fn placement_sweep(
     m: &sim::MachineConfig,
-    (pr, scene_name, res): (&mut Prepared, &str, u32),
+    (pr, scene_name, res): (&Prepared, &str, u32),
     hits: &Hits,
     (centre, e1, e2): ([f64; 3], [f32; 3], [f32; 3]),
     sample: (usize, usize, usize, (u64, &Progress)),
@@ -206,9 +213,15 @@ fn placement_sweep(
         ops: 0,
         note: String::new(),
     };
-    for h in OFFSETS {
-        let at = [0, 1, 2].map(|i| centre[i] + h * half * dir[i]);
-        let p = light_point(m, (pr, scene_name, res), hits, (at, e1, e2, 1.0), sample)?;
+    // The placements are independent runs: all at once, in order.
+    let points = OFFSETS
+        .par_iter()
+        .map(|&h| {
+            let at = [0, 1, 2].map(|i| centre[i] + h * half * dir[i]);
+            light_point(m, (pr, scene_name, res), hits, (at, e1, e2, 1.0), sample)
+        })
+        .collect::<AppResult<Vec<_>>>()?;
+    for (h, p) in OFFSETS.into_iter().zip(points) {
         out.bad += p.bad;
         out.ops += p.ops;
         let row = |metric: &str, v: f64| {
@@ -255,7 +268,7 @@ struct Point {
 /// `check_every`-th set), and sample both methods' cycles.
 fn light_point(
     m: &sim::MachineConfig,
-    (pr, scene_name, res): (&mut Prepared, &str, u32),
+    (pr, scene_name, res): (&Prepared, &str, u32),
     hits: &Hits,
     (centre, e1, e2, s): ([f64; 3], [f32; 3], [f32; 3], f64),
     (batches, per, check_every, seed): (usize, usize, usize, (u64, &Progress)),
@@ -264,10 +277,14 @@ fn light_point(
     let e1s = e1.map(|x| (f64::from(x) * s) as f32);
     let e2s = e2.map(|x| (f64::from(x) * s) as f32);
     let cs = [0, 1, 2].map(|i| (centre[i] - 0.5 * f64::from(e1s[i] + e2s[i])) as f32);
+    // The shadow rays' light samples come from the scene's light: a copy
+    // with this light (the points run at once; the scenes are small).
+    let mut pr = pr.clone();
     pr.light = [cs, e1s, e2s];
     if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
         (*lc, *l1, *l2) = (cs, e1s, e2s);
     }
+    let pr = &pr;
     let sets = shadow_sets(pr, hits, res, 0);
     let (fout, fst) = isa::run_native(&pr.frusta(sets.clone(), false, Shrink::None), fl);
     let (pkout, pst) = isa::run_native(&pr.packets(sets.clone()), fl);

@@ -514,15 +514,29 @@ fn moves_and_zero_idioms_are_done_at_rename_on_haswell() {
     assert_eq!((s.uops, s.cycles), (0, 2));
 }
 
+/// `n` copies of `body` (op texts without `%D =`): every op but a branch
+/// produces the next value id, none reads another.
+fn repeat(n: u32, body: &[&str]) -> String {
+    let mut id = 0;
+    let mut s = String::new();
+    for _ in 0..n {
+        for op in body {
+            if op.starts_with("branch") {
+                s.push_str(&format!("{op}\n"));
+            } else {
+                id += 1;
+                s.push_str(&format!("%{id} = {op}\n"));
+            }
+        }
+    }
+    s
+}
+
 /// `n` iterations of a loop body: four independent ALU ops and a branch
 /// (`taken` or `not-taken`) closing it.
 fn alu_loop(n: u32, branch: &str) -> String {
-    (0..n)
-        .map(|i| {
-            let alus: String = (1..=4).map(|k| format!("%{} = alu\n", 4 * i + k)).collect();
-            format!("{alus}branch site=1 {branch}\n")
-        })
-        .collect()
+    let close = format!("branch site=1 {branch}");
+    repeat(n, &["alu", "alu", "alu", "alu", &close])
 }
 
 /// Cycles per `n` more iterations of a loop (its steady state).
@@ -570,9 +584,7 @@ fn a_taken_branch_issues_on_port_6_only_on_haswell() {
 
 /// `n` independent `class` ops (no sources), each with `extra` tokens.
 fn straight(n: u32, class: &str, extra: &str) -> String {
-    (1..=n)
-        .map(|i| format!("%{i} = {class} {extra}\n"))
-        .collect()
+    repeat(n, &[&format!("{class} {extra}")])
 }
 
 #[test]
@@ -604,19 +616,8 @@ fn only_the_first_decoder_takes_a_multi_uop_instruction_on_haswell() {
     // 4 fused uops, 8 cycles, as from the uop cache (16 if the moves had to
     // wait for a cycle of their own).
     let groups = |extra: &'static str| {
-        move |n: u32| {
-            (0..n)
-                .map(|i| {
-                    let b = 3 * i;
-                    format!(
-                        "%{} = cmov {extra}\n%{} = mov {extra}\n%{} = mov {extra}\n",
-                        b + 1,
-                        b + 2,
-                        b + 3
-                    )
-                })
-                .collect::<String>()
-        }
+        let ops = ["cmov", "mov", "mov"].map(|c| format!("{c} {extra}"));
+        move |n: u32| repeat(n, &ops.each_ref().map(String::as_str))
     };
     assert_eq!(per_iterations(&m, groups("len=4"), 8), 8);
     assert_eq!(per_iterations(&m, groups(""), 8), 8);

@@ -7,111 +7,28 @@
 //! The scene is built with `RTC_SCENE_FLAG_ROBUST` (watertight triangle
 //! tests: a ray down a shared edge hits both neighbours, as the f64
 //! reference does; the agreement rule lets an f32 kernel drop a grazing hit
-//! either way). The bindings are written here (a handful of calls of
-//! `rtcore.h` 3.13); no bindings crate on crates.io targets Embree 3's C API
-//! as Debian ships it.
+//! either way). The bindings and the scene are `embree-peer`'s; the filter
+//! and its per-ray state are here.
 
 #![allow(unsafe_code)]
 
+use embree_peer::{FilterArgs, IntersectContext, RayHit1, RayHit8, INVALID_ID};
 use multihit_kernels::Method;
 use scene::mesh::Mesh;
 use scene::workload::RayStream;
 use scene::Hit;
-use std::ffi::c_void;
-
-#[repr(C)]
-struct RTCIntersectContext {
-    flags: u32,
-    filter: Option<unsafe extern "C" fn(*const FilterArgs)>,
-    inst_id: [u32; 1],
-}
-
-#[repr(C)]
-struct FilterArgs {
-    valid: *mut i32,
-    geometry_user_ptr: *mut c_void,
-    context: *mut RTCIntersectContext,
-    ray: *mut c_void,
-    hit: *mut c_void,
-    n: u32,
-}
-
-#[repr(C, align(16))]
-#[derive(Clone, Copy)]
-struct RayHit1 {
-    org: [f32; 3],
-    tnear: f32,
-    dir: [f32; 3],
-    time: f32,
-    tfar: f32,
-    mask: u32,
-    id: u32,
-    flags: u32,
-    ng: [f32; 3],
-    u: f32,
-    v: f32,
-    prim_id: u32,
-    geom_id: u32,
-    inst_id: u32,
-}
-
-/// `RTCRayHit8`: the ray rows (org x/y/z, tnear, dir x/y/z, time, tfar,
-/// mask, id, flags), then the hit rows (Ng x/y/z, u, v, primID, geomID,
-/// instID), 8 lanes each.
-#[repr(C, align(32))]
-struct RayHit8 {
-    f: [[f32; 8]; 20],
-}
-
-type Device = *mut c_void;
-type Scene = *mut c_void;
-type Geometry = *mut c_void;
-
-#[link(name = "embree3")]
-extern "C" {
-    fn rtcNewDevice(config: *const i8) -> Device;
-    fn rtcReleaseDevice(d: Device);
-    fn rtcGetDeviceError(d: Device) -> i32;
-    fn rtcNewScene(d: Device) -> Scene;
-    fn rtcSetSceneFlags(s: Scene, flags: u32);
-    fn rtcReleaseScene(s: Scene);
-    fn rtcNewGeometry(d: Device, kind: u32) -> Geometry;
-    fn rtcSetNewGeometryBuffer(
-        g: Geometry,
-        kind: u32,
-        slot: u32,
-        format: u32,
-        stride: usize,
-        count: usize,
-    ) -> *mut c_void;
-    fn rtcSetGeometryIntersectFilterFunction(
-        g: Geometry,
-        f: Option<unsafe extern "C" fn(*const FilterArgs)>,
-    );
-    fn rtcCommitGeometry(g: Geometry);
-    fn rtcAttachGeometry(s: Scene, g: Geometry) -> u32;
-    fn rtcReleaseGeometry(g: Geometry);
-    fn rtcCommitScene(s: Scene);
-    fn rtcIntersect1(s: Scene, ctx: *mut RTCIntersectContext, rh: *mut RayHit1);
-    fn rtcIntersect8(valid: *const i32, s: Scene, ctx: *mut RTCIntersectContext, rh: *mut RayHit8);
-}
-
-const GEOMETRY_TYPE_TRIANGLE: u32 = 0;
-const BUFFER_TYPE_INDEX: u32 = 0;
-const BUFFER_TYPE_VERTEX: u32 = 1;
-const FORMAT_UINT3: u32 = 0x5003;
-const FORMAT_FLOAT3: u32 = 0x9003;
-const SCENE_FLAG_ROBUST: u32 = 1 << 2;
-const INVALID_ID: u32 = u32::MAX;
 
 /// The filter's state, reached through the context (Embree's tutorials'
 /// way of passing per-call data): the method, N_query and every ray's
 /// entries, found by the ray's id.
 #[repr(C)]
 struct Context {
-    base: RTCIntersectContext,
+    base: IntersectContext,
     state: *mut State,
 }
+
+// SAFETY: `#[repr(C)]`, the IntersectContext first.
+unsafe impl embree_peer::Context for Context {}
 
 struct State {
     method: Method,
@@ -208,49 +125,13 @@ pub(crate) enum Call {
     Eight,
 }
 
-/// An Embree device and the scene of one mesh.
-pub(crate) struct Embree {
-    device: Device,
-    scene: Scene,
-}
-
-// SAFETY: Embree scenes are safe to trace from several threads once
-// committed; the device and scene are released once, on drop.
-unsafe impl Send for Embree {}
-unsafe impl Sync for Embree {}
+/// An Embree scene of one mesh with the filter set on its geometry.
+pub(crate) struct Embree(embree_peer::Embree);
 
 impl Embree {
     /// Embree's BVH over `mesh` (robust mode), the filter set on its geometry.
     pub(crate) fn new(mesh: &Mesh) -> Result<Embree, String> {
-        // SAFETY: plain Embree API calls with buffers Embree allocates and
-        // we fill within their sizes.
-        unsafe {
-            let device = rtcNewDevice(c"threads=1".as_ptr());
-            if device.is_null() {
-                return Err("embree: rtcNewDevice failed".into());
-            }
-            let scene = rtcNewScene(device);
-            rtcSetSceneFlags(scene, SCENE_FLAG_ROBUST);
-            let g = rtcNewGeometry(device, GEOMETRY_TYPE_TRIANGLE);
-            let nv = mesh.positions.len();
-            let v = rtcSetNewGeometryBuffer(g, BUFFER_TYPE_VERTEX, 0, FORMAT_FLOAT3, 12, nv)
-                as *mut [f32; 3];
-            std::ptr::copy_nonoverlapping(mesh.positions.as_ptr(), v, nv);
-            let nt = mesh.tris.len();
-            let ix = rtcSetNewGeometryBuffer(g, BUFFER_TYPE_INDEX, 0, FORMAT_UINT3, 12, nt)
-                as *mut [u32; 3];
-            std::ptr::copy_nonoverlapping(mesh.tris.as_ptr(), ix, nt);
-            rtcSetGeometryIntersectFilterFunction(g, Some(filter));
-            rtcCommitGeometry(g);
-            rtcAttachGeometry(scene, g);
-            rtcReleaseGeometry(g);
-            rtcCommitScene(scene);
-            let err = rtcGetDeviceError(device);
-            if err != 0 {
-                return Err(format!("embree: error {err} building the scene"));
-            }
-            Ok(Embree { device, scene })
-        }
+        embree_peer::Embree::new(mesh, Some(filter)).map(Embree)
     }
 
     /// Trace `rays` with `call` and the filter of `method` at `n_query`;
@@ -275,11 +156,7 @@ impl Embree {
             counts: vec![0; n],
         };
         let mut ctx = Context {
-            base: RTCIntersectContext {
-                flags: 0,
-                filter: None,
-                inst_id: [INVALID_ID],
-            },
+            base: IntersectContext::new(false),
             state: &raw mut st,
         };
         match call {
@@ -290,53 +167,18 @@ impl Embree {
     }
 
     fn one(&self, ctx: &mut Context, rays: &RayStream, i: usize) {
-        let mut rh = RayHit1 {
-            org: rays.org[i],
-            tnear: 0.0,
-            dir: rays.dir[i],
-            time: 0.0,
-            tfar: rays.tmax[i],
-            mask: u32::MAX,
-            id: i as u32,
-            flags: 0,
-            ng: [0.0; 3],
-            u: 0.0,
-            v: 0.0,
-            prim_id: INVALID_ID,
-            geom_id: INVALID_ID,
-            inst_id: INVALID_ID,
-        };
-        // SAFETY: a committed scene, our context and a valid RTCRayHit.
-        unsafe { rtcIntersect1(self.scene, &raw mut ctx.base, &raw mut rh) };
+        let mut rh = RayHit1::new(rays.org[i], rays.dir[i], rays.tmax[i], i as u32);
+        self.0.intersect1(ctx, &mut rh);
     }
 
     fn eight(&self, ctx: &mut Context, rays: &RayStream, lanes: &[u32]) {
-        let mut rh = RayHit8 { f: [[0.0; 8]; 20] };
+        let mut rh = RayHit8::new();
         let mut valid = [0i32; 8];
-        for (l, &r) in lanes.iter().enumerate() {
-            let Some(i) = (r != u32::MAX).then_some(r as usize) else {
-                continue;
-            };
+        for (l, &r) in lanes.iter().enumerate().filter(|(_, &r)| r != u32::MAX) {
             valid[l] = -1;
-            let f = &mut rh.f;
-            (f[0][l], f[1][l], f[2][l]) = (rays.org[i][0], rays.org[i][1], rays.org[i][2]);
-            (f[4][l], f[5][l], f[6][l]) = (rays.dir[i][0], rays.dir[i][1], rays.dir[i][2]);
-            f[8][l] = rays.tmax[i];
-            f[9][l] = f32::from_bits(u32::MAX);
-            f[10][l] = f32::from_bits(i as u32);
-            f[17][l] = f32::from_bits(INVALID_ID);
+            let i = r as usize;
+            rh.set(l, rays.org[i], rays.dir[i], rays.tmax[i], r);
         }
-        // SAFETY: as `one`, with an RTCRayHit8 and its valid mask.
-        unsafe { rtcIntersect8(valid.as_ptr(), self.scene, &raw mut ctx.base, &raw mut rh) };
-    }
-}
-
-impl Drop for Embree {
-    fn drop(&mut self) {
-        // SAFETY: released once, after every trace.
-        unsafe {
-            rtcReleaseScene(self.scene);
-            rtcReleaseDevice(self.device);
-        }
+        self.0.intersect8(&valid, ctx, &mut rh);
     }
 }

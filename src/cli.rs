@@ -33,6 +33,10 @@ pub enum Cmd {
     Trace(TraceCmd),
     /// Time a recorded or hand-written trace on a machine.
     Sim(SimCli),
+    /// Time the traversal kernels natively on this host over one tile's stream
+    /// (and Embree 3 on the same rays, built with --features embree), every
+    /// answer checked against the reference.
+    Native(NativeCli),
     /// Run the microkernels through a machine model next to what its config implies.
     Calibrate(CalibrateCli),
     /// Time one workload in every fidelity mode: host time and error against full.
@@ -469,5 +473,66 @@ impl VolumeCli {
             seed: self.seed,
             out: self.out.clone(),
         }
+    }
+}
+
+/// `rtsim native` arguments.
+#[derive(Args)]
+pub struct NativeCli {
+    /// Traversal kernels to time (repeat the flag; default: every kernel the ISA runs).
+    #[arg(long = "kernel")]
+    pub kernels: Vec<String>,
+    /// Scene (`rtsim list scenes`, a .ron or a mesh file).
+    #[arg(long, default_value = "conference")]
+    pub scene: String,
+    /// Ray stream: primary, bounce (the path tracer's first bounce) or shadow (any hit).
+    #[arg(long, default_value = "primary")]
+    pub stream: String,
+    /// Tile side in pixels: the stream is one tile at the image centre.
+    #[arg(long, default_value_t = 32)]
+    pub tile: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// Ray seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Timed runs per method, after one untimed run whose answers are checked.
+    #[arg(long, default_value_t = 11)]
+    pub repeat: u32,
+    /// The ISA whose semantics the native backend runs.
+    #[arg(long, value_parser = parse_isa, default_value = "avx2")]
+    pub isa: FlavourId,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+impl NativeCli {
+    /// The library's options (kernel names checked).
+    pub fn args(self) -> AppResult<drs_report::native::NativeArgs> {
+        let kernels = self
+            .kernels
+            .iter()
+            .map(|k| {
+                drs_report::run::kernel(k).ok_or_else(|| {
+                    repro::AppError(format!(
+                        "--kernel: unknown traversal kernel '{k}' ({})",
+                        drs_report::run::kernel_names().join(", ")
+                    ))
+                })
+            })
+            .collect::<AppResult<Vec<_>>>()?;
+        Ok(drs_report::native::NativeArgs {
+            scene: self.scene,
+            stream: self.stream,
+            tile: self.tile,
+            spp: self.spp,
+            seed: self.seed,
+            repeat: self.repeat,
+            kernels,
+            isa: self.isa,
+            format: self.format,
+        })
     }
 }

@@ -157,6 +157,10 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             };
             show(r, a.format)
         }
+        Cmd::Native(a) => {
+            let f = a.format;
+            show(drs_report::native::native_report(&a.args()?)?, f)
+        }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),
         Cmd::Volume(a) => {
             let (r, bad) = volume_report::volume(&a.args())?;

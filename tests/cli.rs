@@ -434,3 +434,45 @@ fn a_zero_latency_override_is_an_error_naming_the_field() {
     let e = err(&rtsim(&["calibrate", "--set", "classes.vfma.lat=0"]));
     assert!(e.contains("classes.vfma.lat"), "{e}");
 }
+
+#[test]
+fn native_times_every_kernel_on_the_same_rays_and_checks_them() {
+    let j = json(&rtsim(&[
+        "native", "--scene", "sphere", "--tile", "8", "--spp", "2", "--repeat", "3", "--format",
+        "json",
+    ]));
+    assert_eq!(j["report"], "native");
+    let rows = j["rows"].as_array().unwrap();
+    let of = |method: &str, metric: &str| {
+        rows.iter()
+            .find(|r| r["method"] == method && r["metric"] == metric)
+            .and_then(|r| r["value"].as_f64())
+    };
+    for k in [
+        "drs-bvh2",
+        "drs-bvh4",
+        "single-bvh4",
+        "packet-bvh4",
+        "hybrid-bvh4",
+    ] {
+        assert_eq!(of(k, "hit_mismatches"), Some(0.0), "{k}");
+        let (lo, mid, hi) = (
+            of(k, "mray_per_s_slowest").unwrap(),
+            of(k, "mray_per_s").unwrap(),
+            of(k, "mray_per_s_fastest").unwrap(),
+        );
+        assert!(lo > 0.0 && lo <= mid && mid <= hi, "{k}: {lo} {mid} {hi}");
+    }
+    assert_eq!(of("single-bvh4", "time_vs_base"), Some(1.0));
+    let embree = of("embree-1m", "hit_mismatches");
+    assert_eq!(embree.is_some(), cfg!(feature = "embree"));
+    assert!(j["input"].as_str().unwrap().contains("host "));
+    let e = err(&rtsim(&["native", "--kernel", "drs-bvh9"]));
+    assert!(e.contains("drs-bvh9"), "{e}");
+    let e = err(&rtsim(&["native", "--repeat", "0"]));
+    assert!(e.contains("--repeat"), "{e}");
+    let e = err(&rtsim(&[
+        "native", "--isa", "lrb16", "--kernel", "drs-bvh4",
+    ]));
+    assert!(e.contains("lanes"), "{e}");
+}

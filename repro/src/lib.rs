@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod boxrun;
+pub mod host;
 pub mod io;
 pub mod machine;
 pub mod options;

@@ -4,7 +4,8 @@
 //! Stream Traversal") computed on the Haswell model:
 //! Table 1 (all seven methods), Table 2 (CPI and s/Gray of the core loop),
 //! Figure 5 (tile size) and Figure 6 (field of view), and `rtsim run` of one
-//! of its traversal methods over one tile's stream. The paper's own figures
+//! of its traversal methods over one tile's stream, and `rtsim native` of
+//! them (beside Embree with the `embree` feature). The paper's own figures
 //! are data in [`paper`].
 
 #![warn(missing_docs)]
@@ -12,6 +13,7 @@
 mod fidelity;
 mod figures;
 mod measure;
+pub mod native;
 pub mod paper;
 pub mod run;
 mod table1;

@@ -6,7 +6,7 @@ use drs_kernels::methods::{Kernel, Run};
 use repro::boxrun::{finish, Recorded, RunArgs};
 use repro::{AppError, AppResult, Row};
 use scene::loaded::Loaded;
-use scene::workload::{path_trace_tile, primary_tile, StreamKind, Tile};
+use scene::workload::{path_trace_tile, primary_tile, RayStream, StreamKind, Tile};
 use std::time::Instant;
 
 /// The methods `rtsim run --kernel` accepts, by name.
@@ -38,36 +38,7 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
     }
     let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
     let (scene, b2, b4) = (&ld.scene, &ld.b2, &ld.b4);
-    let cam = &scene.config.camera;
-    let tile = Tile {
-        x: cam.width / 2 / a.tile,
-        y: cam.height / 2 / a.tile,
-        size: a.tile,
-    };
-    let stream = match a.stream.as_str() {
-        "primary" => primary_tile(cam, tile.x, tile.y, tile.size, a.spp, a.seed),
-        "bounce" => path_trace_tile(scene, b2, tile, a.spp, 1, a.seed)
-            .into_iter()
-            .find(|s| s.kind == StreamKind::Bounce(1))
-            .ok_or_else(|| {
-                AppError("--stream bounce: no path survives the first hit in this tile".into())
-            })?,
-        "shadow" => path_trace_tile(scene, b2, tile, a.spp, 0, a.seed)
-            .into_iter()
-            .find(|s| s.kind == StreamKind::Shadow(0))
-            .ok_or_else(|| AppError("--stream shadow: no primary ray hits in this tile".into()))?,
-        s => {
-            return Err(AppError(format!(
-                "--stream: '{s}' is not primary, bounce or shadow"
-            )))
-        }
-    };
-    if stream.is_empty() || stream.len() > 65536 {
-        return Err(AppError(format!(
-            "the stream has {} rays (1 to 65536 needed)",
-            stream.len()
-        )));
-    }
+    let (tile, stream) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
     let mut run = Run::new(kernel, scene, b2, b4, stream.clone());
     run.packet_tile = Some((tile.size, a.spp));
     let (t, (traced, tests)) = isa::record(&run, fl, kernel.name());
@@ -118,4 +89,51 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
         )));
     }
     Ok(())
+}
+
+/// The centre tile of `ld`'s camera, `size` pixels square at `spp` samples,
+/// and its `stream` (primary, bounce: the path tracer's first bounce, or
+/// shadow: from the primary hits, any hit) with `seed`.
+///
+/// # Errors
+/// An unknown stream, a tile whose stream is empty or over 65536 rays.
+pub fn tile_stream(
+    ld: &Loaded,
+    stream: &str,
+    size: u32,
+    spp: u32,
+    seed: u64,
+) -> AppResult<(Tile, RayStream)> {
+    let (scene, b2) = (&ld.scene, &ld.b2);
+    let cam = &scene.config.camera;
+    let tile = Tile {
+        x: cam.width / 2 / size,
+        y: cam.height / 2 / size,
+        size,
+    };
+    let rays = match stream {
+        "primary" => primary_tile(cam, tile.x, tile.y, tile.size, spp, seed),
+        "bounce" => path_trace_tile(scene, b2, tile, spp, 1, seed)
+            .into_iter()
+            .find(|s| s.kind == StreamKind::Bounce(1))
+            .ok_or_else(|| {
+                AppError("--stream bounce: no path survives the first hit in this tile".into())
+            })?,
+        "shadow" => path_trace_tile(scene, b2, tile, spp, 0, seed)
+            .into_iter()
+            .find(|s| s.kind == StreamKind::Shadow(0))
+            .ok_or_else(|| AppError("--stream shadow: no primary ray hits in this tile".into()))?,
+        s => {
+            return Err(AppError(format!(
+                "--stream: '{s}' is not primary, bounce or shadow"
+            )))
+        }
+    };
+    if rays.is_empty() || rays.len() > 65536 {
+        return Err(AppError(format!(
+            "the stream has {} rays (1 to 65536 needed)",
+            rays.len()
+        )));
+    }
+    Ok((tile, rays))
 }

@@ -1,0 +1,269 @@
+//! `rtsim native`: the traversal kernels run natively on this host over one
+//! tile's stream of a scene — host rays per second, median and range over
+//! repeated runs, every answer checked against the reference — and, with
+//! the `embree` feature, Embree 3's `rtcIntersect1`, `rtcIntersect8` and
+//! `rtcIntersect1M` over exactly the same rays.
+
+use crate::run::tile_stream;
+use drs_kernels::methods::{Kernel, Run};
+use isa::{FlavourId, Machine, Program};
+use repro::host::HostCpu;
+use repro::report::Format;
+use repro::{AppError, AppResult, Report, Row};
+use scene::loaded::Loaded;
+use scene::workload::{RayStream, Tile};
+use scene::Hit;
+use std::time::Instant;
+
+/// What `rtsim native` runs.
+#[derive(Clone, Debug)]
+pub struct NativeArgs {
+    /// Scene name or file.
+    pub scene: String,
+    /// `primary`, `bounce` or `shadow`.
+    pub stream: String,
+    /// Tile side in pixels.
+    pub tile: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Ray seed.
+    pub seed: u64,
+    /// Timed runs per method (after one untimed, checked run).
+    pub repeat: u32,
+    /// The kernels (every kernel the ISA runs when empty).
+    pub kernels: Vec<Kernel>,
+    /// The ISA whose semantics the native backend runs.
+    pub isa: FlavourId,
+    /// Output format.
+    pub format: Format,
+}
+
+/// One method's native timings over a stream.
+#[derive(Clone, Debug)]
+pub struct Timing {
+    /// Kernel name, or `embree-1`, `embree-8`, `embree-1m`.
+    pub method: String,
+    /// Seconds of each timed run, sorted.
+    pub seconds: Vec<f64>,
+    /// Rays whose answer differs from the reference's.
+    pub mismatches: usize,
+}
+
+impl Timing {
+    /// Median seconds per run.
+    #[must_use]
+    pub fn median(&self) -> f64 {
+        let s = &self.seconds;
+        let n = s.len();
+        if n % 2 == 1 {
+            s[n / 2]
+        } else {
+            0.5 * (s[n / 2 - 1] + s[n / 2])
+        }
+    }
+    fn of(method: &str, mut seconds: Vec<f64>, mismatches: usize) -> Timing {
+        seconds.sort_by(f64::total_cmp);
+        Timing {
+            method: method.to_string(),
+            seconds,
+            mismatches,
+        }
+    }
+}
+
+/// A kernel run once (its answers kept), then `repeat` more times timed,
+/// the scene laid out once and each run's buffers released after it.
+struct Repeated<'a> {
+    run: &'a Run<'a>,
+    repeat: u32,
+}
+
+impl Program for Repeated<'_> {
+    type Out = (Vec<Hit>, Vec<f64>);
+    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+        let laid = self.run.lay_out(m);
+        let mark = m.space().mark();
+        let (first, _) = self.run.trace(m, &laid);
+        m.space().release(mark);
+        let seconds = (0..self.repeat)
+            .map(|_| {
+                let t = Instant::now();
+                let out = self.run.trace(m, &laid);
+                let s = t.elapsed().as_secs_f64();
+                std::hint::black_box(out);
+                m.space().release(mark);
+                s
+            })
+            .collect();
+        (first, seconds)
+    }
+}
+
+/// `kernels` natively on `fl` over `rays` (a tile of `tile` at `spp`),
+/// one after another on this thread.
+#[must_use]
+pub fn time_kernels(
+    ld: &Loaded,
+    (tile, spp): (Tile, u32),
+    rays: &RayStream,
+    kernels: &[Kernel],
+    fl: FlavourId,
+    repeat: u32,
+) -> Vec<Timing> {
+    let refi = ld.reference();
+    kernels
+        .iter()
+        .map(|&k| {
+            let mut run = Run::new(k, &ld.scene, &ld.b2, &ld.b4, rays.clone());
+            run.packet_tile = Some((tile.size, spp));
+            let (first, secs) = isa::run_native(&Repeated { run: &run, repeat }, fl);
+            Timing::of(k.name(), secs, run.mismatches(k.name(), &refi, &first))
+        })
+        .collect()
+}
+
+/// Embree 3's three calls over `rays`, each once checked and `repeat` times
+/// timed (the scene built once, not timed; packets formed as the packet
+/// kernels form them).
+///
+/// # Errors
+/// When Embree cannot build the scene.
+#[cfg(feature = "embree")]
+pub fn time_embree(
+    ld: &Loaded,
+    (tile, spp): (Tile, u32),
+    rays: &RayStream,
+    repeat: u32,
+) -> AppResult<Vec<Timing>> {
+    use embree_peer::{Call, Embree};
+    let e = Embree::new(&ld.scene.mesh, None).map_err(AppError)?;
+    let refi = ld.reference();
+    let slots = scene::workload::packet_slots(rays, tile.size, spp, 8);
+    Ok(Call::ALL
+        .iter()
+        .map(|&call| {
+            let mut first = e.trace(rays, call, &slots);
+            e.witnesses(rays, &mut first);
+            let bad = drs_kernels::methods::stream_mismatches(call.name(), &refi, rays, &first);
+            let secs = (0..repeat)
+                .map(|_| {
+                    let t = Instant::now();
+                    std::hint::black_box(e.trace(rays, call, &slots));
+                    t.elapsed().as_secs_f64()
+                })
+                .collect();
+            Timing::of(call.name(), secs, bad)
+        })
+        .collect())
+}
+
+/// Without the `embree` feature: nothing to time.
+///
+/// # Errors
+/// Never.
+#[cfg(not(feature = "embree"))]
+pub fn time_embree(_: &Loaded, _: (Tile, u32), _: &RayStream, _: u32) -> AppResult<Vec<Timing>> {
+    Ok(Vec::new())
+}
+
+/// Rows of `timings` over `rays` rays: Mray/s median, slowest and fastest
+/// run, time relative to the first timing named `base`, mismatches.
+#[must_use]
+pub fn timing_rows(timings: &[Timing], rays: usize, base: &str) -> Vec<Row> {
+    let base = timings
+        .iter()
+        .find(|t| t.method == base)
+        .map(Timing::median);
+    let mray = |s: f64| rays as f64 / s / 1e6;
+    let mut rows = Vec::new();
+    for t in timings {
+        let (lo, hi) = (t.seconds[t.seconds.len() - 1], t.seconds[0]);
+        let m = |metric: &str, v: f64| Row::new(metric, v).key("method", &t.method);
+        rows.push(m("mray_per_s", mray(t.median())).unit("Mray/s"));
+        rows.push(m("mray_per_s_slowest", mray(lo)).unit("Mray/s"));
+        rows.push(m("mray_per_s_fastest", mray(hi)).unit("Mray/s"));
+        if let Some(b) = base {
+            rows.push(m("time_vs_base", t.median() / b));
+        }
+        rows.push(m("hit_mismatches", t.mismatches as f64));
+    }
+    rows
+}
+
+/// `rtsim native`: the report, or an error when an answer differs from the
+/// reference's.
+///
+/// # Errors
+/// Bad options, an unloadable scene, Embree failing, or mismatches.
+pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
+    let start = Instant::now();
+    if a.tile == 0 || a.tile > 256 || a.spp == 0 || a.spp > 256 {
+        return Err(AppError("--tile and --spp: must be 1 to 256".into()));
+    }
+    if a.repeat == 0 || a.repeat > 1000 {
+        return Err(AppError("--repeat: must be 1 to 1000".into()));
+    }
+    let kernels: Vec<Kernel> = if a.kernels.is_empty() {
+        Kernel::ALL
+            .into_iter()
+            .filter(|k| k.supports(a.isa.lanes()))
+            .collect()
+    } else {
+        a.kernels.clone()
+    };
+    if let Some(k) = kernels.iter().find(|k| !k.supports(a.isa.lanes())) {
+        return Err(AppError(format!(
+            "--kernel {}: runs on 4- and 8-lane ISAs, {} has {} lanes",
+            k.name(),
+            a.isa,
+            a.isa.lanes()
+        )));
+    }
+    let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
+    let (tile, rays) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
+    let mut timings = time_kernels(&ld, (tile, a.spp), &rays, &kernels, a.isa, a.repeat);
+    timings.extend(time_embree(&ld, (tile, a.spp), &rays, a.repeat)?);
+    let bad: usize = timings.iter().map(|t| t.mismatches).sum();
+    let mut rows = vec![Row::new("rays", rays.len() as f64)];
+    rows.extend(timing_rows(&timings, rays.len(), Kernel::SingleBvh4.name()));
+    let host = HostCpu::detect();
+    let rep = Report {
+        report: "native".into(),
+        machine: None,
+        isa: Some(a.isa.name().into()),
+        fidelity: "native".into(),
+        sample: None,
+        input: Some(format!(
+            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}; host {}",
+            timings
+                .iter()
+                .map(|t| t.method.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+            ld.scene.config.name,
+            a.stream,
+            tile.x,
+            tile.y,
+            a.spp,
+            a.seed,
+            host.describe()
+        )),
+        ops_simulated: 0,
+        host_seconds: start.elapsed().as_secs_f64(),
+        rows,
+        notes: vec![format!(
+            "each method ran once untimed (its answers checked against the reference), then {} \
+             timed runs on one host thread; Mray/s of the median run, and of the slowest and \
+             fastest; time_vs_base: median time over single-bvh4's; the kernels run on the \
+             native backend (the {} semantics as lane arrays the compiler vectorises); Embree \
+             rows (built with --features embree) build the scene robust at the default quality, \
+             untimed, and trace primary rays with the coherent hint",
+            a.repeat, a.isa
+        )],
+    };
+    if bad > 0 {
+        print!("{}", rep.render(a.format));
+        return Err(AppError(format!("{bad} answers differ from the reference")));
+    }
+    Ok(rep)
+}

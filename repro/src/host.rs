@@ -1,0 +1,139 @@
+//! The host CPU a native timing ran on, and which machine config models it.
+
+/// What `/proc/cpuinfo` says of the host's first CPU.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct HostCpu {
+    /// `vendor_id` (`AuthenticAMD`, `GenuineIntel`).
+    pub vendor: String,
+    /// `cpu family`.
+    pub family: u32,
+    /// `model`.
+    pub model: u32,
+    /// `model name`.
+    pub name: String,
+    /// Whether the host runs AVX2 and FMA (the avx2 flavour's instructions).
+    pub avx2: bool,
+    /// Whether the host runs AVX-512F.
+    pub avx512: bool,
+}
+
+impl HostCpu {
+    /// This host (empty fields where `/proc/cpuinfo` cannot be read).
+    #[must_use]
+    pub fn detect() -> HostCpu {
+        let text = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+        let mut h = HostCpu::parse(&text);
+        #[cfg(target_arch = "x86_64")]
+        {
+            h.avx2 = std::arch::is_x86_feature_detected!("avx2")
+                && std::arch::is_x86_feature_detected!("fma");
+            h.avx512 = std::arch::is_x86_feature_detected!("avx512f");
+        }
+        h
+    }
+
+    /// The first processor's entry of a `/proc/cpuinfo` text (flags read
+    /// from its `flags` line).
+    #[must_use]
+    pub fn parse(cpuinfo: &str) -> HostCpu {
+        let mut h = HostCpu::default();
+        let first = cpuinfo.split("\n\n").next().unwrap_or("");
+        for line in first.lines() {
+            let Some((k, v)) = line.split_once(':') else {
+                continue;
+            };
+            let v = v.trim();
+            match k.trim() {
+                "vendor_id" => h.vendor = v.to_string(),
+                "cpu family" => h.family = v.parse().unwrap_or(0),
+                "model" => h.model = v.parse().unwrap_or(0),
+                "model name" => h.name = v.to_string(),
+                "flags" => {
+                    let has = |f: &str| v.split_whitespace().any(|x| x == f);
+                    h.avx2 = has("avx2") && has("fma");
+                    h.avx512 = has("avx512f");
+                }
+                _ => {}
+            }
+        }
+        h
+    }
+
+    /// One line for a report: name, vendor, family and model, vector ISA.
+    #[must_use]
+    pub fn describe(&self) -> String {
+        let isa = match (self.avx512, self.avx2) {
+            (true, _) => "AVX-512F, AVX2+FMA",
+            (false, true) => "AVX2+FMA",
+            _ => "no AVX2",
+        };
+        let name = if self.name.is_empty() {
+            "unknown CPU"
+        } else {
+            &self.name
+        };
+        format!(
+            "{name} ({} family {:#x} model {:#x}, {isa})",
+            self.vendor, self.family, self.model
+        )
+    }
+
+    /// The built-in machine config that models this CPU's core, and why;
+    /// `None` when no config does (with what the CPU is).
+    ///
+    /// AMD family 19h model ranges (AMD's processor programming references,
+    /// as Linux's `arch/x86` tables list them): 00h-0Fh Milan, 20h-2Fh
+    /// Vermeer, 40h-5Fh Rembrandt/Cezanne are Zen 3; 10h-1Fh Genoa, 60h-7Fh
+    /// Raphael/Phoenix, A0h-AFh Bergamo are Zen 4.
+    #[must_use]
+    pub fn model_config(&self) -> (Option<&'static str>, String) {
+        let (f, m) = (self.family, self.model);
+        if self.vendor == "AuthenticAMD" && f == 0x19 {
+            let zen4 = matches!(m, 0x10..=0x1f | 0x60..=0x7f | 0xa0..=0xaf);
+            return if zen4 {
+                (Some("zen4"), format!("AMD family 19h model {m:#x}: Zen 4"))
+            } else {
+                (Some("zen3"), format!("AMD family 19h model {m:#x}: Zen 3"))
+            };
+        }
+        (
+            None,
+            format!(
+                "no built-in config models {} family {f:#x} model {m:#x} (configs exist for AMD Zen 3 and Zen 4)",
+                if self.vendor.is_empty() { "this CPU" } else { &self.vendor }
+            ),
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GENOA: &str = "processor\t: 0\nvendor_id\t: AuthenticAMD\ncpu family\t: 25\nmodel\t\t: 17\nmodel name\t: AMD EPYC\nflags\t\t: fpu avx2 fma avx512f\n\nprocessor\t: 1\nvendor_id\t: GenuineIntel\n";
+
+    #[test]
+    fn reads_the_first_cpu_and_names_its_model() {
+        let h = HostCpu::parse(GENOA);
+        assert_eq!(
+            (h.vendor.as_str(), h.family, h.model),
+            ("AuthenticAMD", 25, 17)
+        );
+        assert!(h.avx2 && h.avx512);
+        assert_eq!(h.model_config().0, Some("zen4"));
+        let milan = HostCpu {
+            model: 1,
+            ..h.clone()
+        };
+        assert_eq!(milan.model_config().0, Some("zen3"));
+        let intel = HostCpu {
+            vendor: "GenuineIntel".into(),
+            family: 6,
+            model: 0x55,
+            ..h
+        };
+        assert_eq!(intel.model_config().0, None);
+        assert!(intel.model_config().1.contains("GenuineIntel"));
+        assert_eq!(HostCpu::parse("").model_config().0, None);
+    }
+}

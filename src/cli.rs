@@ -37,6 +37,10 @@ pub enum Cmd {
     /// (and Embree 3 on the same rays, built with --features embree), every
     /// answer checked against the reference.
     Native(NativeCli),
+    /// Check the model against this host: every traversal kernel timed natively
+    /// and simulated on the model of this CPU over the same rays; Kendall tau
+    /// and mean error of the times relative to single-ray BVH4.
+    Validate(ValidateCli),
     /// Run the microkernels through a machine model next to what its config implies.
     Calibrate(CalibrateCli),
     /// Time one workload in every fidelity mode: host time and error against full.
@@ -534,5 +538,54 @@ impl NativeCli {
             isa: self.isa,
             format: self.format,
         })
+    }
+}
+
+/// `rtsim validate` arguments.
+#[derive(Args)]
+pub struct ValidateCli {
+    /// Scenes (repeat the flag).
+    #[arg(long = "scene", default_values_t = ["conference".to_string(), "ferrari".to_string(), "bentley".to_string()])]
+    pub scenes: Vec<String>,
+    /// Streams: primary, bounce, shadow (repeat the flag).
+    #[arg(long = "stream", default_values_t = ["primary".to_string(), "bounce".to_string(), "shadow".to_string()])]
+    pub streams: Vec<String>,
+    /// Tile side in pixels: each stream is the centre tile's.
+    #[arg(long, default_value_t = 16)]
+    pub tile: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// Ray seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Timed native runs per kernel.
+    #[arg(long, default_value_t = 11)]
+    pub repeat: u32,
+    /// The model to check (default: the built-in config of this host's CPU).
+    #[arg(long)]
+    pub machine: Option<String>,
+    /// Override a config field of the model: `--set core.rob=256`.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    pub sets: Vec<String>,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+impl ValidateCli {
+    /// The library's options.
+    pub fn args(self) -> drs_report::validate::ValidateArgs {
+        drs_report::validate::ValidateArgs {
+            scenes: self.scenes,
+            streams: self.streams,
+            tile: self.tile,
+            spp: self.spp,
+            seed: self.seed,
+            repeat: self.repeat,
+            machine: self.machine,
+            sets: self.sets,
+            format: self.format,
+        }
     }
 }

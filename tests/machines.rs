@@ -16,6 +16,7 @@ const MACHINES: [&str; 9] = [
     "nehalem-w5580",
     "dunnington-x7460",
     "zen3",
+    "zen4",
 ];
 
 #[test]

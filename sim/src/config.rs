@@ -277,6 +277,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../configs/machines/dunnington-x7460.ron"),
     ),
     ("zen3", include_str!("../../configs/machines/zen3.ron")),
+    ("zen4", include_str!("../../configs/machines/zen4.ron")),
 ];
 
 impl MachineConfig {

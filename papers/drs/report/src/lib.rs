@@ -18,6 +18,7 @@ pub mod paper;
 pub mod run;
 mod table1;
 mod table2;
+pub mod validate;
 
 pub use fidelity::{fidelity_frame, FrameFidelity};
 use repro::{Opt, ReportDef};

@@ -476,3 +476,60 @@ fn native_times_every_kernel_on_the_same_rays_and_checks_them() {
     ]));
     assert!(e.contains("lanes"), "{e}");
 }
+
+#[test]
+fn validate_sets_native_beside_the_model_and_ranks_them() {
+    let j = json(&rtsim(&[
+        "validate",
+        "--scene",
+        "sphere",
+        "--stream",
+        "primary",
+        "--stream",
+        "shadow",
+        "--tile",
+        "4",
+        "--spp",
+        "2",
+        "--repeat",
+        "1",
+        "--machine",
+        "zen3",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(j["report"], "validate");
+    assert_eq!(j["machine"], "zen3");
+    let rows = j["rows"].as_array().unwrap();
+    let count = |metric: &str| rows.iter().filter(|r| r["metric"] == metric).count();
+    assert_eq!(
+        count("native_mray_per_s"),
+        14 + if cfg!(feature = "embree") { 6 } else { 0 }
+    );
+    assert_eq!(count("model_mray_per_s"), 14);
+    assert_eq!(count("relative_error"), 12, "every kernel but the baseline");
+    let overall = |metric: &str| {
+        rows.iter()
+            .find(|r| r["metric"] == metric && r["scene"] == "all")
+            .and_then(|r| r["value"].as_f64())
+            .unwrap()
+    };
+    assert!((-1.0..=1.0).contains(&overall("kendall_tau")));
+    assert!(overall("mean_abs_relative_error") >= 0.0);
+    let e = err(&rtsim(&[
+        "validate",
+        "--machine",
+        "larrabee",
+        "--scene",
+        "sphere",
+    ]));
+    assert!(e.contains("lanes"), "{e}");
+    let e = err(&rtsim(&[
+        "validate",
+        "--machine",
+        "zen3",
+        "--stream",
+        "sideways",
+    ]));
+    assert!(e.contains("sideways"), "{e}");
+}

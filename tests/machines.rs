@@ -6,7 +6,7 @@ use common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 9] = [
+const MACHINES: [&str; 10] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",

@@ -7,6 +7,7 @@
 //! alignment of every structure are what the cache model sees.
 
 use crate::types::{Addr, MemId, MemKind};
+use std::ptr::NonNull;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
@@ -150,23 +151,13 @@ impl AddrSpace {
     /// Register a zero-filled region of `size` bytes at `align` (power of two).
     pub fn alloc(&mut self, kind: MemKind, name: &str, size: usize, align: usize) -> Buf {
         let r = self.place(kind, name, size as u64, align as u64);
-        Buf {
-            data: Arc::new(vec![0u8; size]),
-            owned: AtomicBool::new(true),
-            base: r.base,
-            id: r.id,
-        }
+        Buf::new(vec![0u8; size], r.base, r.id)
     }
 
     /// Register a region holding `bytes`.
     pub fn alloc_bytes(&mut self, kind: MemKind, name: &str, bytes: Vec<u8>, align: usize) -> Buf {
         let r = self.place(kind, name, bytes.len() as u64, align as u64);
-        Buf {
-            data: Arc::new(bytes),
-            owned: AtomicBool::new(true),
-            base: r.base,
-            id: r.id,
-        }
+        Buf::new(bytes, r.base, r.id)
     }
 
     /// Register a region holding these f32 values (little-endian).
@@ -186,12 +177,7 @@ impl AddrSpace {
     #[must_use]
     pub fn lut(&self) -> Buf {
         let r = &self.regions[0];
-        Buf {
-            data: Arc::new(vec![0u8; r.size as usize]),
-            owned: AtomicBool::new(true),
-            base: r.base,
-            id: r.id,
-        }
+        Buf::new(vec![0u8; r.size as usize], r.base, r.id)
     }
 
     /// Every region, by id.
@@ -221,9 +207,23 @@ pub struct Buf {
     /// uniqueness check (`Arc::make_mut` costs a locked compare-exchange
     /// per store, 2-4% of a DRS report's host time).
     owned: AtomicBool,
+    /// `data`'s bytes and length, read without going through the `Arc` and
+    /// the `Vec` (two dependent loads per access, which every byte store
+    /// forced the compiler to repeat: a `u8` store may alias them). The
+    /// `Vec` is never resized, so these stay valid while `data` lives;
+    /// a copy on write moves them to the copy.
+    ptr: NonNull<u8>,
+    len: usize,
     base: Addr,
     id: MemId,
 }
+
+// SAFETY: `ptr` points into the `Arc<Vec<u8>>` this `Buf` holds, which is
+// Send and Sync; writes through it need `&mut self` and an unshared `Arc`
+// (`owned`), as writes through the `Arc` itself would.
+unsafe impl Send for Buf {}
+// SAFETY: as above; `&self` only reads.
+unsafe impl Sync for Buf {}
 
 impl Clone for Buf {
     fn clone(&self) -> Buf {
@@ -231,6 +231,8 @@ impl Clone for Buf {
         Buf {
             data: Arc::clone(&self.data),
             owned: AtomicBool::new(false),
+            ptr: self.ptr,
+            len: self.len,
             base: self.base,
             id: self.id,
         }
@@ -238,6 +240,28 @@ impl Clone for Buf {
 }
 
 impl Buf {
+    /// A buffer owning `bytes`.
+    fn new(bytes: Vec<u8>, base: Addr, id: MemId) -> Buf {
+        let mut data = Arc::new(bytes);
+        let (ptr, len) = Self::view(&mut data);
+        Buf {
+            data,
+            owned: AtomicBool::new(true),
+            ptr,
+            len,
+            base,
+            id,
+        }
+    }
+
+    /// Where `data`'s bytes are, and how many.
+    fn view(data: &mut Arc<Vec<u8>>) -> (NonNull<u8>, usize) {
+        let v = Arc::as_ptr(data);
+        // SAFETY: `v` points at the live Vec inside the Arc; its buffer
+        // pointer is non-null (dangling but non-null when empty).
+        unsafe { (NonNull::new_unchecked((*v).as_ptr().cast_mut()), (*v).len()) }
+    }
+
     /// Simulated address of byte `off`.
     #[inline(always)]
     #[must_use]
@@ -253,7 +277,7 @@ impl Buf {
     /// Size in bytes.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.data.len()
+        self.len
     }
     /// Whether empty.
     #[must_use]
@@ -273,10 +297,7 @@ impl Buf {
     /// The bytes, writable: copied first if another `Buf` shares them.
     #[inline(always)]
     fn data_mut(&mut self) -> &mut Vec<u8> {
-        if !*self.owned.get_mut() {
-            Arc::make_mut(&mut self.data);
-            *self.owned.get_mut() = true;
-        }
+        self.own();
         // SAFETY: `owned` is set only right after `make_mut` left this Arc
         // the allocation's only strong reference (no `Weak` is ever made),
         // and every clone of this `Buf` clears it first, so while it is set
@@ -286,10 +307,27 @@ impl Buf {
         unsafe { &mut *Arc::as_ptr(&self.data).cast_mut() }
     }
 
+    /// Make the bytes this `Buf`'s alone (a copy if another shares them),
+    /// `ptr` pointing at them.
+    #[inline(always)]
+    fn own(&mut self) {
+        if !*self.owned.get_mut() {
+            self.take_ownership();
+        }
+    }
+
+    #[cold]
+    #[inline(never)]
+    fn take_ownership(&mut self) {
+        Arc::make_mut(&mut self.data);
+        (self.ptr, self.len) = Self::view(&mut self.data);
+        *self.owned.get_mut() = true;
+    }
+
     #[inline(always)]
     fn check(&self, off: usize, n: usize) {
-        if off.checked_add(n).is_none_or(|e| e > self.data.len()) {
-            out_of_bounds(self.id, off, n, self.data.len());
+        if off.checked_add(n).is_none_or(|e| e > self.len) {
+            out_of_bounds(self.id, off, n, self.len);
         }
     }
 
@@ -299,14 +337,17 @@ impl Buf {
     pub fn read<const B: usize>(&self, off: usize) -> [u8; B] {
         self.check(off, B);
         let mut r = [0u8; B];
-        r.copy_from_slice(&self.data[off..off + B]);
+        // SAFETY: bounds checked above.
+        unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
         r
     }
     /// Write bytes at `off`.
     #[inline(always)]
     pub fn write(&mut self, off: usize, b: &[u8]) {
         self.check(off, b.len());
-        self.data_mut()[off..off + b.len()].copy_from_slice(b);
+        self.own();
+        // SAFETY: bounds checked above; the bytes are this `Buf`'s alone.
+        unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), self.ptr.as_ptr().add(off), b.len()) };
     }
     /// Read an f32 at `off`.
     #[inline(always)]
@@ -352,7 +393,7 @@ impl Buf {
             // SAFETY: bounds checked above; one unaligned 32-byte load.
             unsafe {
                 use std::arch::x86_64::*;
-                let v = _mm256_loadu_ps(self.data.as_ptr().add(off) as *const f32);
+                let v = _mm256_loadu_ps(self.ptr.as_ptr().add(off) as *const f32);
                 return std::mem::transmute_copy::<__m256, [f32; N]>(&v);
             }
         }
@@ -360,7 +401,7 @@ impl Buf {
         // SAFETY: bounds checked above; unaligned read of plain bytes.
         unsafe {
             std::ptr::copy_nonoverlapping(
-                self.data.as_ptr().add(off),
+                self.ptr.as_ptr().add(off),
                 r.as_mut_ptr() as *mut u8,
                 4 * N,
             );
@@ -377,11 +418,13 @@ impl Buf {
         self.check(off, 4 * N);
         #[cfg(target_endian = "big")]
         let v = &v.map(|x| f32::from_bits(x.to_bits().swap_bytes()));
-        // SAFETY: bounds checked above; unaligned write of plain bytes.
+        self.own();
+        // SAFETY: bounds checked above; unaligned write of plain bytes this
+        // `Buf` alone holds.
         unsafe {
             std::ptr::copy_nonoverlapping(
                 v.as_ptr() as *const u8,
-                self.data_mut().as_mut_ptr().add(off),
+                self.ptr.as_ptr().add(off),
                 4 * N,
             );
         }

@@ -144,6 +144,12 @@ fn scene_points(
             )));
         }
         for t in time_embree(&ld, (tile, a.spp), &rays, a.repeat)? {
+            if t.mismatches > 0 {
+                return Err(AppError(format!(
+                    "{name} {stream}: {} answers of {} differ from the reference",
+                    t.mismatches, t.method
+                )));
+            }
             embree.push((name.to_string(), stream.clone(), t, rays.len()));
         }
         timed.push((stream.clone(), tile, rays, nat));

@@ -41,6 +41,10 @@ pub enum Cmd {
     /// and simulated on the model of this CPU over the same rays; Kendall tau
     /// and mean error of the times relative to single-ray BVH4.
     Validate(ValidateCli),
+    /// Time one traversal kernel over one tile's stream on a grid of one or two
+    /// config fields (`--vary classes.vfma.lat=3,4,5,6 --vary core.width=2,4,6`;
+    /// `--vary isa=sse4,avx2` varies the lanes): a table, and a PNG with --out.
+    Sweep(SweepCli),
     /// Run the microkernels through a machine model next to what its config implies.
     Calibrate(CalibrateCli),
     /// Time one workload in every fidelity mode: host time and error against full.
@@ -587,5 +591,65 @@ impl ValidateCli {
             sets: self.sets,
             format: self.format,
         }
+    }
+}
+
+/// `rtsim sweep` arguments.
+#[derive(Args)]
+pub struct SweepCli {
+    /// Traversal kernel.
+    #[arg(long, default_value = "drs-bvh4")]
+    pub kernel: String,
+    /// Scene (`rtsim list scenes`, a .ron or a mesh file).
+    #[arg(long, default_value = "conference")]
+    pub scene: String,
+    /// Ray stream: primary, bounce or shadow.
+    #[arg(long, default_value = "bounce")]
+    pub stream: String,
+    /// Tile side in pixels: the stream is one tile at the image centre.
+    #[arg(long, default_value_t = 16)]
+    pub tile: u32,
+    /// Samples per pixel.
+    #[arg(long, default_value_t = 16)]
+    pub spp: u32,
+    /// Ray seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// The machine every point starts from.
+    #[command(flatten)]
+    pub machine: MachineCli,
+    /// A config field and its values, `FIELD=V1,V2,...` (once or twice; `isa=sse4,avx2` varies the lanes).
+    #[arg(long, required = true)]
+    pub vary: Vec<String>,
+    /// Also write DIR/sweep.png.
+    #[arg(long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+impl SweepCli {
+    /// The library's options (the kernel name checked).
+    pub fn args(self) -> AppResult<drs_report::sweep::SweepArgs> {
+        let kernel = drs_report::run::kernel(&self.kernel).ok_or_else(|| {
+            repro::AppError(format!(
+                "--kernel: unknown traversal kernel '{}' ({})",
+                self.kernel,
+                drs_report::run::kernel_names().join(", ")
+            ))
+        })?;
+        Ok(drs_report::sweep::SweepArgs {
+            kernel,
+            scene: self.scene,
+            stream: self.stream,
+            tile: self.tile,
+            spp: self.spp,
+            seed: self.seed,
+            machine: self.machine.spec(),
+            vary: self.vary,
+            out: self.out,
+            format: self.format,
+        })
     }
 }

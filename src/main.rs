@@ -165,6 +165,10 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             let f = a.format;
             show(drs_report::validate::validate_report(&a.args())?, f)
         }
+        Cmd::Sweep(a) => {
+            let f = a.format;
+            show(drs_report::sweep::sweep_report(&a.args()?)?, f)
+        }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),
         Cmd::Volume(a) => {
             let (r, bad) = volume_report::volume(&a.args())?;

@@ -533,3 +533,62 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
     ]));
     assert!(e.contains("sideways"), "{e}");
 }
+
+#[test]
+fn sweep_times_a_kernel_on_a_two_field_grid_and_plots_it() {
+    let dir = tmp("sweep-out");
+    let _ = std::fs::remove_dir_all(&dir);
+    let args = [
+        "sweep",
+        "--kernel",
+        "drs-bvh4",
+        "--scene",
+        "sphere",
+        "--stream",
+        "primary",
+        "--tile",
+        "4",
+        "--spp",
+        "2",
+        "--vary",
+        "isa=sse4,avx2",
+        "--vary",
+        "core.width=1,4",
+        "--out",
+        p(&dir),
+        "--format",
+        "json",
+    ];
+    let j = json(&rtsim(&args));
+    assert_eq!(j["report"], "sweep");
+    let rows = j["rows"].as_array().unwrap();
+    let cycles = |isa: &str, w: &str| {
+        rows.iter()
+            .find(|r| r["metric"] == "cycles" && r["isa"] == isa && r["core.width"] == w)
+            .and_then(|r| r["value"].as_f64())
+            .unwrap()
+    };
+    for isa in ["sse4", "avx2"] {
+        assert!(
+            cycles(isa, "1") > cycles(isa, "4"),
+            "{isa}: one-wide is slower"
+        );
+    }
+    assert_eq!(
+        rows.iter().filter(|r| r["metric"] == "mray_per_s").count(),
+        4
+    );
+    assert!(dir.join("sweep.png").exists());
+    let again = json(&rtsim(&args));
+    assert_eq!(again["rows"], j["rows"], "deterministic");
+    for (bad, says) in [
+        ("core.widht=1,2", "widht"),
+        ("core.width=0,2", "core.width"),
+        ("core.width=2,2", "twice"),
+        ("isa=avx512", "lanes"),
+        ("core.width", "FIELD=V1"),
+    ] {
+        let e = err(&rtsim(&["sweep", "--scene", "sphere", "--vary", bad]));
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+}

@@ -16,6 +16,7 @@ mod measure;
 pub mod native;
 pub mod paper;
 pub mod run;
+pub mod sweep;
 mod table1;
 mod table2;
 pub mod validate;

@@ -1,0 +1,314 @@
+//! `rtsim sweep`: one traversal kernel over one tile's stream of a scene,
+//! timed on every point of a grid of one or two machine-config fields
+//! (`--vary classes.vfma.lat=3,4,5,6 --vary core.width=2,4,6`; `isa=` varies
+//! the lane width: sse4, avx2, avx512). Each point is its own machine, warmed
+//! by a functional pass over the stream and then timed; points run at once
+//! and come out in grid order. A table and, with `--out DIR`, a PNG.
+
+use crate::run::tile_stream;
+use drs_kernels::methods::{Kernel, Run};
+use isa::FlavourId;
+use rayon::prelude::*;
+use repro::report::Format;
+use repro::{AppError, AppResult, MachineSpec, Report, Row};
+use scene::loaded::Loaded;
+use sim::{MachineConfig, Session};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// What `rtsim sweep` runs.
+#[derive(Clone, Debug)]
+pub struct SweepArgs {
+    /// The kernel.
+    pub kernel: Kernel,
+    /// Scene name or file.
+    pub scene: String,
+    /// `primary`, `bounce` or `shadow`.
+    pub stream: String,
+    /// Tile side in pixels.
+    pub tile: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+    /// Ray seed.
+    pub seed: u64,
+    /// The base machine and overrides every point shares.
+    pub machine: MachineSpec,
+    /// One or two `FIELD=V1,V2,...`.
+    pub vary: Vec<String>,
+    /// Where the PNG goes.
+    pub out: Option<PathBuf>,
+    /// Output format.
+    pub format: Format,
+}
+
+/// A varied field and its values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Axis {
+    /// Config field path (as `--set` takes it).
+    pub field: String,
+    /// Its values, in order.
+    pub values: Vec<String>,
+}
+
+impl Axis {
+    /// `FIELD=V1,V2,...`.
+    ///
+    /// # Errors
+    /// No `=`, an empty field, no value or an empty one, a value twice.
+    pub fn parse(s: &str) -> AppResult<Axis> {
+        let (field, vals) = s
+            .split_once('=')
+            .ok_or_else(|| AppError(format!("--vary '{s}': expected FIELD=V1,V2,...")))?;
+        let values: Vec<String> = vals.split(',').map(|v| v.trim().to_string()).collect();
+        if field.is_empty() || values.iter().any(String::is_empty) {
+            return Err(AppError(format!(
+                "--vary '{s}': expected FIELD=V1,V2,... with no empty field or value"
+            )));
+        }
+        if let Some(v) = values
+            .iter()
+            .find(|v| values.iter().filter(|w| w == v).count() > 1)
+        {
+            return Err(AppError(format!("--vary {field}: value '{v}' given twice")));
+        }
+        Ok(Axis {
+            field: field.to_string(),
+            values,
+        })
+    }
+
+    /// Where value `i` sits on a plot's x axis: the number itself, an ISA's
+    /// lanes, or else its position.
+    fn x(&self, i: usize) -> f64 {
+        let v = &self.values[i];
+        v.parse::<f64>()
+            .ok()
+            .or_else(|| FlavourId::from_name(v).map(|f| f.lanes() as f64))
+            .unwrap_or(i as f64)
+    }
+}
+
+/// One grid point: the value index per axis, its machine and its timing.
+struct Point {
+    at: Vec<usize>,
+    machine: MachineConfig,
+    cycles: u64,
+    instructions: u64,
+}
+
+/// The grid's machines, in order (the last axis fastest), each checked.
+fn machines(a: &SweepArgs, axes: &[Axis]) -> AppResult<Vec<(Vec<usize>, MachineConfig)>> {
+    let base = a.machine.load()?;
+    let mut grid: Vec<Vec<usize>> = vec![Vec::new()];
+    for ax in axes {
+        grid = grid
+            .into_iter()
+            .flat_map(|g| {
+                (0..ax.values.len()).map(move |i| {
+                    let mut g = g.clone();
+                    g.push(i);
+                    g
+                })
+            })
+            .collect();
+    }
+    grid.into_iter()
+        .map(|at| {
+            let sets: Vec<String> = axes
+                .iter()
+                .zip(&at)
+                .map(|(ax, &i)| format!("{}={}", ax.field, ax.values[i]))
+                .collect();
+            let m = base
+                .with_sets(&sets)
+                .map_err(|e| AppError(format!("--vary: {e}")))?;
+            if !a.kernel.supports(m.flavour().lanes()) {
+                return Err(AppError(format!(
+                    "--vary {}: {} runs on 4- and 8-lane ISAs, {} has {} lanes",
+                    sets.join(" "),
+                    a.kernel.name(),
+                    m.isa,
+                    m.flavour().lanes()
+                )));
+            }
+            Ok((at, m))
+        })
+        .collect()
+}
+
+/// `rtsim sweep`.
+///
+/// # Errors
+/// Bad options or values, an unloadable scene, a kernel whose answers
+/// differ from the reference, an unwritable `--out`.
+pub fn sweep_report(a: &SweepArgs) -> AppResult<Report> {
+    let start = Instant::now();
+    if a.vary.is_empty() || a.vary.len() > 2 {
+        return Err(AppError(
+            "sweep: give one or two --vary FIELD=V1,V2,...".into(),
+        ));
+    }
+    let axes: Vec<Axis> = a
+        .vary
+        .iter()
+        .map(|s| Axis::parse(s))
+        .collect::<AppResult<_>>()?;
+    if axes.len() == 2 && axes[0].field == axes[1].field {
+        return Err(AppError(format!("--vary {}: given twice", axes[0].field)));
+    }
+    let grid = machines(a, &axes)?;
+    let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
+    let (tile, rays) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
+    let mut run = Run::new(a.kernel, &ld.scene, &ld.b2, &ld.b4, rays.clone());
+    run.packet_tile = Some((tile.size, a.spp));
+    // One recording per ISA the grid runs (the trace does not depend on timing).
+    let mut traces = BTreeMap::new();
+    for (_, m) in &grid {
+        if let std::collections::btree_map::Entry::Vacant(e) = traces.entry(m.isa.clone()) {
+            let (t, (hits, _)) = isa::record(&run, m.flavour(), a.kernel.name());
+            let bad = run.mismatches(a.kernel.name(), &ld.reference(), &hits);
+            if bad > 0 {
+                return Err(AppError(format!(
+                    "{} on {}: {bad} rays differ from the reference",
+                    a.kernel.name(),
+                    m.isa
+                )));
+            }
+            e.insert(t);
+        }
+    }
+    let points: Vec<Point> = grid
+        .into_par_iter()
+        .map(|(at, machine)| {
+            let t = &traces[&machine.isa];
+            let mut s = Session::new(&machine);
+            s.warm(&[(0, t)]).map_err(AppError)?;
+            let st = s.timed(&[(0, t)]).map_err(AppError)?;
+            Ok(Point {
+                at,
+                machine,
+                cycles: st.cycles,
+                instructions: st.ops,
+            })
+        })
+        .collect::<AppResult<_>>()?;
+    let ops: u64 = points
+        .iter()
+        .map(|p| traces[&p.machine.isa].ops.len() as u64)
+        .sum();
+    let rows = rows(&points, &axes, rays.len());
+    if let Some(dir) = &a.out {
+        plot(dir, a, &axes, &points, rays.len())?;
+    }
+    Ok(Report {
+        report: "sweep".into(),
+        machine: Some(a.machine.machine.clone()),
+        isa: None,
+        fidelity: "full".into(),
+        sample: None,
+        input: Some(format!(
+            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}; varied: {}",
+            a.kernel.name(),
+            ld.scene.config.name,
+            a.stream,
+            tile.x,
+            tile.y,
+            a.spp,
+            a.seed,
+            a.vary.join(" ")
+        )),
+        ops_simulated: ops,
+        host_seconds: start.elapsed().as_secs_f64(),
+        rows,
+        notes: vec![format!(
+            "each point is the base machine with its values set, one core warmed by a functional pass over the {} rays, then timed in full detail; Mray/s at the point's clock",
+            rays.len()
+        )],
+    })
+}
+
+/// Per point: cycles, instructions, CPI, Mray/s, keyed by the varied fields.
+fn rows(points: &[Point], axes: &[Axis], rays: usize) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for p in points {
+        let row = |metric: &str, v: f64| {
+            axes.iter()
+                .zip(&p.at)
+                .fold(Row::new(metric, v), |r, (ax, &i)| {
+                    r.key(&ax.field, &ax.values[i])
+                })
+        };
+        let secs = p.cycles as f64 / (p.machine.clock_ghz * 1e9);
+        rows.push(row("cycles", p.cycles as f64).unit("cycles"));
+        rows.push(row("instructions", p.instructions as f64));
+        rows.push(row("cpi", p.cycles as f64 / p.instructions.max(1) as f64));
+        rows.push(row("mray_per_s", rays as f64 / secs / 1e6).unit("Mray/s"));
+    }
+    rows
+}
+
+/// `DIR/sweep.png`: Mray/s and CPI against the first axis, a line per value
+/// of the second.
+fn plot(
+    dir: &std::path::Path,
+    a: &SweepArgs,
+    axes: &[Axis],
+    points: &[Point],
+    rays: usize,
+) -> AppResult<()> {
+    std::fs::create_dir_all(dir).map_err(|e| AppError(format!("{}: {e}", dir.display())))?;
+    let lines = axes.get(1).map_or(1, |ax| ax.values.len());
+    let series = |f: &dyn Fn(&Point) -> f64| -> Vec<repro::plot::Series> {
+        (0..lines)
+            .map(|l| repro::plot::Series {
+                label: axes.get(1).map_or_else(
+                    || a.kernel.name().to_string(),
+                    |ax| format!("{}={}", ax.field, ax.values[l]),
+                ),
+                points: points
+                    .iter()
+                    .filter(|p| p.at.get(1).is_none_or(|&i| i == l))
+                    .map(|p| (axes[0].x(p.at[0]), f(p)))
+                    .collect(),
+            })
+            .collect()
+    };
+    let mray = |p: &Point| rays as f64 / (p.cycles as f64 / (p.machine.clock_ghz * 1e9)) / 1e6;
+    let cpi = |p: &Point| p.cycles as f64 / p.instructions.max(1) as f64;
+    let title = format!("{} on {}, {} rays", a.kernel.name(), a.scene, a.stream);
+    repro::plot::write(
+        &dir.join("sweep.png"),
+        &[
+            repro::plot::Panel {
+                title: &title,
+                x: &axes[0].field,
+                y: "Mray/s",
+                series: series(&mray),
+            },
+            repro::plot::Panel {
+                title: &title,
+                x: &axes[0].field,
+                y: "CPI",
+                series: series(&cpi),
+            },
+        ],
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Axis;
+
+    #[test]
+    fn axes_parse_and_place_their_values() {
+        let a = Axis::parse("core.width=2,4,6").unwrap();
+        assert_eq!(a.values, ["2", "4", "6"]);
+        assert_eq!(a.x(2), 6.0);
+        let isa = Axis::parse("isa=sse4,avx2,avx512").unwrap();
+        assert_eq!((isa.x(0), isa.x(1), isa.x(2)), (4.0, 8.0, 16.0));
+        for bad in ["core.width", "=1,2", "core.width=1,,2", "core.width=2,2"] {
+            assert!(Axis::parse(bad).is_err(), "{bad}");
+        }
+    }
+}

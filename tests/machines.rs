@@ -436,6 +436,25 @@ fn run_times_the_traversal_kernels_and_checks_their_hits() {
             .any(|r| r["metric"] == "cpi" && r["region"] == "core-loop"),
         "the DRS core loop is timed apart"
     );
+    // Each region's CPI stack sums to its CPI and names one bottleneck.
+    for region in ["core-loop", "traversal"] {
+        let of = |metric: &str| {
+            rows.iter()
+                .filter(|r| r["metric"] == metric && r["region"] == region)
+                .map(|r| r["value"].as_f64().unwrap())
+                .collect::<Vec<f64>>()
+        };
+        let (cpi, stack) = (of("cpi")[0], of("cpi_stack"));
+        assert_eq!(stack.len(), 6, "{region}: one entry per reason");
+        let sum: f64 = stack.iter().sum();
+        assert!(
+            (sum - cpi).abs() < 1e-9 * cpi.max(1.0),
+            "{region}: {sum} vs {cpi}"
+        );
+        let share = of("bottleneck_share");
+        assert_eq!(share.len(), 1, "{region}");
+        assert!(share[0] > 0.0 && share[0] <= 1.0, "{region}: {share:?}");
+    }
     let e = err(&rtsim(&[
         "run",
         "--kernel",

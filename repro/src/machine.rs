@@ -37,6 +37,7 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
                 .unit("cycles"),
         );
     }
+    rows.extend(cpi_stack_rows(s));
     rows.push(Row::new("lane_utilisation", s.lane_utilisation()));
     rows.push(Row::new("branches", s.branches as f64));
     rows.push(Row::new("mispredicts", s.mispredicts as f64));
@@ -66,6 +67,31 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
         if n > 0 {
             rows.push(Row::new("instructions", n as f64).key("class", c.name()));
         }
+    }
+    rows
+}
+
+/// Per code region its CPI stack (cycles per instruction by stall reason,
+/// summing to the region's CPI) and its bottleneck: the largest reason other
+/// than issue bandwidth, with its share of the region's cycles.
+fn cpi_stack_rows(s: &Stats) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for r in Region::ALL {
+        let (Some(stack), Some((worst, share))) = (s.cpi_stack(r), s.bottleneck(r)) else {
+            continue;
+        };
+        for st in Stall::ALL {
+            rows.push(
+                Row::new("cpi_stack", stack[st as usize])
+                    .key("region", r.name())
+                    .key("reason", st.name()),
+            );
+        }
+        rows.push(
+            Row::new("bottleneck_share", share)
+                .key("region", r.name())
+                .key("reason", worst.name()),
+        );
     }
     rows
 }

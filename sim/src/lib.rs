@@ -253,7 +253,7 @@ fn estimate(
     };
     s.cycles = total.round() as u64;
     let per_op = s.cycles as f64 / s.ops.max(1) as f64;
-    for r in 0..8 {
+    for r in 0..isa::Region::COUNT {
         s.region_cycles[r] = (s.region_ops[r] as f64 * per_op).round() as u64;
     }
     s.stalls[Stall::Issue as usize] = s.cycles;

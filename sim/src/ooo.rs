@@ -932,6 +932,7 @@ fn count(s: &mut Stats, op: &Op, ct: &ClassT, why: Stall, delta: u64) {
     s.region_ops[op.region as usize] += crate::stats::instructions(op.class);
     s.region_cycles[op.region as usize] += delta;
     s.stalls[why as usize] += delta;
+    s.region_stalls[op.region as usize][why as usize] += delta;
     s.class_ops[op.class as usize] += 1;
     if ct.vector {
         s.vector_ops += 1;

@@ -65,6 +65,11 @@ pub struct Stats {
     pub class_ops: Vec<u64>,
     /// Cycles charged to each stall reason.
     pub stalls: [u64; 6],
+    /// Cycles charged to each stall reason, per code region (out-of-order
+    /// cores: each op's retire delta, so a region's row sums to its
+    /// `region_cycles`; in-order cores charge waits to no region and leave
+    /// this zero).
+    pub region_stalls: [[u64; 6]; isa::Region::COUNT],
     /// Conditional branches.
     pub branches: u64,
     /// Of which mispredicted.
@@ -124,20 +129,47 @@ impl Stats {
             self.active_lanes as f64 / (self.vector_ops * self.lanes) as f64
         }
     }
+    /// Region `r`'s CPI stack: its cycles per instruction split by stall
+    /// reason (in [`Stall::ALL`] order; they sum to its CPI), when its
+    /// cycles were charged by reason (out-of-order cores) and it ran.
+    #[must_use]
+    pub fn cpi_stack(&self, r: Region) -> Option<[f64; 6]> {
+        let (i, c) = (r as usize, self.region_stalls[r as usize]);
+        let ops = self.region_ops[i];
+        (ops > 0 && self.region_cycles[i] > 0 && c.iter().sum::<u64>() == self.region_cycles[i])
+            .then(|| c.map(|x| x as f64 / ops as f64))
+    }
+
+    /// Region `r`'s largest stall reason other than issue bandwidth (the
+    /// base cost of its instructions) and that reason's share of its cycles.
+    #[must_use]
+    pub fn bottleneck(&self, r: Region) -> Option<(Stall, f64)> {
+        let stack = self.cpi_stack(r)?;
+        let total: f64 = stack.iter().sum();
+        Stall::ALL
+            .into_iter()
+            .filter(|&s| s != Stall::Issue)
+            .map(|s| (s, stack[s as usize] / total))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+    }
+
     /// Add another run's counters (cycles: the maximum).
     pub fn merge(&mut self, o: &Stats) {
         self.cycles = self.cycles.max(o.cycles);
         self.ops += o.ops;
         self.uops += o.uops;
-        for i in 0..8 {
+        for i in 0..isa::Region::COUNT {
             self.region_ops[i] += o.region_ops[i];
             self.region_cycles[i] += o.region_cycles[i];
+            for (a, b) in self.region_stalls[i].iter_mut().zip(&o.region_stalls[i]) {
+                *a += b;
+            }
         }
         for (a, b) in self.class_ops.iter_mut().zip(&o.class_ops) {
             *a += b;
         }
-        for i in 0..5 {
-            self.stalls[i] += o.stalls[i];
+        for (a, b) in self.stalls.iter_mut().zip(&o.stalls) {
+            *a += b;
         }
         self.branches += o.branches;
         self.mispredicts += o.mispredicts;

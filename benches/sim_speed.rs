@@ -22,7 +22,7 @@ fn bench(c: &mut Criterion) {
         g.throughput(Throughput::Elements(t.ops.len() as u64));
         let opt = SimOptions {
             fidelity: fid,
-            warmup_ops: 0,
+            ..SimOptions::default()
         };
         g.bench_function(format!("{name}-{}", fid.name()), |b| {
             b.iter(|| black_box(simulate(&m, &[&t], &opt).unwrap().cycles))

@@ -272,6 +272,11 @@ pub struct SimCli {
     /// Fidelity: counts, caches, full.
     #[arg(long, value_parser = parse_fidelity, default_value = "full")]
     pub fidelity: Fidelity,
+    /// The pipeline timeline of a window of ops (out-of-order machines):
+    /// START:LEN trace indices, or REGION:START:LEN from the START-th op of
+    /// a code region (e.g. core-loop:0:40); of the repeated trace with --iterations.
+    #[arg(long, value_name = "WINDOW")]
+    pub timeline: Option<String>,
     /// Output format: text, json or csv.
     #[arg(long, value_parser = Format::from_name, default_value = "text")]
     pub format: Format,

@@ -142,8 +142,18 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
         Cmd::Trace(t) => trace_cmd::trace(t),
         Cmd::Sim(a) => {
             let m = a.machine.load()?;
-            let r = repro::machine::sim_report(&m, &a.trace, a.iterations, a.fidelity)?;
-            show(r, a.format)
+            let (r, timeline) = repro::machine::sim_report(
+                &m,
+                &a.trace,
+                a.iterations,
+                a.fidelity,
+                a.timeline.as_deref(),
+            )?;
+            show(r, a.format)?;
+            if a.format == Format::Text && !timeline.is_empty() {
+                print!("\n{}", repro::timeline::view(&timeline));
+            }
+            Ok(())
         }
         Cmd::Calibrate(a) => {
             let m = a.machine.load()?;

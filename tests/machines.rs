@@ -513,3 +513,83 @@ fn sim_iterations_report_the_loops_steady_state() {
     assert_eq!(one, all1);
     assert!(notes.contains("not a steady state"), "{notes}");
 }
+
+#[test]
+fn sim_timeline_shows_each_ops_pipeline_stages() {
+    // The imul chain: each imul issues when the one before completes, 3 cycles on.
+    let f = tmp("chain.txt");
+    std::fs::write(
+        &f,
+        ".trace 1\n.isa avx2\n.mem 0 lut isa-lut 0x10000000 8192\n\
+         .mem 1 other d 0x20000000 4096\n%1 = load @d+0x0:8\n%2 = imul %2 %1\n",
+    )
+    .unwrap();
+    let path = f.to_str().unwrap();
+    let args = |fmt: &'static str, win: &'static str| {
+        vec![
+            "sim",
+            "--trace",
+            path,
+            "--iterations",
+            "20",
+            "--timeline",
+            win,
+            "--format",
+            fmt,
+        ]
+    };
+    let j = json(&rtsim(&args("json", "20:8")));
+    let rows = j["rows"].as_array().unwrap();
+    let at = |metric: &str| -> Vec<(u64, f64)> {
+        rows.iter()
+            .filter(|r| r["metric"] == metric && r["class"] == "imul")
+            .map(|r| {
+                (
+                    r["op"].as_str().unwrap().parse().unwrap(),
+                    r["value"].as_f64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let (issue, done) = (at("issue"), at("complete"));
+    assert_eq!(issue.len(), 4, "ops 20..28 hold four imuls");
+    for k in 1..issue.len() {
+        assert_eq!(
+            issue[k].1,
+            done[k - 1].1,
+            "imul {} waits for the one before",
+            issue[k].0
+        );
+        assert_eq!(done[k].1 - issue[k].1, 3.0, "imul latency");
+    }
+    let text = ok(&rtsim(&args("text", "20:8")));
+    let view = text.split("Timeline (cycle 0 =").nth(1).expect("the view");
+    let lines: Vec<&str> = view.lines().filter(|l| l.contains(" imul ")).collect();
+    assert_eq!(lines.len(), 4, "{view}");
+    assert!(
+        lines.iter().all(|l| l.contains('D') && l.ends_with('R')),
+        "{view}"
+    );
+    for (bad, says) in [
+        ("20", "START:LEN"),
+        ("nope:0:4", "unknown region"),
+        ("0:0", "LEN"),
+        ("99999:4", "ops"),
+        ("x:4", "not a count"),
+    ] {
+        let e = err(&rtsim(&args("json", bad)));
+        assert!(e.contains(says), "{bad}: {e}");
+    }
+    let e = err(&rtsim(&[
+        "sim",
+        "--trace",
+        path,
+        "--iterations",
+        "2",
+        "--fidelity",
+        "counts",
+        "--timeline",
+        "0:4",
+    ]));
+    assert!(e.contains("full fidelity"), "{e}");
+}

@@ -164,21 +164,32 @@ pub fn sim_report(
     trace: &Path,
     iterations: usize,
     fidelity: Fidelity,
-) -> AppResult<Report> {
+    timeline: Option<&str>,
+) -> AppResult<(Report, Vec<sim::OpTimes>)> {
     let start = Instant::now();
     if iterations == 0 {
         return Err(AppError("--iterations: must be at least 1".into()));
     }
     let body = load_trace_loop(trace, iterations > 1)?;
+    if timeline.is_some() && (fidelity != Fidelity::Full || m.core.kind != CoreKind::OutOfOrder) {
+        return Err(AppError(
+            "--timeline: needs full fidelity on an out-of-order machine".into(),
+        ));
+    }
     let run = |n: usize| {
         let t = if n > 1 {
             sim::repeat(&body, n)
         } else {
             body.clone()
         };
+        let window = match timeline {
+            Some(spec) if n == iterations => Some(crate::timeline::window(spec, &t)?),
+            _ => None,
+        };
         let opt = SimOptions {
             fidelity,
             warmup_ops: 0,
+            timeline: window,
         };
         simulate(m, &[&t], &opt)
             .map(|s| (s, t))
@@ -227,6 +238,7 @@ pub fn sim_report(
     }
     rows.extend(stats_rows(&s, m, None));
     rows.extend(region_rows(&s, &t));
+    rows.extend(crate::timeline::rows(&s.timeline));
     let mut rep = report(
         "sim",
         m,
@@ -237,7 +249,7 @@ pub fn sim_report(
         rows,
     );
     rep.notes = notes;
-    Ok(rep)
+    Ok((rep, s.timeline))
 }
 
 /// One calibration measurement.
@@ -556,7 +568,7 @@ pub fn fidelity_report(m: &MachineConfig, trace: Option<&Path>, rays: usize) -> 
             &[&t],
             &SimOptions {
                 fidelity: f,
-                warmup_ops: 0,
+                ..SimOptions::default()
             },
         )
         .map_err(AppError)?;

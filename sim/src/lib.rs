@@ -22,7 +22,7 @@ pub mod stats;
 pub use config::{CoreKind, MachineConfig};
 pub use memory::Hierarchy;
 pub use session::{Session, UnitTimed};
-pub use stats::{PerRay, Stall, Stats};
+pub use stats::{OpTimes, PerRay, Stall, Stats};
 
 use isa::{OpClass, Trace, ValId};
 
@@ -64,6 +64,10 @@ pub struct SimOptions {
     pub fidelity: Fidelity,
     /// Ops of each trace that only warm caches and predictors (not counted).
     pub warmup_ops: usize,
+    /// Record the pipeline timeline ([`Stats::timeline`]) of the ops of
+    /// the first trace from this index, this many (full fidelity,
+    /// out-of-order machines).
+    pub timeline: Option<(usize, usize)>,
 }
 
 impl Default for SimOptions {
@@ -71,6 +75,7 @@ impl Default for SimOptions {
         SimOptions {
             fidelity: Fidelity::Full,
             warmup_ops: 0,
+            timeline: None,
         }
     }
 }
@@ -116,7 +121,7 @@ pub fn simulate(m: &MachineConfig, traces: &[&Trace], opt: &SimOptions) -> Resul
     let mut mem = Hierarchy::new(m, cores);
     match opt.fidelity {
         Fidelity::Full => match m.core.kind {
-            CoreKind::OutOfOrder => full_ooo(m, traces, &mut mem, &mut s, opt.warmup_ops),
+            CoreKind::OutOfOrder => full_ooo(m, traces, &mut mem, &mut s, opt),
             CoreKind::InOrder => {
                 s.cycles = inorder::run(m, traces, &mut mem, &mut s, opt.warmup_ops);
                 // Cycles of the counted part only: time of the warm-up removed pro rata.
@@ -146,9 +151,13 @@ fn full_ooo(
     traces: &[&Trace],
     mem: &mut Hierarchy,
     s: &mut Stats,
-    warmup: usize,
+    opt: &SimOptions,
 ) {
+    let warmup = opt.warmup_ops;
     let mut cores: Vec<ooo::OooCore> = (0..traces.len()).map(|c| ooo::OooCore::new(m, c)).collect();
+    cores[0].timeline = opt
+        .timeline
+        .map(|(start, n)| ooo::Timeline::new(start..start.saturating_add(n)));
     let mut pos = vec![0usize; traces.len()];
     let mut start = vec![None::<u64>; traces.len()];
     // Interleave cores in chunks so shared levels and DRAM see them together.
@@ -175,6 +184,9 @@ fn full_ooo(
         if !any {
             break;
         }
+    }
+    if let Some(tl) = cores[0].timeline.take() {
+        s.timeline = tl.events;
     }
     s.cycles = cores
         .iter()

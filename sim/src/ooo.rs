@@ -388,6 +388,8 @@ fn with_taken_branch(mut table: Vec<ClassT>, m: &MachineConfig) -> Vec<ClassT> {
 
 /// An out-of-order core's state between ops.
 pub struct OooCore {
+    /// Ops whose pipeline times to keep, and those kept.
+    pub timeline: Option<Timeline>,
     core: usize,
     classes: Vec<ClassT>,
     /// The class table for ops on operands of at most 16 bytes.
@@ -446,6 +448,7 @@ impl OooCore {
     pub fn new(m: &MachineConfig, core: usize) -> OooCore {
         let c = &m.core;
         OooCore {
+            timeline: None,
             core,
             classes: with_taken_branch(class_table(m), m),
             narrow: with_taken_branch(class_table_of(m, true), m),
@@ -498,6 +501,7 @@ impl OooCore {
         // The class table is read while the core's state changes.
         let classes = std::mem::take(&mut self.classes);
         let narrow = std::mem::take(&mut self.narrow);
+        let timeline = self.timeline.is_some();
         let end = range.end;
         for i in range {
             let op = &t.ops[i];
@@ -559,11 +563,24 @@ impl OooCore {
             if counted {
                 count(s, op, ct, why, ret - self.last_ret);
             }
+            if timeline {
+                self.note_timeline(i, op, (d, first, done, ret), why);
+            }
             self.last_ret = ret;
             self.now = ret;
         }
         self.classes = classes;
         self.narrow = narrow;
+    }
+
+    /// Keep op `i`'s pipeline times when it is in the timeline's window.
+    /// Out of line: only `rtsim sim --timeline` asks for them.
+    #[inline(never)]
+    #[cold]
+    fn note_timeline(&mut self, i: usize, op: &Op, times: (u64, u64, u64, u64), why: Stall) {
+        if let Some(tl) = &mut self.timeline {
+            tl.note(i, op, times, why);
+        }
     }
 
     /// The first cycle an op with an instruction length may dispatch,
@@ -909,6 +926,42 @@ impl OooCore {
             self.rob_seq += 1;
         }
         ret
+    }
+}
+
+/// The pipeline times of a window of ops (`rtsim sim --timeline`).
+#[derive(Clone, Debug)]
+pub struct Timeline {
+    window: std::ops::Range<usize>,
+    /// The ops of the window timed so far, in order.
+    pub events: Vec<crate::stats::OpTimes>,
+}
+
+impl Timeline {
+    /// Keep the times of the ops with trace indices in `window`.
+    #[must_use]
+    pub fn new(window: std::ops::Range<usize>) -> Timeline {
+        Timeline {
+            window,
+            events: Vec::new(),
+        }
+    }
+
+    /// Op `i` dispatched at `d`, issued at `first`, done at `done`, retired at `ret`.
+    fn note(&mut self, i: usize, op: &Op, (d, first, done, ret): (u64, u64, u64, u64), why: Stall) {
+        if self.window.contains(&i) {
+            self.events.push(crate::stats::OpTimes {
+                index: i,
+                class: op.class,
+                region: op.region,
+                dispatch: d,
+                // An op with no uops (an eliminated move) issues nowhere.
+                issue: first.min(done),
+                complete: done,
+                retire: ret,
+                stall: why,
+            });
+        }
     }
 }
 

@@ -97,6 +97,30 @@ pub struct Stats {
     pub dram_written: u64,
     /// DRAM bytes read per memory region.
     pub dram_read_by_region: Vec<u64>,
+    /// The pipeline timeline of the ops [`crate::SimOptions::timeline`]
+    /// asked for (out-of-order cores; empty otherwise).
+    pub timeline: Vec<OpTimes>,
+}
+
+/// When one op went through the out-of-order pipeline (absolute cycles).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct OpTimes {
+    /// Its index in the trace.
+    pub index: usize,
+    /// Its class.
+    pub class: OpClass,
+    /// Its code region.
+    pub region: Region,
+    /// Dispatched (renamed into the ROB and scheduler).
+    pub dispatch: u64,
+    /// Its first uop issued to a port.
+    pub issue: u64,
+    /// Its result ready (executed).
+    pub complete: u64,
+    /// Retired.
+    pub retire: u64,
+    /// What its retire delta was charged to.
+    pub stall: Stall,
 }
 
 impl Stats {

@@ -200,7 +200,7 @@ fn wrong_flavour_and_too_many_traces_are_errors() {
     assert!(simulate(&m, &five, &SimOptions::default()).is_err());
     let opt = SimOptions {
         fidelity: Fidelity::Counts,
-        warmup_ops: 0,
+        ..SimOptions::default()
     };
     assert_eq!(simulate(&m, &[&t], &opt).unwrap().ops, 1);
 }

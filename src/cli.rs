@@ -277,6 +277,9 @@ pub struct SimCli {
     /// a code region (e.g. core-loop:0:40); of the repeated trace with --iterations.
     #[arg(long, value_name = "WINDOW")]
     pub timeline: Option<String>,
+    /// Also draw the timeline to this PNG.
+    #[arg(long, value_name = "FILE.png", requires = "timeline")]
+    pub timeline_png: Option<PathBuf>,
     /// Output format: text, json or csv.
     #[arg(long, value_parser = Format::from_name, default_value = "text")]
     pub format: Format,

@@ -149,6 +149,9 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
                 a.fidelity,
                 a.timeline.as_deref(),
             )?;
+            if let Some(png) = &a.timeline_png {
+                repro::timeline::png(png, &timeline)?;
+            }
             show(r, a.format)?;
             if a.format == Format::Text && !timeline.is_empty() {
                 print!("\n{}", repro::timeline::view(&timeline));

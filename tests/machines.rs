@@ -562,6 +562,11 @@ fn sim_timeline_shows_each_ops_pipeline_stages() {
         );
         assert_eq!(done[k].1 - issue[k].1, 3.0, "imul latency");
     }
+    let png = tmp("timeline.png");
+    let mut with_png = args("json", "20:8");
+    with_png.extend(["--timeline-png", png.to_str().unwrap()]);
+    ok(&rtsim(&with_png));
+    assert_eq!(&std::fs::read(&png).unwrap()[1..4], b"PNG");
     let text = ok(&rtsim(&args("text", "20:8")));
     let view = text.split("Timeline (cycle 0 =").nth(1).expect("the view");
     let lines: Vec<&str> = view.lines().filter(|l| l.contains(" imul ")).collect();

@@ -38,13 +38,94 @@ const COLOURS: [RGBColor; 7] = [
     RGBColor(23, 190, 207),
 ];
 
-/// Render `panels` side by side into a PNG at `path` (written atomically).
-pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
+/// Register the embedded font once.
+fn font() {
     static FONT: Once = Once::new();
     FONT.call_once(|| {
         // An embedded font: cannot fail for valid TTF bytes; a failure only loses text.
         let _ = register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular());
     });
+}
+
+/// One row of a bar chart over time: its label and its segments
+/// (start, end, legend index), drawn in order.
+pub struct Lane {
+    /// Row label.
+    pub label: String,
+    /// Segments: [start, end) on the x axis and the legend entry they are.
+    pub segments: Vec<(f64, f64, usize)>,
+}
+
+/// Render `lanes` as horizontal bars, one row each from the top, into a PNG
+/// at `path` (written atomically); `legend` names the segment kinds.
+pub fn write_lanes(
+    path: &Path,
+    title: &str,
+    x: &str,
+    legend: &[&str],
+    lanes: &[Lane],
+) -> AppResult<()> {
+    font();
+    let (w, h) = (1200u32, (120 + 14 * lanes.len()).clamp(240, 4000) as u32);
+    let mut buf = vec![255u8; (w * h * 3) as usize];
+    let err = |e: &dyn std::fmt::Display| AppError(format!("{}: plot: {e}", path.display()));
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let x1 = lanes
+            .iter()
+            .flat_map(|l| l.segments.iter().map(|s| s.1))
+            .fold(1.0f64, f64::max);
+        let n = lanes.len().max(1) as f64;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(150)
+            .build_cartesian_2d(0.0..x1, (n - 0.5)..-0.5)
+            .map_err(|e| err(&e))?;
+        let label = |y: &f64| {
+            lanes
+                .get(y.round().max(0.0) as usize)
+                .map_or_else(String::new, |l| l.label.clone())
+        };
+        chart
+            .configure_mesh()
+            .x_desc(x)
+            .y_labels(lanes.len().min(60))
+            .y_label_formatter(&label)
+            .label_style(("sans-serif", 11))
+            .draw()
+            .map_err(|e| err(&e))?;
+        for (k, name) in legend.iter().enumerate() {
+            let c = COLOURS[k % COLOURS.len()];
+            let bars = lanes.iter().enumerate().flat_map(|(row, l)| {
+                l.segments.iter().filter(|s| s.2 == k).map(move |s| {
+                    let y = row as f64;
+                    Rectangle::new([(s.0, y - 0.35), (s.1, y + 0.35)], c.filled())
+                })
+            });
+            chart
+                .draw_series(bars)
+                .map_err(|e| err(&e))?
+                .label(*name)
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], c.filled()));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 14))
+            .draw()
+            .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+    }
+    crate::io::write_atomic(path, &crate::png::encode(w, h, &buf))
+}
+
+/// Render `panels` side by side into a PNG at `path` (written atomically).
+pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
+    font();
     let (pw, h) = (640u32, 480u32);
     let w = pw * panels.len().max(1) as u32;
     let mut buf = vec![255u8; (w * h * 3) as usize];

@@ -131,6 +131,41 @@ pub fn view(ops: &[OpTimes]) -> String {
     out
 }
 
+/// The timeline as a PNG at `path`: a bar per op, waiting (dispatch to
+/// issue), executing (issue to complete) and waiting to retire (complete to
+/// retire), cycles from the window's first dispatch.
+///
+/// # Errors
+/// The file cannot be written.
+pub fn png(path: &std::path::Path, ops: &[OpTimes]) -> AppResult<()> {
+    let base = ops.iter().map(|o| o.dispatch).min().unwrap_or(0) as f64;
+    let lanes: Vec<crate::plot::Lane> = ops
+        .iter()
+        .map(|o| {
+            let c = |x: u64| x as f64 - base;
+            crate::plot::Lane {
+                label: format!("{} {}", o.index, o.class.name()),
+                segments: vec![
+                    (c(o.dispatch), c(o.issue).max(c(o.dispatch) + 0.2), 0),
+                    (c(o.issue), c(o.complete).max(c(o.issue) + 0.2), 1),
+                    (c(o.complete), c(o.retire) + 1.0, 2),
+                ],
+            }
+        })
+        .collect();
+    crate::plot::write_lanes(
+        path,
+        "pipeline timeline",
+        "cycle",
+        &[
+            "dispatched, waiting",
+            "executing",
+            "done, waiting to retire",
+        ],
+        &lanes,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

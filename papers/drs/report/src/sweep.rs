@@ -277,18 +277,23 @@ fn plot(
     let mray = |p: &Point| rays as f64 / (p.cycles as f64 / (p.machine.clock_ghz * 1e9)) / 1e6;
     let cpi = |p: &Point| p.cycles as f64 / p.instructions.max(1) as f64;
     let title = format!("{} on {}, {} rays", a.kernel.name(), a.scene, a.stream);
+    let x = if axes[0].field == "isa" {
+        "isa (lanes)".to_string()
+    } else {
+        axes[0].field.clone()
+    };
     repro::plot::write(
         &dir.join("sweep.png"),
         &[
             repro::plot::Panel {
                 title: &title,
-                x: &axes[0].field,
+                x: &x,
                 y: "Mray/s",
                 series: series(&mray),
             },
             repro::plot::Panel {
                 title: &title,
-                x: &axes[0].field,
+                x: &x,
                 y: "CPI",
                 series: series(&cpi),
             },

@@ -111,16 +111,29 @@ pub fn write_lanes(
                 .label(*name)
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 14, y + 5)], c.filled()));
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .label_font(("sans-serif", 14))
-            .draw()
-            .map_err(|e| err(&e))?;
+        legend_box(&mut chart).map_err(|e| err(&e))?;
         root.present().map_err(|e| err(&e))?;
     }
     crate::io::write_atomic(path, &crate::png::encode(w, h, &buf))
+}
+
+/// A chart of f64 axes on the bitmap.
+type Chart<'a, 'b> = ChartContext<
+    'a,
+    BitMapBackend<'b>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// The series' legend box, as every plot here draws it.
+fn legend_box<'a, 'b: 'a>(
+    chart: &mut Chart<'a, 'b>,
+) -> Result<(), DrawingAreaErrorKind<<BitMapBackend<'b> as DrawingBackend>::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
 }
 
 /// Render `panels` side by side into a PNG at `path` (written atomically).
@@ -171,13 +184,7 @@ pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
                     .draw_series(s.points.iter().map(|&q| Circle::new(q, 3, c.filled())))
                     .map_err(|e| err(&e))?;
             }
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 14))
-                .draw()
-                .map_err(|e| err(&e))?;
+            legend_box(&mut chart).map_err(|e| err(&e))?;
         }
         root.present().map_err(|e| err(&e))?;
     }

@@ -530,14 +530,7 @@ impl NativeCli {
         let kernels = self
             .kernels
             .iter()
-            .map(|k| {
-                drs_report::run::kernel(k).ok_or_else(|| {
-                    repro::AppError(format!(
-                        "--kernel: unknown traversal kernel '{k}' ({})",
-                        drs_report::run::kernel_names().join(", ")
-                    ))
-                })
-            })
+            .map(|k| drs_report::run::kernel_named(k))
             .collect::<AppResult<Vec<_>>>()?;
         Ok(drs_report::native::NativeArgs {
             scene: self.scene,
@@ -640,13 +633,7 @@ pub struct SweepCli {
 impl SweepCli {
     /// The library's options (the kernel name checked).
     pub fn args(self) -> AppResult<drs_report::sweep::SweepArgs> {
-        let kernel = drs_report::run::kernel(&self.kernel).ok_or_else(|| {
-            repro::AppError(format!(
-                "--kernel: unknown traversal kernel '{}' ({})",
-                self.kernel,
-                drs_report::run::kernel_names().join(", ")
-            ))
-        })?;
+        let kernel = drs_report::run::kernel_named(&self.kernel)?;
         Ok(drs_report::sweep::SweepArgs {
             kernel,
             scene: self.scene,

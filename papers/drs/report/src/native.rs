@@ -4,7 +4,7 @@
 //! the `embree` feature, Embree 3's `rtcIntersect1`, `rtcIntersect8` and
 //! `rtcIntersect1M` over exactly the same rays.
 
-use crate::run::tile_stream;
+use crate::run::{stream_input, tile_stream};
 use drs_kernels::methods::{Kernel, Run};
 use isa::{FlavourId, Machine, Program};
 use repro::host::HostCpu;
@@ -234,18 +234,19 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
         fidelity: "native".into(),
         sample: None,
         input: Some(format!(
-            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}; host {}",
-            timings
-                .iter()
-                .map(|t| t.method.as_str())
-                .collect::<Vec<_>>()
-                .join(", "),
-            ld.scene.config.name,
-            a.stream,
-            tile.x,
-            tile.y,
-            a.spp,
-            a.seed,
+            "{}; host {}",
+            stream_input(
+                &timings
+                    .iter()
+                    .map(|t| t.method.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                &ld.scene.config.name,
+                &a.stream,
+                tile,
+                a.spp,
+                a.seed,
+            ),
             host.describe()
         )),
         ops_simulated: 0,

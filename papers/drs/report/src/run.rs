@@ -21,6 +21,48 @@ pub fn kernel(name: &str) -> Option<Kernel> {
     Kernel::ALL.into_iter().find(|k| k.name() == name)
 }
 
+/// The traversal kernel called `name`, or an error listing them.
+///
+/// # Errors
+/// No kernel has that name.
+pub fn kernel_named(name: &str) -> AppResult<Kernel> {
+    kernel(name).ok_or_else(|| {
+        AppError(format!(
+            "--kernel: unknown traversal kernel '{name}' ({})",
+            kernel_names().join(", ")
+        ))
+    })
+}
+
+/// What a run over one tile's stream traced: `what` on `scene`, the stream,
+/// the tile, samples and seed (the reports' `input`).
+#[must_use]
+pub fn stream_input(
+    what: &str,
+    scene: &str,
+    stream: &str,
+    tile: Tile,
+    spp: u32,
+    seed: u64,
+) -> String {
+    format!(
+        "{what} on {scene}, {stream} stream of tile ({}, {}) x {spp} spp, seed {seed}",
+        tile.x, tile.y
+    )
+}
+
+/// Time trace `t` on one core of `m`, its caches and predictor warmed first
+/// by a functional pass over the same ops (as a repeated native run finds
+/// them).
+///
+/// # Errors
+/// The trace does not suit the machine.
+pub fn warm_then_time(t: &isa::Trace, m: &sim::MachineConfig) -> AppResult<sim::Stats> {
+    let mut s = sim::Session::new(m);
+    s.warm(&[(0, t)]).map_err(AppError)?;
+    s.timed(&[(0, t)]).map_err(AppError)
+}
+
 /// `rtsim run --kernel METHOD`: a traversal method over one tile's ray stream of a scene.
 pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
     let start = Instant::now();
@@ -68,15 +110,13 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
         args: a,
         machine: &m,
         name: format!("run-{}", kernel.name()),
-        input: format!(
-            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}",
+        input: stream_input(
             kernel.name(),
-            scene.config.name,
-            a.stream,
-            tile.x,
-            tile.y,
+            &scene.config.name,
+            &a.stream,
+            tile,
             a.spp,
-            a.seed
+            a.seed,
         ),
         trace: t,
         rays,

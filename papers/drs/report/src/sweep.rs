@@ -5,14 +5,14 @@
 //! by a functional pass over the stream and then timed; points run at once
 //! and come out in grid order. A table and, with `--out DIR`, a PNG.
 
-use crate::run::tile_stream;
+use crate::run::{stream_input, tile_stream, warm_then_time};
 use drs_kernels::methods::{Kernel, Run};
 use isa::FlavourId;
 use rayon::prelude::*;
 use repro::report::Format;
 use repro::{AppError, AppResult, MachineSpec, Report, Row};
 use scene::loaded::Loaded;
-use sim::{MachineConfig, Session};
+use sim::MachineConfig;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -182,9 +182,7 @@ pub fn sweep_report(a: &SweepArgs) -> AppResult<Report> {
         .into_par_iter()
         .map(|(at, machine)| {
             let t = &traces[&machine.isa];
-            let mut s = Session::new(&machine);
-            s.warm(&[(0, t)]).map_err(AppError)?;
-            let st = s.timed(&[(0, t)]).map_err(AppError)?;
+            let st = warm_then_time(t, &machine)?;
             Ok(Point {
                 at,
                 machine,
@@ -208,14 +206,15 @@ pub fn sweep_report(a: &SweepArgs) -> AppResult<Report> {
         fidelity: "full".into(),
         sample: None,
         input: Some(format!(
-            "{} on {}, {} stream of tile ({}, {}) x {} spp, seed {}; varied: {}",
-            a.kernel.name(),
-            ld.scene.config.name,
-            a.stream,
-            tile.x,
-            tile.y,
-            a.spp,
-            a.seed,
+            "{}; varied: {}",
+            stream_input(
+                a.kernel.name(),
+                &ld.scene.config.name,
+                &a.stream,
+                tile,
+                a.spp,
+                a.seed,
+            ),
             a.vary.join(" ")
         )),
         ops_simulated: ops,

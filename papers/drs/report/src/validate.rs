@@ -6,14 +6,14 @@
 //! the kernels' order and the mean absolute error of the relative times.
 
 use crate::native::{time_embree, time_kernels, Timing};
-use crate::run::tile_stream;
+use crate::run::{tile_stream, warm_then_time};
 use drs_kernels::methods::{Kernel, Run};
 use rayon::prelude::*;
 use repro::host::HostCpu;
 use repro::report::Format;
 use repro::{AppError, AppResult, MachineSpec, Report, Row};
 use scene::loaded::Loaded;
-use sim::{MachineConfig, Session};
+use sim::MachineConfig;
 use std::time::Instant;
 
 /// What `rtsim validate` runs.
@@ -114,9 +114,7 @@ fn model(a: &ValidateArgs, host: &HostCpu) -> AppResult<(MachineConfig, String)>
 /// (as the native timings run warm).
 fn simulate(run: &Run, m: &MachineConfig) -> AppResult<(u64, u64)> {
     let (t, _) = isa::record(run, m.flavour(), run.kernel.name());
-    let mut s = Session::new(m);
-    s.warm(&[(0, &t)]).map_err(AppError)?;
-    let st = s.timed(&[(0, &t)]).map_err(AppError)?;
+    let st = warm_then_time(&t, m)?;
     Ok((st.cycles, st.ops))
 }
 

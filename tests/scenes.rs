@@ -7,14 +7,6 @@ use common::*;
 use std::path::PathBuf;
 use std::process::Output;
 
-fn shared() -> bool {
-    PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../shared/data/meshes"
-    ))
-    .exists()
-}
-
 #[test]
 fn every_scene_loads_and_its_bvhs_validate() {
     // The large DRS scenes are listed (and checked at the paper's scale) by
@@ -53,17 +45,15 @@ fn every_scene_loads_and_its_bvhs_validate() {
         let r = get(n, "triangles_vs_paper").unwrap();
         assert!((0.75..=1.25).contains(&r), "{n}: {r} of the paper's count");
     }
-    if shared() {
-        assert_eq!(get("trex", "triangles"), Some(69_453.0));
-        // The MBVH paper's cars at its counts (simplified from the BMW M6).
-        for n in ["bmw", "ferrari"] {
-            let r = get(n, "triangles_vs_paper").unwrap();
-            assert!((0.95..=1.05).contains(&r), "{n}: {r} of the paper's count");
-        }
-        assert!(rows
-            .iter()
-            .any(|r| r["metric"] == "bvh2_sah_cost" && r["value"].as_f64().unwrap() > 1.0));
+    assert_eq!(get("trex", "triangles"), Some(69_453.0));
+    // The MBVH paper's cars at its counts (simplified from the BMW M6).
+    for n in ["bmw", "ferrari"] {
+        let r = get(n, "triangles_vs_paper").unwrap();
+        assert!((0.95..=1.05).contains(&r), "{n}: {r} of the paper's count");
     }
+    assert!(rows
+        .iter()
+        .any(|r| r["metric"] == "bvh2_sah_cost" && r["value"].as_f64().unwrap() > 1.0));
     let e = err(&rtsim(&["list", "scenes", "atlantis"]));
     assert!(e.contains("atlantis") && e.contains("one of"), "{e}");
     let e = err(&rtsim(&["list", "machines", "dragon"]));
@@ -72,9 +62,6 @@ fn every_scene_loads_and_its_bvhs_validate() {
 
 #[test]
 fn every_drs_scene_is_at_the_papers_scale() {
-    if !shared() {
-        return;
-    }
     let o = rtsim(&[
         "list",
         "scenes",
@@ -124,21 +111,19 @@ fn render_writes_png_in_every_shading() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         assert_eq!(png_size(&out), (64, 64));
     }
-    if shared() {
-        for scene in ["dragon", "bentley"] {
-            let out = tmp(&format!("{scene}.png"));
-            let o = rtsim(&[
-                "render",
-                "--scene",
-                scene,
-                "--width",
-                "48",
-                "--out",
-                out.to_str().unwrap(),
-            ]);
-            assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-            assert_eq!(png_size(&out).0, 48);
-        }
+    for scene in ["dragon", "bentley"] {
+        let out = tmp(&format!("{scene}.png"));
+        let o = rtsim(&[
+            "render",
+            "--scene",
+            scene,
+            "--width",
+            "48",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(png_size(&out).0, 48);
     }
 }
 
@@ -227,4 +212,68 @@ fn malformed_obj_and_ply_are_one_line_errors() {
     ]));
     assert!(e.contains("atlantis"), "{e}");
     assert!(!out.exists(), "nothing half-written");
+}
+
+/// `rtsim` run from a scratch folder with `RTSIM_DATA` unset (no data folder
+/// beside the working directory): it reads only what the clone holds.
+fn rtsim_clone_only(args: &[&str], data: Option<&std::path::Path>) -> Output {
+    let cwd = tmp("clone-only");
+    std::fs::create_dir_all(&cwd).unwrap();
+    let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_rtsim"));
+    c.args(args).current_dir(&cwd).env_remove("RTSIM_DATA");
+    if let Some(d) = data {
+        c.env("RTSIM_DATA", d);
+    }
+    c.output().unwrap()
+}
+
+#[test]
+fn a_clone_reproduces_with_only_its_own_data() {
+    // A real mesh (trex: the bunny) and the volumes, from data/ alone.
+    let o = rtsim_clone_only(
+        &[
+            "reproduce",
+            "mft-table1",
+            "--quick",
+            "--tiles",
+            "1",
+            "--res",
+            "64",
+            "--format",
+            "json",
+        ],
+        None,
+    );
+    let j: serde_json::Value = serde_json::from_str(&ok(&o)).unwrap();
+    let rows = j["rows"].as_array().unwrap();
+    assert!(rows
+        .iter()
+        .any(|r| r["scene"] == "trex" && r["metric"] == "hit_mismatches" && r["value"] == 0.0));
+    let o = rtsim_clone_only(&["reproduce", "volume-bvh", "--quick"], None);
+    assert!(ok(&o).contains("engine"));
+}
+
+#[test]
+fn a_missing_data_file_says_how_to_get_it() {
+    let empty = tmp("empty-data");
+    std::fs::create_dir_all(&empty).unwrap();
+    let e = err(&rtsim_clone_only(
+        &[
+            "render", "--scene", "trex", "--width", "16", "--out", "trex.png",
+        ],
+        Some(&empty),
+    ));
+    assert!(
+        e.contains("meshes/stanford-bunny.obj.gz not found") && e.contains("unset RTSIM_DATA"),
+        "{e}"
+    );
+    assert!(!tmp("clone-only").join("trex.png").exists());
+    let e = err(&rtsim_clone_only(
+        &["reproduce", "volume-bvh", "--quick"],
+        Some(&empty),
+    ));
+    assert!(
+        e.contains("volumes/neghip") && e.contains("RTSIM_DATA"),
+        "{e}"
+    );
 }

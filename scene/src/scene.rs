@@ -3,9 +3,8 @@
 //! no one can redistribute, and a plain mesh file as a scene (camera framing
 //! its bounds, a light above it).
 //!
-//! Mesh files named `data:PATH` are read from the shared data folder: the
-//! `RTSIM_DATA` environment variable, else `../shared/data` beside the
-//! working directory, else beside the source tree.
+//! Mesh files named `data:PATH` are read from the data folder: the
+//! `RTSIM_DATA` environment variable, else the project's `data/`.
 
 use crate::bvh::Aabb;
 use crate::mesh::{self, Mesh, MeshError};
@@ -234,23 +233,47 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("sphere", include_str!("../../configs/scenes/sphere.ron")),
 ];
 
-/// The shared data folder.
+/// The data folder: `RTSIM_DATA` when set, else the project's `data/`
+/// (the meshes and volumes the reports read, shipped with the source).
 #[must_use]
 pub fn data_root() -> PathBuf {
-    if let Some(p) = std::env::var_os("RTSIM_DATA") {
-        return PathBuf::from(p);
+    match std::env::var_os("RTSIM_DATA") {
+        Some(p) => PathBuf::from(p),
+        None => Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .map_or_else(|| PathBuf::from("data"), |root| root.join("data")),
     }
-    let here = PathBuf::from("../shared/data");
-    if here.exists() {
-        return here;
-    }
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
+}
+
+/// What to do about a data file that is not there (appended to the error).
+#[must_use]
+pub fn missing_data_hint(path: &Path) -> String {
+    let root = data_root();
+    let how = if std::env::var_os("RTSIM_DATA").is_some() {
+        "RTSIM_DATA names a folder without it: unset RTSIM_DATA to use the project's data/ folder, or copy the file there"
+    } else {
+        "the project ships its data in data/ (a fresh clone has it; a few files are not shipped for their licences); data/README.md says where each file comes from; set RTSIM_DATA to a folder of the same layout that has it"
+    };
+    format!(
+        "{} not found in the data folder {}: {how}",
+        path.display(),
+        root.display()
+    )
 }
 
 fn resolve(file: &str) -> PathBuf {
     match file.strip_prefix("data:") {
         Some(rest) => data_root().join(rest),
         None => PathBuf::from(file),
+    }
+}
+
+/// A `data:` file that must be there, or the hint saying how to get it.
+fn existing(file: &str) -> Result<PathBuf, String> {
+    let p = resolve(file);
+    match file.strip_prefix("data:") {
+        Some(rest) if !p.exists() => Err(missing_data_hint(Path::new(rest))),
+        _ => Ok(p),
     }
 }
 
@@ -536,7 +559,7 @@ fn placed_mesh(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
         what
     };
     let file = match p.source {
-        Source::File(ref f) => crate::mesh_cache::file_digest(&resolve(f))?,
+        Source::File(ref f) => crate::mesh_cache::file_digest(&existing(f)?)?,
         _ => [0; 32],
     };
     let tag = |m: &Material| MATERIALS.iter().position(|x| x == m).unwrap_or(0) as u8;
@@ -611,7 +634,7 @@ fn placed_mesh_built(p: &Placed) -> Result<(Mesh, Vec<Material>), String> {
 pub fn build_source(s: &Source) -> Result<Mesh, String> {
     let mut m = Mesh::default();
     match *s {
-        Source::File(ref f) => return mesh::load(&resolve(f)).map_err(|e| e.to_string()),
+        Source::File(ref f) => return mesh::load(&existing(f)?).map_err(|e| e.to_string()),
         Source::Ground(size) => quad(
             &mut m,
             [-size, 0.0, -size],

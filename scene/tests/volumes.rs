@@ -3,27 +3,20 @@
 
 use scene::volume::Volume;
 use scene::volume_bvh::{Bricked, MinMaxBvh};
-use std::path::PathBuf;
-
-fn volumes() -> Option<PathBuf> {
-    let p = PathBuf::from(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../shared/data/volumes"
-    ));
-    p.exists().then_some(p)
-}
 
 #[test]
 fn the_data_folders_volumes_load_and_their_trees_validate() {
-    let Some(dir) = volumes() else {
-        eprintln!("no ../shared/data/volumes: skipped");
-        return;
-    };
+    let dir = scene::scene::data_root().join("volumes");
+    // The skull is not shipped (its terms): checked where a data folder has it.
+    let skull = dir.join("skull_64x64x64_float32le.raw.gz").exists();
     for (file, dims, leaf) in [
         ("neghip_66x66x66_uint8.raw.gz", [66, 66, 66], 1),
         ("skull_64x64x64_float32le.raw.gz", [64, 64, 64], 4),
         ("engine_256x256x128_uint8.raw.gz", [256, 256, 128], 4),
     ] {
+        if file.starts_with("skull") && !skull {
+            continue;
+        }
         let v = Volume::load(&dir.join(file)).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(v.dims, dims, "{file}");
         assert!(

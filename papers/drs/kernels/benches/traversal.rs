@@ -5,7 +5,7 @@
 //! out once per kernel; each iteration allocates the ray records, traces, and
 //! releases the records.
 //!
-//! Run: `cargo bench -p kernels --bench traversal` (needs `../shared/data`;
+//! Run: `cargo bench -p kernels --bench traversal` (reads the project's `data/`;
 //! `RTSIM_BENCH_SCENE` picks another stand-in than `crown`). Results, with the
 //! machine they ran on, are in `kernels/benches/RESULTS.md`.
 
@@ -18,7 +18,7 @@ use scene::workload::{path_trace_tile, StreamKind, Tile};
 
 fn traversal(c: &mut Criterion) {
     let name = std::env::var("RTSIM_BENCH_SCENE").unwrap_or_else(|_| "crown".into());
-    let scene = Scene::load(&name).expect("the scene (is ../shared/data there?)");
+    let scene = Scene::load(&name).expect("the scene");
     let b2 = Bvh2::build(&scene.mesh, &drs_kernels::BVH).expect("a BVH");
     let b4 = Bvh4::collapse(&b2);
     let cam = &scene.config.camera;

@@ -13,6 +13,7 @@ use scene::transfer::Transfer;
 use scene::volume::Volume;
 use scene::volume_bvh::MinMaxBvh;
 use scene::volume_ref::{cast, Filter, Lighting, Sampling};
+use std::path::Path;
 use std::sync::Arc;
 use volume_kernels::bvh::Heuristics;
 use volume_kernels::layout::VolBufs;
@@ -70,27 +71,50 @@ fn lighting(c: char) -> Lighting {
     }
 }
 
+/// The data file of dataset `name` (none for the generated ones).
+fn data_file(name: &str) -> Option<&'static str> {
+    match name {
+        "engine" => Some("engine_256x256x128_uint8.raw.gz"),
+        "neghip" => Some("neghip_66x66x66_uint8.raw.gz"),
+        "skull" => Some("skull_64x64x64_float32le.raw.gz"),
+        _ => None,
+    }
+}
+
+/// Why dataset `name` cannot be loaded from this data folder: its file is
+/// not there (the hint says how to get it), or `None`.
+pub(crate) fn missing(name: &str) -> Option<String> {
+    let f = data_file(name)?;
+    let data = scene::scene::data_root().join("volumes");
+    (!data.join(f).exists()).then(|| scene::scene::missing_data_hint(&Path::new("volumes").join(f)))
+}
+
 impl Dataset {
     /// Load dataset `name` (lighting `lit`, leaves of `leaf`^3); `quick`
     /// makes the generated dense field 64^3 instead of 128^3. `mixingN`
     /// is the seeded mixing layer at N^3.
     pub(crate) fn load(name: &str, (lit, leaf): (char, u32), quick: bool) -> AppResult<Dataset> {
         let data = scene::scene::data_root().join("volumes");
-        let file = |f: &str| Volume::load(&data.join(f)).map_err(|e| AppError(e.to_string()));
-        let (vol, tf) = match name {
-            "engine" => (
-                file("engine_256x256x128_uint8.raw.gz")?,
+        let file = |f: &str| {
+            if let Some(hint) = missing(name) {
+                return Err(AppError(format!("dataset {name}: {hint}")));
+            }
+            Volume::load(&data.join(f)).map_err(|e| AppError(e.to_string()))
+        };
+        let (vol, tf) = match (name, data_file(name)) {
+            ("engine", Some(f)) => (
+                file(f)?,
                 include_str!("../../../../configs/transfer/engine.ron"),
             ),
-            "neghip" => (
-                file("neghip_66x66x66_uint8.raw.gz")?,
+            ("neghip", Some(f)) => (
+                file(f)?,
                 include_str!("../../../../configs/transfer/neghip.ron"),
             ),
-            "skull" => (
-                file("skull_64x64x64_float32le.raw.gz")?,
+            ("skull", Some(f)) => (
+                file(f)?,
                 include_str!("../../../../configs/transfer/skull.ron"),
             ),
-            "dense" => (
+            ("dense", _) => (
                 Volume::noisy(if quick { 64 } else { 128 }, 5),
                 include_str!("../../../../configs/transfer/dense.ron"),
             ),

@@ -149,15 +149,16 @@ pub struct RunCli {
     /// shipped machine runs).
     #[arg(long, value_parser = parse_isa)]
     pub isa: Option<FlavourId>,
-    /// Kernel (set from the registry in `with_registries`).
-    #[arg(long, default_value = "boxtest")]
+    /// Kernel, or traversal kernels separated by commas to set side by side
+    /// (the list is set from the registry in `with_registries`).
+    #[arg(long, default_value = "drs-bvh4,single-bvh4")]
     pub kernel: String,
     /// Scene for the traversal kernels (`rtsim list scenes`, a .ron or a mesh file).
-    #[arg(long, default_value = "sphere")]
+    #[arg(long, default_value = "crown")]
     pub scene: String,
     /// Ray stream for the traversal kernels: primary, bounce (the first bounce of the path
     /// tracer) or shadow (shadow rays from the primary hits, any hit).
-    #[arg(long, default_value = "primary")]
+    #[arg(long, default_value = "bounce")]
     pub stream: String,
     /// Tile side in pixels (traversal kernels): the stream is one tile at the image centre.
     #[arg(long, default_value_t = 16)]
@@ -165,9 +166,9 @@ pub struct RunCli {
     /// Samples per pixel (traversal kernels).
     #[arg(long, default_value_t = 16)]
     pub spp: u32,
-    /// Rays in the stream (boxtest; a multiple of 4).
-    #[arg(long, default_value_t = 4096)]
-    pub rays: usize,
+    /// Rays in the stream (boxtest only; a multiple of 4) [default: 4096].
+    #[arg(long)]
+    pub rays: Option<usize>,
     /// Seed of the generated node and rays.
     #[arg(long, default_value_t = 7)]
     pub seed: u64,
@@ -190,7 +191,7 @@ impl RunCli {
             stream: self.stream,
             tile: self.tile,
             spp: self.spp,
-            rays: self.rays,
+            rays: self.rays.unwrap_or(4096),
             seed: self.seed,
             out: self.out,
             format: self.format,
@@ -423,7 +424,10 @@ pub fn with_registries(cmd: clap::Command, reports: &[&ReportDef]) -> clap::Comm
         .collect();
     let names: Vec<&str> = reports.iter().map(|d| d.name).collect();
     let report_help = format!("Report: {}\n{}", names.join(", "), list.join("\n"));
-    let kernel_help = format!("Kernel: {}", kernel_names().join(", "));
+    let kernel_help = format!(
+        "Kernel, or traversal kernels separated by commas to set side by side: {}",
+        kernel_names().join(", ")
+    );
     cmd.mut_subcommand("reproduce", |c| {
         c.about(format!(
             "Compute a paper's table or figure on the models ({})",

@@ -117,9 +117,23 @@ fn reproduce(a: cli::ReproduceCli) -> AppResult<()> {
 }
 
 fn run(a: cli::RunCli) -> AppResult<()> {
+    let rays_given = a.rays.is_some();
     let args = a.into_args();
     if args.kernel == "boxtest" {
         return repro::boxrun::run_boxtest(&args);
+    }
+    if rays_given {
+        return Err(AppError(
+            "--rays: only the boxtest kernel takes it (a traversal kernel traces one tile's stream: --tile, --spp)".into(),
+        ));
+    }
+    if args.kernel.contains(',') {
+        let ks = args
+            .kernel
+            .split(',')
+            .map(drs_report::run::kernel_named)
+            .collect::<AppResult<Vec<_>>>()?;
+        return drs_report::compare::run_compare(&args, &ks);
     }
     match drs_report::run::kernel(&args.kernel) {
         Some(k) => drs_report::run::run_traversal(&args, k),

@@ -137,7 +137,7 @@ fn hand_written_text_trace_is_read_and_bad_lines_are_named() {
 fn run_checks_every_ray_on_every_isa() {
     for isa in ["lrb16", "avx512", "avx2", "sse4"] {
         let j: serde_json::Value = serde_json::from_str(&ok(&rtsim(&[
-            "run", "--isa", isa, "--rays", "256", "--format", "json",
+            "run", "--kernel", "boxtest", "--isa", isa, "--rays", "256", "--format", "json",
         ])))
         .unwrap();
         let rows = j["rows"].as_array().unwrap();
@@ -154,7 +154,12 @@ fn run_checks_every_ray_on_every_isa() {
 #[test]
 fn bad_arguments_exit_2_without_writing() {
     let out = tmp("never.rtt");
-    assert!(err(&rtsim(&["run", "--rays", "3"])).contains("rays"));
+    assert!(err(&rtsim(&["run", "--kernel", "boxtest", "--rays", "3"])).contains("rays"));
+    // --rays is boxtest's: a traversal kernel traces a tile's stream.
+    let e = err(&rtsim(&["run", "--kernel", "drs-bvh4", "--rays", "64"]));
+    assert!(e.contains("only the boxtest kernel"), "{e}");
+    let e = err(&rtsim(&["run", "--kernel", "drs-bvh4,warp-drive"]));
+    assert!(e.contains("warp-drive"), "{e}");
     assert!(err(&rtsim(&["run", "--isa", "avx9"])).contains("avx9"));
     let e = err(&rtsim(&[
         "trace",
@@ -412,6 +417,8 @@ fn run_lists_every_kernel_and_out_writes_the_trace_of_each() {
             "run",
             "--kernel",
             k,
+            "--scene",
+            "sphere",
             "--tile",
             "4",
             "--spp",

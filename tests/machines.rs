@@ -104,8 +104,12 @@ fn two_runs_print_identical_numbers() {
             .collect::<Vec<_>>()
             .join("\n")
     };
-    let a = rtsim(&["run", "--rays", "512", "--format", "json"]);
-    let b = rtsim(&["run", "--rays", "512", "--format", "json"]);
+    let a = rtsim(&[
+        "run", "--kernel", "boxtest", "--rays", "512", "--format", "json",
+    ]);
+    let b = rtsim(&[
+        "run", "--kernel", "boxtest", "--rays", "512", "--format", "json",
+    ]);
     assert_eq!(strip(&a), strip(&b));
     let a = rtsim(&["calibrate", "--machine", "core2-q6600", "--format", "csv"]);
     let b = rtsim(&["calibrate", "--machine", "core2-q6600", "--format", "csv"]);
@@ -113,8 +117,10 @@ fn two_runs_print_identical_numbers() {
 }
 
 #[test]
-fn run_times_the_default_workload() {
-    let j = json(&rtsim(&["run", "--rays", "1024", "--format", "json"]));
+fn run_times_the_boxtest_workload() {
+    let j = json(&rtsim(&[
+        "run", "--kernel", "boxtest", "--rays", "1024", "--format", "json",
+    ]));
     assert_eq!(j["machine"], "haswell-i7-4750hq");
     assert_eq!(j["fidelity"], "full");
     let rows = j["rows"].as_array().unwrap();
@@ -130,6 +136,8 @@ fn run_times_the_default_workload() {
         .any(|r| r["metric"] == "cpi" && r["region"] == "core-loop"));
     let j = json(&rtsim(&[
         "run",
+        "--kernel",
+        "boxtest",
         "--machine",
         "larrabee",
         "--rays",
@@ -459,6 +467,8 @@ fn run_times_the_traversal_kernels_and_checks_their_hits() {
         "run",
         "--kernel",
         "drs-bvh4",
+        "--scene",
+        "sphere",
         "--machine",
         "larrabee",
     ]));
@@ -597,4 +607,33 @@ fn sim_timeline_shows_each_ops_pipeline_stages() {
         "0:4",
     ]));
     assert!(e.contains("full fidelity"), "{e}");
+}
+
+#[test]
+fn run_on_defaults_sets_drs_beside_single_ray_on_one_scene() {
+    // The quick start's job, on a small scene: two kernels, the same rays,
+    // their headline figures keyed by kernel, every hit checked.
+    let j = json(&rtsim(&[
+        "run", "--scene", "sphere", "--tile", "8", "--spp", "2", "--format", "json",
+    ]));
+    assert_eq!(j["report"], "run-compare");
+    let rows = j["rows"].as_array().unwrap();
+    for k in ["drs-bvh4", "single-bvh4"] {
+        let get = |m: &str| {
+            rows.iter()
+                .find(|r| r["kernel"] == k && r["metric"] == m)
+                .and_then(|r| r["value"].as_f64())
+                .unwrap_or_else(|| panic!("{k} {m}"))
+        };
+        assert!(get("mray_per_s") > 0.0 && get("cpi") > 0.0, "{k}");
+        assert!(get("bytes_per_ray") > 0.0, "{k}: cold caches");
+        assert_eq!(get("hit_mismatches"), 0.0, "{k}");
+    }
+    let text = ok(&rtsim(&[
+        "run", "--scene", "sphere", "--tile", "8", "--spp", "2",
+    ]));
+    assert!(
+        text.contains("by kernel") && text.contains("single-bvh4"),
+        "{text}"
+    );
 }

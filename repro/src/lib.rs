@@ -23,6 +23,7 @@ pub mod progress;
 pub mod report;
 pub mod sampling;
 pub mod scenes;
+pub mod text;
 pub mod timeline;
 pub mod traces;
 

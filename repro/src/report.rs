@@ -123,16 +123,6 @@ pub struct Report {
     pub notes: Vec<String>,
 }
 
-fn num(v: f64) -> String {
-    if v.fract() == 0.0 && v.abs() < 1e15 {
-        format!("{}", v as i64)
-    } else if v.abs() >= 100.0 {
-        format!("{v:.1}")
-    } else {
-        format!("{v:.4}")
-    }
-}
-
 impl Report {
     /// Render in `f`.
     #[must_use]
@@ -190,84 +180,7 @@ impl Report {
     }
 
     fn text(&self) -> String {
-        let mut s = String::new();
-        let _ = write!(s, "{}", self.report);
-        if let Some(i) = &self.input {
-            let _ = write!(s, " — {i}");
-        }
-        let _ = writeln!(s);
-        let mut facts = vec![format!("fidelity {}", self.fidelity)];
-        if let Some(m) = &self.machine {
-            facts.insert(0, format!("machine {m}"));
-        }
-        if let Some(i) = &self.isa {
-            facts.insert(0, format!("isa {i}"));
-        }
-        facts.push(format!("{} ops", self.ops_simulated));
-        facts.push(format!("{:.2} s host time", self.host_seconds));
-        let _ = writeln!(s, "{}", facts.join(", "));
-        let cols = self.key_columns();
-        let has = |f: fn(&Row) -> bool| self.rows.iter().any(f);
-        let mut header: Vec<String> = cols.clone();
-        header.push("metric".into());
-        header.push("value".into());
-        let (unit, ci, exp, pap) = (
-            has(|r| r.unit.is_some()),
-            has(|r| r.ci95.is_some()),
-            has(|r| r.expected.is_some()),
-            has(|r| r.paper.is_some()),
-        );
-        if unit {
-            header.push("unit".into());
-        }
-        if ci {
-            header.push("±95%".into());
-        }
-        if exp {
-            header.push("expected".into());
-        }
-        if pap {
-            header.push("paper".into());
-        }
-        let mut table: Vec<Vec<String>> = vec![header];
-        for r in &self.rows {
-            let mut line: Vec<String> = cols
-                .iter()
-                .map(|c| r.keys.get(c).cloned().unwrap_or_default())
-                .collect();
-            line.push(r.metric.clone());
-            line.push(num(r.value));
-            if unit {
-                line.push(r.unit.clone().unwrap_or_default());
-            }
-            for (on, v) in [(ci, r.ci95), (exp, r.expected), (pap, r.paper)] {
-                if on {
-                    line.push(v.map(num).unwrap_or_default());
-                }
-            }
-            table.push(line);
-        }
-        let widths: Vec<usize> = (0..table[0].len())
-            .map(|c| {
-                table
-                    .iter()
-                    .map(|l| l[c].chars().count())
-                    .max()
-                    .unwrap_or(0)
-            })
-            .collect();
-        for l in &table {
-            let cells: Vec<String> = l
-                .iter()
-                .zip(&widths)
-                .map(|(v, w)| format!("{v:<w$}"))
-                .collect();
-            let _ = writeln!(s, "  {}", cells.join("  ").trim_end());
-        }
-        for n in &self.notes {
-            let _ = writeln!(s, "note: {n}");
-        }
-        s
+        crate::text::render(self)
     }
 }
 
@@ -317,6 +230,8 @@ mod tests {
     fn text_has_every_row() {
         let t = sample().render(Format::Text);
         assert!(t.contains("vfma") && t.contains("0.2500"), "{t}");
-        assert_eq!(t.lines().count(), 2 + 1 + 3);
+        // header (2), then per section: a blank line, a title, a header
+        // line (not for the summary) and its rows.
+        assert_eq!(t.lines().count(), 2 + 3 + 4 + 4, "{t}");
     }
 }

@@ -10,6 +10,7 @@
 
 #![warn(missing_docs)]
 
+pub mod compare;
 mod fidelity;
 mod figures;
 mod measure;

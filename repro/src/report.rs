@@ -124,20 +124,6 @@ pub struct Report {
 }
 
 impl Report {
-    /// Render in `f`.
-    #[must_use]
-    pub fn render(&self, f: Format) -> String {
-        match f {
-            Format::Json => {
-                let mut s = serde_json::to_string_pretty(self).expect("report serialises");
-                s.push('\n');
-                s
-            }
-            Format::Csv => self.csv(),
-            Format::Text => self.text(),
-        }
-    }
-
     fn key_columns(&self) -> Vec<String> {
         let mut cols: Vec<String> = Vec::new();
         for r in &self.rows {
@@ -150,7 +136,8 @@ impl Report {
         cols
     }
 
-    fn csv(&self) -> String {
+    /// The long rows as CSV with a header.
+    pub(crate) fn csv(&self) -> String {
         let cols = self.key_columns();
         let mut s = String::new();
         let esc = |v: &str| {
@@ -177,10 +164,6 @@ impl Report {
             let _ = writeln!(s, "{}", f.join(","));
         }
         s
-    }
-
-    fn text(&self) -> String {
-        crate::text::render(self)
     }
 }
 
@@ -224,14 +207,5 @@ mod tests {
         assert_eq!(lines[0], "class,name,metric,value,unit,ci95,expected,paper");
         assert_eq!(lines[2], "vfma,,ops,2,ops,,,");
         assert_eq!(lines[3], ",\"a,b\",ratio,0.25,,,,");
-    }
-
-    #[test]
-    fn text_has_every_row() {
-        let t = sample().render(Format::Text);
-        assert!(t.contains("vfma") && t.contains("0.2500"), "{t}");
-        // header (2), then per section: a blank line, a title, a header
-        // line (not for the summary) and its rows.
-        assert_eq!(t.lines().count(), 2 + 3 + 4 + 4, "{t}");
     }
 }

@@ -6,7 +6,7 @@
 //! other section prints its entities as rows and its metrics as columns.
 //! JSON and CSV stay the long format.
 
-use crate::report::{Report, Row};
+use crate::report::{Format, Report, Row};
 use std::fmt::Write as _;
 
 /// Keys that become columns, in order of preference (the papers' tables put
@@ -124,7 +124,13 @@ fn summary(rows: &[&Row], s: &mut String) {
 fn pivoted(keys: &[&str], across: &str, rows: &[&Row], s: &mut String) {
     let down: Vec<&str> = keys.iter().copied().filter(|k| *k != across).collect();
     let cols = distinct(rows.iter().map(|r| r.keys[across].as_str()));
-    for m in distinct(rows.iter().map(|r| r.metric.as_str())) {
+    for (i, m) in distinct(rows.iter().map(|r| r.metric.as_str()))
+        .into_iter()
+        .enumerate()
+    {
+        if i > 0 {
+            let _ = writeln!(s);
+        }
         let _ = writeln!(s, "  {}", metric_name(rows, m));
         let mine: Vec<&Row> = rows.iter().copied().filter(|r| r.metric == m).collect();
         let mut head: Vec<String> = down.iter().map(|k| (*k).to_string()).collect();
@@ -203,6 +209,22 @@ fn header(r: &Report, s: &mut String) {
     }
 }
 
+impl Report {
+    /// Render in `f`.
+    #[must_use]
+    pub fn render(&self, f: Format) -> String {
+        match f {
+            Format::Json => {
+                let mut s = serde_json::to_string_pretty(self).expect("report serialises");
+                s.push('\n');
+                s
+            }
+            Format::Csv => self.csv(),
+            Format::Text => render(self),
+        }
+    }
+}
+
 /// The report as grouped text tables.
 #[must_use]
 pub fn render(r: &Report) -> String {
@@ -257,6 +279,14 @@ mod tests {
             rows,
             notes: vec!["n".into()],
         }
+    }
+
+    fn long_sample() -> Report {
+        report(vec![
+            Row::new("ops", 3.0),
+            Row::new("ops", 2.0).key("class", "vfma").unit("ops"),
+            Row::new("ratio", 0.25).key("name", "a,b"),
+        ])
     }
 
     #[test]
@@ -319,5 +349,14 @@ mod tests {
             .collect();
         let t = render(&report(rows));
         assert_eq!(t.matches("  k  ").count(), 2, "{t}");
+    }
+
+    #[test]
+    fn text_has_every_row() {
+        let t = long_sample().render(Format::Text);
+        assert!(t.contains("vfma") && t.contains("0.2500"), "{t}");
+        // header (2), then per section: a blank line, a title, a header
+        // line (not for the summary) and its rows; a blank line and the note.
+        assert_eq!(t.lines().count(), 2 + 3 + 4 + 4 + 2, "{t}");
     }
 }

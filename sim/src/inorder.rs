@@ -23,6 +23,8 @@ struct Thread<'a> {
     stall_until: u64,
     last_issue: Option<u64>,
     miss_until: u64,
+    /// The level the miss it waits for went to.
+    miss_why: Stall,
     pred: Gshare,
 }
 
@@ -103,6 +105,7 @@ pub fn run_queue(
             stall_until: start,
             last_issue: None,
             miss_until: start,
+            miss_why: Stall::MemoryL2,
             pred: std::mem::replace(p, Gshare::new(1, 1)),
         })
         .collect();
@@ -230,8 +233,11 @@ impl Core {
                 t.values.set(op.dst, done);
             }
             *max_done = (*max_done).max(done);
-            if missed {
-                t.miss_until = t.miss_until.max(done);
+            if let Some(why) = missed {
+                if done > t.miss_until {
+                    t.miss_until = done;
+                    t.miss_why = why;
+                }
             }
             if op.class == OpClass::Branch {
                 let ok = t.pred.predict_and_update(op.site().0, op.taken());
@@ -266,25 +272,28 @@ impl Core {
         op: &isa::Op,
         cycle: u64,
         mem: &mut Hierarchy,
-    ) -> (u64, u64, bool) {
+    ) -> (u64, u64, Option<Stall>) {
         let ct = &self.classes[op.class as usize];
         let (l1, mshr) = (self.l1, &mut self.mshr);
         let mut occ = ct.occ;
         let mut done = cycle + ct.lat;
-        let mut missed = false;
+        let mut missed = None;
         if op.class.is_per_lane_mem() {
             let lines = mem.lines_of(tr, op);
             occ += ct.per_line * (lines.len() as u64).saturating_sub(1);
-            let mut extra = 0;
+            let (mut extra, mut level) = (0, 0);
             for l in lines {
                 let sv = mem.access(0, l * mem.line_bytes(), op.class.is_store(), op.mem, cycle);
                 extra = extra.max(sv.latency.saturating_sub(l1));
+                level = level.max(sv.level);
             }
             done += extra;
-            missed = extra > 0;
+            if extra > 0 {
+                missed = Stall::memory(level, mem.levels());
+            }
         } else if op.class.is_load() {
-            let (ready, l1_miss) = mem.load(0, op.addr.0, op.mem, cycle, mshr);
-            missed = l1_miss;
+            let (ready, level) = mem.load(0, op.addr.0, op.mem, cycle, mshr);
+            missed = Stall::memory(level, mem.levels());
             done = ready;
             if op.class.is_folded() {
                 // A memory operand is read in the pipeline stages before
@@ -307,16 +316,19 @@ impl Core {
             .unwrap_or(cycle + 1)
             .max(cycle + 1);
         let next = next_any;
+        // The deepest level any waiting thread's miss went to.
         let waiting_on_miss = th
             .iter()
-            .any(|t| t.pos < t.t.ops.len() && t.miss_until > cycle);
+            .filter(|t| t.pos < t.t.ops.len() && t.miss_until > cycle)
+            .map(|t| t.miss_why)
+            .max_by_key(|&w| w as usize);
         let branch = th.iter().any(|t| t.stall_until > cycle);
-        let why = if waiting_on_miss {
-            Stall::Memory
+        let why = if let Some(w) = waiting_on_miss {
+            w
         } else if branch {
             Stall::Branch
         } else {
-            Stall::Core
+            Stall::Dependency
         };
         s.stalls[why as usize] += next - cycle;
         next

@@ -280,6 +280,12 @@ impl Hierarchy {
         self.dram_read_by_region.clear();
     }
 
+    /// Cache levels (a served level equal to this is DRAM).
+    #[must_use]
+    pub fn levels(&self) -> usize {
+        self.cfg.len()
+    }
+
     /// Line size in bytes.
     #[must_use]
     pub fn line_bytes(&self) -> u64 {
@@ -334,8 +340,8 @@ impl Hierarchy {
 
     /// A load by `core` issuing at cycle `at`: an L1 miss first waits for
     /// the earliest of `mshrs` (the access starts then and holds the slot
-    /// until its data arrives). The cycle the data is ready, and whether
-    /// it missed the L1.
+    /// until its data arrives). The cycle the data is ready, and the level
+    /// that served it (0: the L1; [`Hierarchy::levels`]: DRAM).
     #[inline]
     pub fn load(
         &mut self,
@@ -344,16 +350,16 @@ impl Hierarchy {
         region: MemId,
         at: u64,
         mshrs: &mut Mshrs,
-    ) -> (u64, bool) {
+    ) -> (u64, usize) {
         let line = self.line_of(addr);
         if self.l1(core, line, false, region, at) {
-            return (at + u64::from(self.cfg[0].latency), false);
+            return (at + u64::from(self.cfg[0].latency), 0);
         }
         let (j, free) = mshrs.earliest();
         let start = at.max(free);
         let sv = self.below_l1(core, line, false, region, start);
         mshrs.hold(j, start + sv.latency);
-        (start + sv.latency, true)
+        (start + sv.latency, sv.level)
     }
 
     /// A demand access by `core` at cycle `now` to the line of `addr`.

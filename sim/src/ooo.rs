@@ -85,6 +85,18 @@ pub(crate) struct Uops {
     n: u8,
 }
 
+/// What issuing an op found: its first and last uops' cycles, the cycle its
+/// first uop's operands were ready, and a gather's or scatter's extra
+/// latency and the deepest level its lines came from.
+#[derive(Clone, Copy)]
+struct Issued {
+    first: u64,
+    last: u64,
+    operands: u64,
+    gather_lat: u64,
+    gather_level: usize,
+}
+
 impl std::ops::Deref for Uops {
     type Target = [u32];
     #[inline(always)]
@@ -530,7 +542,13 @@ impl OooCore {
                 // The next op dispatches in the next cycle.
                 self.dcount = self.width;
             }
-            let (first, last, gather_lat) = self.issue(t, op, ct, d, mem);
+            let Issued {
+                first,
+                last,
+                operands,
+                gather_lat,
+                gather_level,
+            } = self.issue(t, op, ct, d, mem);
             let mut done = if fused {
                 first
             } else {
@@ -541,13 +559,19 @@ impl OooCore {
             if ct.per_lane {
                 done += gather_lat;
                 if gather_lat > 0 {
-                    why = Stall::Memory;
+                    why = Stall::memory(gather_level, mem.levels()).unwrap_or(why);
                 }
             } else {
                 done = self.execute(op, ct, (d, first, done), mem, (s, counted), &mut why);
             }
             if why == Stall::Issue && done > d + 1 + ct.lat + 1 {
-                why = Stall::Core;
+                // Late: charged to the longer of the wait for operands
+                // (after dispatch) and the wait for a port (after them).
+                why = if first.saturating_sub(operands) > operands.saturating_sub(d + 1) {
+                    Stall::Ports
+                } else {
+                    Stall::Dependency
+                };
             }
             if op.dst.is_some() {
                 self.values.set(op.dst, done);
@@ -711,14 +735,7 @@ impl OooCore {
     /// sources are ready; per-lane accesses pay their distinct lines. (first
     /// and last issue cycle, the slowest line's latency beyond L1).
     #[inline(always)]
-    fn issue(
-        &mut self,
-        t: &Trace,
-        op: &Op,
-        ct: &ClassT,
-        d: u64,
-        mem: &mut Hierarchy,
-    ) -> (u64, u64, u64) {
+    fn issue(&mut self, t: &Trace, op: &Op, ct: &ClassT, d: u64, mem: &mut Hierarchy) -> Issued {
         let nuops = ct.uops.len();
         let mut r = d + 1;
         for &src in op.sources() {
@@ -731,6 +748,7 @@ impl OooCore {
         let mut last = 0;
         let mut extra_occ = 0;
         let mut gather_lat = 0u64;
+        let mut gather_level = 0;
         if ct.per_lane {
             // Distinct lines cost port cycles (per_line) and their latency.
             let lines = mem.lines_of(t, op);
@@ -744,6 +762,7 @@ impl OooCore {
                     r,
                 );
                 gather_lat = gather_lat.max(sv.latency.saturating_sub(self.l1_latency));
+                gather_level = gather_level.max(sv.level);
             }
         }
         // A two-uop store that names its address source issues its address
@@ -771,7 +790,13 @@ impl OooCore {
             first = r;
             last = r - 1;
         }
-        (first, last, gather_lat)
+        Issued {
+            first,
+            last,
+            operands: r_first,
+            gather_lat,
+            gather_level,
+        }
     }
 
     /// Execute a load (store forwarding, or a miss slot then the hierarchy)
@@ -804,13 +829,13 @@ impl OooCore {
                 } else {
                     done += self.sf_fail;
                     s.forward_fails += u64::from(counted);
-                    *why = Stall::Memory;
+                    *why = Stall::Forwarding;
                 }
             } else {
                 // An L1 miss first waits for a miss slot; the access starts then.
-                let (ready, missed) = mem.load(self.core, lo, op.mem, first, &mut self.mshr);
-                if missed {
-                    *why = Stall::Memory;
+                let (ready, level) = mem.load(self.core, lo, op.mem, first, &mut self.mshr);
+                if let Some(w) = Stall::memory(level, mem.levels()) {
+                    *why = w;
                 }
                 done = ready;
             }

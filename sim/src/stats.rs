@@ -12,24 +12,39 @@ pub enum Stall {
     Issue = 0,
     /// Waiting for a mispredicted branch to redirect fetch.
     Branch = 1,
-    /// A load missed L1.
-    Memory = 2,
-    /// Dependencies and port conflicts.
-    Core = 3,
+    /// A load that overlapped an older store but could not forward from it.
+    Forwarding = 2,
+    /// A load missed L1 and L2 served it.
+    MemoryL2 = 3,
+    /// A load missed L1 and L2 and a level below (L3, or an L4 where the
+    /// machine has one) served it.
+    MemoryL3 = 4,
+    /// A load went to DRAM.
+    MemoryDram = 5,
+    /// Operands: the op waited for the values it reads.
+    Dependency = 6,
+    /// Port pressure: its operands were ready but its port was busy.
+    Ports = 7,
     /// ROB or scheduler full.
-    Resources = 4,
+    Resources = 8,
     /// The legacy decoders had not delivered the op yet (fetch bytes,
     /// decoder slots, a length-changing prefix).
-    FrontEnd = 5,
+    FrontEnd = 9,
 }
 
 impl Stall {
-    /// All reasons.
-    pub const ALL: [Stall; 6] = [
+    /// How many reasons there are (the length of the stall arrays).
+    pub const COUNT: usize = 10;
+    /// All reasons, in the order a CPI stack lists them.
+    pub const ALL: [Stall; Stall::COUNT] = [
         Stall::Issue,
         Stall::Branch,
-        Stall::Memory,
-        Stall::Core,
+        Stall::Forwarding,
+        Stall::MemoryL2,
+        Stall::MemoryL3,
+        Stall::MemoryDram,
+        Stall::Dependency,
+        Stall::Ports,
         Stall::Resources,
         Stall::FrontEnd,
     ];
@@ -39,10 +54,27 @@ impl Stall {
         match self {
             Stall::Issue => "issue",
             Stall::Branch => "branch",
-            Stall::Memory => "memory",
-            Stall::Core => "core",
+            Stall::Forwarding => "store-forwarding",
+            Stall::MemoryL2 => "memory-l2",
+            Stall::MemoryL3 => "memory-l3",
+            Stall::MemoryDram => "memory-dram",
+            Stall::Dependency => "dependency",
+            Stall::Ports => "ports",
             Stall::Resources => "resources",
             Stall::FrontEnd => "front-end",
+        }
+    }
+    /// The reason for a load served at cache `level` (0: L1, a level
+    /// index, or `levels` for DRAM) of a hierarchy of `levels` levels;
+    /// `None` for an L1 hit.
+    #[inline]
+    #[must_use]
+    pub fn memory(level: usize, levels: usize) -> Option<Stall> {
+        match level {
+            0 => None,
+            1 if levels > 1 => Some(Stall::MemoryL2),
+            l if l >= levels => Some(Stall::MemoryDram),
+            _ => Some(Stall::MemoryL3),
         }
     }
 }
@@ -64,12 +96,12 @@ pub struct Stats {
     /// Ops per class.
     pub class_ops: Vec<u64>,
     /// Cycles charged to each stall reason.
-    pub stalls: [u64; 6],
+    pub stalls: [u64; Stall::COUNT],
     /// Cycles charged to each stall reason, per code region (out-of-order
     /// cores: each op's retire delta, so a region's row sums to its
     /// `region_cycles`; in-order cores charge waits to no region and leave
     /// this zero).
-    pub region_stalls: [[u64; 6]; isa::Region::COUNT],
+    pub region_stalls: [[u64; Stall::COUNT]; isa::Region::COUNT],
     /// Conditional branches.
     pub branches: u64,
     /// Of which mispredicted.
@@ -157,7 +189,7 @@ impl Stats {
     /// reason (in [`Stall::ALL`] order; they sum to its CPI), when its
     /// cycles were charged by reason (out-of-order cores) and it ran.
     #[must_use]
-    pub fn cpi_stack(&self, r: Region) -> Option<[f64; 6]> {
+    pub fn cpi_stack(&self, r: Region) -> Option<[f64; Stall::COUNT]> {
         let (i, c) = (r as usize, self.region_stalls[r as usize]);
         let ops = self.region_ops[i];
         (ops > 0 && self.region_cycles[i] > 0 && c.iter().sum::<u64>() == self.region_cycles[i])

@@ -633,3 +633,48 @@ fn a_length_changing_prefix_stalls_the_predecoder_on_haswell() {
     assert_eq!(per_iterations(&m, plain, 8), 2);
     assert_eq!(per_iterations(&m, lcp, 8), 2 + 8 * 5);
 }
+
+fn stall_cycles(m: &MachineConfig, body: &str) -> [u64; sim::Stall::COUNT] {
+    let t = trace(&m.isa, body);
+    simulate(m, &[&t], &SimOptions::default()).unwrap().stalls
+}
+
+#[test]
+fn late_ops_are_charged_to_operands_or_ports() {
+    use sim::Stall::{Dependency, Issue, Ports};
+    let m = hsw();
+    // A chain: each FMA waits 5 cycles for its operand (issue at 1, 6, 11;
+    // retire at 6, 11, 16): the first retirement is its own latency after
+    // dispatch (issue bandwidth), the next two 5 cycles each of dependency.
+    let s = stall_cycles(&m, "%1 = vfma\n%2 = vfma %1\n%3 = vfma %2\n");
+    assert_eq!(
+        (s[Issue as usize], s[Dependency as usize], s[Ports as usize]),
+        (6, 10, 0)
+    );
+    // Independent divides share p0, busy 14 cycles each: issue at 1, 15,
+    // 29, done 22, 36, 50; the second and third wait for the port.
+    let s = stall_cycles(&m, "%1 = vdiv\n%2 = vdiv\n%3 = vdiv\n");
+    assert_eq!(
+        (s[Issue as usize], s[Dependency as usize], s[Ports as usize]),
+        (22, 0, 28)
+    );
+}
+
+#[test]
+fn a_missing_load_is_charged_to_the_level_that_served_it() {
+    use sim::Stall::{MemoryDram, MemoryL2, MemoryL3};
+    let m = hsw();
+    // Cold: DRAM (196 cycles; issue at 1, done 197).
+    let s = stall_cycles(&m, "%1 = load @d+0x0:8\n");
+    assert_eq!(s[MemoryDram as usize], 197);
+    assert_eq!(s[MemoryL2 as usize] + s[MemoryL3 as usize], 0);
+    // The trace's memory levels by hierarchy depth: one level (an L1 only)
+    // means a miss is DRAM; L2 and L3 by their index.
+    assert_eq!(sim::Stall::memory(0, 4), None);
+    assert_eq!(sim::Stall::memory(1, 4), Some(MemoryL2));
+    assert_eq!(sim::Stall::memory(2, 4), Some(MemoryL3));
+    assert_eq!(sim::Stall::memory(3, 4), Some(MemoryL3), "an L4");
+    assert_eq!(sim::Stall::memory(4, 4), Some(MemoryDram));
+    assert_eq!(sim::Stall::memory(1, 1), Some(MemoryDram));
+    assert_eq!(sim::Stall::memory(2, 2), Some(MemoryDram));
+}

@@ -8,6 +8,7 @@ use drs_kernels::methods::{Kernel, Run};
 use repro::boxrun::RunArgs;
 use repro::{AppError, AppResult, Report, Row};
 use scene::loaded::Loaded;
+use scene::workload::{RayStream, Tile};
 use std::time::Instant;
 
 /// The headline figures of one kernel's timed run (per ray through
@@ -25,11 +26,17 @@ fn headline(s: &sim::Stats, m: &sim::MachineConfig, rays: u64, ops: usize) -> Ve
     ]
 }
 
-/// One kernel over the stream: its rows keyed by kernel, and its mismatches.
-fn one(a: &RunArgs, m: &sim::MachineConfig, ld: &Loaded, k: Kernel) -> AppResult<(Vec<Row>, u64)> {
-    let (tile, stream) = tile_stream(ld, &a.stream, a.tile, a.spp, a.seed)?;
+/// One kernel over the tile's stream (made once, shared by every kernel):
+/// its rows keyed by kernel, and its ops.
+fn one(
+    a: &RunArgs,
+    m: &sim::MachineConfig,
+    ld: &Loaded,
+    (tile, stream): (Tile, &RayStream),
+    k: Kernel,
+) -> AppResult<(Vec<Row>, u64)> {
     let rays = stream.len() as u64;
-    let mut run = Run::new(k, &ld.scene, &ld.b2, &ld.b4, stream);
+    let mut run = Run::new(k, &ld.scene, &ld.b2, &ld.b4, stream.clone());
     run.packet_tile = Some((tile.size, a.spp));
     let fl = m.flavour();
     let (t, (traced, tests)) = isa::record(&run, fl, k.name());
@@ -79,9 +86,10 @@ pub fn run_compare(a: &RunArgs, kernels: &[Kernel]) -> AppResult<()> {
         return Err(AppError("--tile and --spp: must be 1 to 256".into()));
     }
     let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
+    let (tile, stream) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
     let (mut rows, mut ops, mut bad) = (Vec::new(), 0, 0.0);
     for &k in kernels {
-        let (r, n) = one(a, &m, &ld, k)?;
+        let (r, n) = one(a, &m, &ld, (tile, &stream), k)?;
         ops += n;
         bad += r
             .iter()
@@ -90,7 +98,6 @@ pub fn run_compare(a: &RunArgs, kernels: &[Kernel]) -> AppResult<()> {
             .sum::<f64>();
         rows.extend(r);
     }
-    let (tile, stream) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
     let names: Vec<&str> = kernels.iter().map(|k| k.name()).collect();
     let rep = Report {
         report: "run-compare".into(),

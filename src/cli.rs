@@ -378,7 +378,7 @@ pub enum TraceCmd {
         /// A kernel: `boxtest` (ray stream vs 4 boxes).
         #[arg(long)]
         kernel: Option<String>,
-        /// ISA flavour: lrb16, avx512, avx2, sse4.
+        /// ISA flavour: lrb16, avx512, avx2, sse4, wide32.
         #[arg(long, value_parser = parse_isa, default_value = "avx2")]
         isa: FlavourId,
         /// Parameters as key=value (microkernels: iters, unroll, streams, ws, seed;

@@ -7,6 +7,12 @@
 //! | `avx512` | 16    | yes | 16-bit k regs   | yes    | yes     | yes      | 14 bits (vrcp14ps) |
 //! | `avx2`   | 8     | yes | vector (blendv) | yes    | no      | no       | 12 bits (vrcpps) |
 //! | `sse4`   | 4     | no  | vector (blendv) | no     | no      | no       | 12 bits (rcpps)  |
+//! | `wide32` | 32    | yes | 32-bit k regs   | yes    | yes     | yes      | 14 bits (as AVX-512) |
+//!
+//! `wide32` is a what-if with no hardware behind it: AVX-512's ops on
+//! 1024-bit vectors (32 lanes), for lane-width experiments ("what if 32
+//! lanes"). Its ops cost what the machine config gives the vector classes
+//! (a full-width datapath), and a 128-byte vector access touches two lines.
 //!
 //! Approximate reciprocal precision. AVX2/SSE `rcpps`/`rsqrtps`: relative error
 //! at most 1.5 * 2^-12 (Intel SDM, RCPPS); AVX-512 `vrcp14ps`: less than 2^-14
@@ -33,17 +39,20 @@ pub enum FlavourId {
     Avx2 = 2,
     /// SSE4.1, 4 lanes.
     Sse4 = 3,
+    /// AVX-512's ops at 32 lanes (a what-if, no hardware).
+    Wide32 = 4,
 }
 
 impl FlavourId {
     /// Every flavour.
-    pub const ALL: [FlavourId; 4] = [
+    pub const ALL: [FlavourId; 5] = [
         FlavourId::Lrb16,
         FlavourId::Avx512,
         FlavourId::Avx2,
         FlavourId::Sse4,
+        FlavourId::Wide32,
     ];
-    /// Stable name (`lrb16`, `avx512`, `avx2`, `sse4`).
+    /// Stable name (`lrb16`, `avx512`, `avx2`, `sse4`, `wide32`).
     #[must_use]
     pub fn name(self) -> &'static str {
         match self {
@@ -51,6 +60,7 @@ impl FlavourId {
             FlavourId::Avx512 => "avx512",
             FlavourId::Avx2 => "avx2",
             FlavourId::Sse4 => "sse4",
+            FlavourId::Wide32 => "wide32",
         }
     }
     /// The flavour with this name.
@@ -70,6 +80,7 @@ impl FlavourId {
             FlavourId::Lrb16 | FlavourId::Avx512 => 16,
             FlavourId::Avx2 => 8,
             FlavourId::Sse4 => 4,
+            FlavourId::Wide32 => 32,
         }
     }
 }
@@ -114,7 +125,7 @@ pub trait Flavour<const N: usize>: Copy + Default + fmt::Debug + 'static {
             // {1to16}, {4to16} and full operands [Abrash].
             FlavourId::Lrb16 => matches!(n, 1 | 4) || n == N,
             // m32bcst and full operands (Intel SDM, EVEX embedded broadcast).
-            FlavourId::Avx512 => n == 1 || n == N,
+            FlavourId::Avx512 | FlavourId::Wide32 => n == 1 || n == N,
             // Full operands; on AVX2 also 4, standing for a 128-bit op's m128
             // (the single-ray kernels run 4-wide tests in wider lanes).
             FlavourId::Avx2 => n == 4 || n == N,
@@ -146,6 +157,9 @@ pub struct Avx2;
 /// SSE4.1 (Core 2 Penryn / Nehalem).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Sse4;
+/// AVX-512's ops on 32 lanes: a what-if flavour with no hardware behind it.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Wide32;
 
 impl Flavour<16> for Lrb16 {
     const ID: FlavourId = FlavourId::Lrb16;
@@ -203,6 +217,20 @@ impl Flavour<4> for Sse4 {
     const DIV: bool = true; // vdivps
 }
 
+impl Flavour<32> for Wide32 {
+    const ID: FlavourId = FlavourId::Wide32;
+    const FMA: bool = true;
+    const MASK_REGS: bool = true;
+    const GATHER: bool = true;
+    const SCATTER: bool = true;
+    const COMPRESS: bool = true;
+    const MASKED_MEM: bool = true;
+    const CROSS_PERMUTE: bool = true;
+    const PERMUTE2: bool = true;
+    const RCP_BITS: u32 = 14;
+    const DIV: bool = true;
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -215,5 +243,6 @@ mod tests {
         }
         assert_eq!(FlavourId::Avx2.lanes(), 8);
         assert_eq!(<Lrb16 as Flavour<16>>::ID.lanes(), 16);
+        assert_eq!(<Wide32 as Flavour<32>>::ID.lanes(), 32);
     }
 }

@@ -30,7 +30,7 @@ pub mod traced;
 pub mod types;
 
 pub use class::OpClass;
-pub use flavour::{Avx2, Avx512, Flavour, FlavourId, Lrb16, Sse4};
+pub use flavour::{Avx2, Avx512, Flavour, FlavourId, Lrb16, Sse4, Wide32};
 pub use lanes::{BinOp, Cmp, Fma, IOp, Shift};
 pub use machine::{Float, Int, Logic, Machine, SOp};
 pub use mem::{AddrSpace, At, Buf, MemRegion, SpaceMark};

@@ -5,7 +5,7 @@ use crate::machine::Machine;
 use crate::native::Native;
 use crate::trace::Trace;
 use crate::traced::Traced;
-use crate::{Avx2, Avx512, Lrb16, Sse4};
+use crate::{Avx2, Avx512, Lrb16, Sse4, Wide32};
 use std::sync::mpsc::{sync_channel, Receiver};
 
 /// A kernel with its inputs: anything that can run on any [`Machine`].
@@ -37,6 +37,7 @@ pub fn record<P: Program>(p: &P, flavour: FlavourId, source: &str) -> (Trace, P:
         FlavourId::Avx512 => go(p, Traced::<Avx512, 16>::new(source), Traced::finish),
         FlavourId::Avx2 => go(p, Traced::<Avx2, 8>::new(source), Traced::finish),
         FlavourId::Sse4 => go(p, Traced::<Sse4, 4>::new(source), Traced::finish),
+        FlavourId::Wide32 => go(p, Traced::<Wide32, 32>::new(source), Traced::finish),
     }
 }
 
@@ -142,6 +143,7 @@ pub fn run_units<P: UnitProgram, E>(
         FlavourId::Avx512 => go::<P, Avx512, 16, E>(p, source, units, &mut each),
         FlavourId::Avx2 => go::<P, Avx2, 8, E>(p, source, units, &mut each),
         FlavourId::Sse4 => go::<P, Sse4, 4, E>(p, source, units, &mut each),
+        FlavourId::Wide32 => go::<P, Wide32, 32, E>(p, source, units, &mut each),
     }
 }
 
@@ -223,6 +225,7 @@ pub fn run_steps<P: StepProgram, E, T>(
         FlavourId::Avx512 => steps_on::<P, Avx512, 16, E, T>(p, source, steps, &mut h),
         FlavourId::Avx2 => steps_on::<P, Avx2, 8, E, T>(p, source, steps, &mut h),
         FlavourId::Sse4 => steps_on::<P, Sse4, 4, E, T>(p, source, steps, &mut h),
+        FlavourId::Wide32 => steps_on::<P, Wide32, 32, E, T>(p, source, steps, &mut h),
     }
 }
 
@@ -309,6 +312,7 @@ pub fn run_native<P: Program>(p: &P, flavour: FlavourId) -> P::Out {
         FlavourId::Avx512 => p.run(&mut Native::<Avx512, 16>::new()),
         FlavourId::Avx2 => p.run(&mut Native::<Avx2, 8>::new()),
         FlavourId::Sse4 => p.run(&mut Native::<Sse4, 4>::new()),
+        FlavourId::Wide32 => p.run(&mut Native::<Wide32, 32>::new()),
     }
 }
 

@@ -240,7 +240,7 @@ fn directive(t: &mut Trace, st: &mut TextState, key: &str, rest: &str) -> Result
             }
             t.flavour = FlavourId::from_name(rest).ok_or_else(|| {
                 err(format!(
-                    "unknown ISA flavour '{rest}' (lrb16, avx512, avx2, sse4)"
+                    "unknown ISA flavour '{rest}' (lrb16, avx512, avx2, sse4, wide32)"
                 ))
             })?;
             st.full = LaneMask::full(t.flavour.lanes());

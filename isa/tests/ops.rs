@@ -73,7 +73,7 @@ fn ref_cvt(x: f32, round: bool) -> i32 {
 fn rcp_bits(f: FlavourId) -> i32 {
     match f {
         FlavourId::Lrb16 => 23,
-        FlavourId::Avx512 => 14,
+        FlavourId::Avx512 | FlavourId::Wide32 => 14,
         FlavourId::Avx2 | FlavourId::Sse4 => 12,
     }
 }

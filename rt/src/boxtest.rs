@@ -168,8 +168,8 @@ const fn is_identity(p: &[u8], offset: usize) -> bool {
 /// Bytes of hit bits per group of LANES/4 rays (4 bits per ray).
 #[must_use]
 pub const fn mask_bytes(lanes: usize) -> usize {
-    if lanes >= 16 {
-        2
+    if lanes >= 8 {
+        lanes / 8
     } else {
         1
     }
@@ -316,6 +316,7 @@ impl Program for BoxStream {
             4 => box4_stream::<M, 4>(m, &node, &rays, self.rays.len(), &mut out),
             8 => box4_stream::<M, 8>(m, &node, &rays, self.rays.len(), &mut out),
             16 => box4_stream::<M, 16>(m, &node, &rays, self.rays.len(), &mut out),
+            32 => box4_stream::<M, 32>(m, &node, &rays, self.rays.len(), &mut out),
             n => panic!("{n} lanes"),
         }
         unpack_masks(out.bytes(), M::LANES, self.rays.len())
@@ -330,11 +331,10 @@ pub fn unpack_masks(out: &[u8], lanes: usize, nrays: usize) -> Vec<u8> {
     (0..nrays)
         .map(|r| {
             let g = r / per;
-            let v = if w == 2 {
-                u16::from_le_bytes([out[2 * g], out[2 * g + 1]])
-            } else {
-                u16::from(out[g])
-            };
+            let v = out[w * g..w * g + w]
+                .iter()
+                .rev()
+                .fold(0u32, |v, &b| (v << 8) | u32::from(b));
             ((v >> (4 * (r % per))) & 15) as u8
         })
         .collect()

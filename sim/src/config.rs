@@ -393,7 +393,13 @@ impl MachineConfig {
     pub fn validate(&self) -> Result<(), (String, String)> {
         let e = |f: &str, m: &str| Err((f.to_string(), m.to_string()));
         if FlavourId::from_name(&self.isa).is_none() {
-            return e("isa", "unknown ISA flavour (lrb16, avx512, avx2, sse4)");
+            return e(
+                "isa",
+                &format!(
+                    "unknown ISA flavour '{}' (lrb16, avx512, avx2, sse4, wide32)",
+                    self.isa
+                ),
+            );
         }
         if self.clock_ghz.is_nan() || self.clock_ghz <= 0.0 || self.clock_ghz >= 100.0 {
             return e("clock_ghz", "must be between 0 and 100");

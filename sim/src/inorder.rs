@@ -292,7 +292,7 @@ impl Core {
                 missed = Stall::memory(level, mem.levels());
             }
         } else if op.class.is_load() {
-            let (ready, level) = mem.load(0, op.addr.0, op.mem, cycle, mshr);
+            let (ready, level) = mem.load_span(0, (op.addr.0, op.bytes), op.mem, cycle, mshr);
             missed = Stall::memory(level, mem.levels());
             done = ready;
             if op.class.is_folded() {
@@ -301,7 +301,7 @@ impl Core {
                 done = done.saturating_sub(l1).max(cycle);
             }
         } else if op.class.is_store() {
-            mem.access(0, op.addr.0, true, op.mem, cycle);
+            mem.store_span(0, (op.addr.0, op.bytes), op.mem, cycle);
         }
         (done, occ, missed)
     }

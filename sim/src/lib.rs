@@ -218,10 +218,12 @@ fn estimate(
             let ct = &classes[op.class as usize];
             if opt.fidelity == Fidelity::Caches && op.class.is_mem() {
                 let now = fused / u64::from(m.core.width);
-                for (a, _) in t.accesses(op) {
-                    let sv = mem.access(0, a.0, op.class.is_store(), op.mem, now);
-                    if op.class.is_load() {
-                        miss_cycles += sv.latency.saturating_sub(l1);
+                for (a, bytes) in t.accesses(op) {
+                    for a in mem.span(a.0, bytes) {
+                        let sv = mem.access(0, a, op.class.is_store(), op.mem, now);
+                        if op.class.is_load() {
+                            miss_cycles += sv.latency.saturating_sub(l1);
+                        }
                     }
                 }
             }

@@ -265,7 +265,9 @@ impl Hierarchy {
                 self.access(core, l * self.line_bytes(), store, op.mem, now);
             }
         } else if op.class.is_mem() {
-            self.access(core, op.addr.0, store, op.mem, now);
+            for a in self.span(op.addr.0, op.bytes) {
+                self.access(core, a, store, op.mem, now);
+            }
         }
     }
 
@@ -360,6 +362,54 @@ impl Hierarchy {
         let sv = self.below_l1(core, line, false, region, start);
         mshrs.hold(j, start + sv.latency);
         (start + sv.latency, sv.level)
+    }
+
+    /// Where each line of an access of `bytes` at `addr` starts. An access
+    /// wider than a line (a 32-lane vector: 128 bytes) touches every line it
+    /// spans; a narrower one is its first line (a load or store that crosses
+    /// a line boundary is not modelled as split).
+    pub fn span(&self, addr: u64, bytes: u32) -> std::iter::StepBy<std::ops::Range<u64>> {
+        let lb = self.line_bytes();
+        if u64::from(bytes) > lb {
+            (addr & !(lb - 1)..addr + u64::from(bytes)).step_by(lb as usize)
+        } else {
+            (addr..addr + 1).step_by(lb as usize)
+        }
+    }
+
+    /// [`Hierarchy::load`] of every line of [`Hierarchy::span`]: the latest
+    /// ready, and the level that served it.
+    #[inline]
+    pub fn load_span(
+        &mut self,
+        core: usize,
+        (addr, bytes): (u64, u32),
+        region: MemId,
+        at: u64,
+        mshrs: &mut Mshrs,
+    ) -> (u64, usize) {
+        let mut r = self.load(core, addr, region, at, mshrs);
+        if u64::from(bytes) > self.line_bytes() {
+            for a in self.span(addr, bytes).skip(1) {
+                let x = self.load(core, a, region, at, mshrs);
+                if x.0 > r.0 {
+                    r = x;
+                }
+            }
+        }
+        r
+    }
+
+    /// A store of `bytes` at `addr` by `core` at cycle `now`: an access to
+    /// every line of [`Hierarchy::span`].
+    #[inline]
+    pub fn store_span(&mut self, core: usize, (addr, bytes): (u64, u32), region: MemId, now: u64) {
+        self.access(core, addr, true, region, now);
+        if u64::from(bytes) > self.line_bytes() {
+            for a in self.span(addr, bytes).skip(1) {
+                self.access(core, a, true, region, now);
+            }
+        }
     }
 
     /// A demand access by `core` at cycle `now` to the line of `addr`.

@@ -833,14 +833,15 @@ impl OooCore {
                 }
             } else {
                 // An L1 miss first waits for a miss slot; the access starts then.
-                let (ready, level) = mem.load(self.core, lo, op.mem, first, &mut self.mshr);
+                let (ready, level) =
+                    mem.load_span(self.core, (lo, op.bytes), op.mem, first, &mut self.mshr);
                 if let Some(w) = Stall::memory(level, mem.levels()) {
                     *why = w;
                 }
                 done = ready;
             }
         } else if ct.store {
-            mem.access(self.core, op.addr.0, true, op.mem, first);
+            mem.store_span(self.core, (op.addr.0, op.bytes), op.mem, first);
             let (addr, data) = self.store_ready(op, d);
             let k = self.store_seq % self.stores.len();
             self.stores[k] = StoreEntry {

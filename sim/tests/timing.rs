@@ -77,6 +77,29 @@ fn every_cache_level_hit_latency() {
 }
 
 #[test]
+fn an_access_wider_than_a_line_touches_every_line_it_spans() {
+    let m = hsw();
+    let mut h = Hierarchy::new(&m, 1);
+    let r = MemId(1);
+    let base = 2000 * 64;
+    // A 32-lane vector (128 bytes) spans two lines, unaligned three; a
+    // 32-byte access one line, even across a boundary (no split modelled).
+    assert_eq!(h.span(base, 128).collect::<Vec<_>>(), [base, base + 64]);
+    assert_eq!(h.span(base + 32, 128).count(), 3);
+    assert_eq!(h.span(base + 48, 32).collect::<Vec<_>>(), [base + 48]);
+    // Cold: both lines miss at once (two miss slots); the second's data
+    // queues behind the first's on the DRAM bus (196 alone, see above).
+    let mut mshrs = sim::memory::Mshrs::new(m.mshrs as usize);
+    assert_eq!(h.load_span(0, (base, 128), r, 0, &mut mshrs), (202, 4));
+    // Both are in the L1 now.
+    assert_eq!(h.access(0, base + 64, false, r, 0).latency, 4);
+    assert_eq!(h.load_span(0, (base, 128), r, 300, &mut mshrs), (304, 0));
+    // A wide store writes both lines.
+    h.store_span(0, (base + 4096, 128), r, 400);
+    assert_eq!(h.access(0, base + 4096 + 64, false, r, 0).latency, 4);
+}
+
+#[test]
 fn a_mispredicted_branch_costs_resolution_plus_penalty() {
     let m = hsw();
     // alu: issue 1, done 2; the compare macro-fuses with the branch: one uop

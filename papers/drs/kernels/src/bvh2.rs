@@ -79,7 +79,9 @@ pub fn trace<M: Machine>(
     match M::LANES {
         4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, policy),
         8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, policy),
-        n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
+        16 => trace_n::<M, 16>(m, s, st, trav, isect, hits, nrays, policy),
+        32 => trace_n::<M, 32>(m, s, st, trav, isect, hits, nrays, policy),
+        n => panic!("the DRS kernel runs on 4 to 32 lanes, not {n}"),
     }
 }
 
@@ -244,7 +246,7 @@ fn core_node<M: Machine, const N: usize>(
             // Ray q's conditions at bit 4q: left-first, right, left-second.
             let o2 = shr(m, mask, 2);
             let order = m.s_and(o2, right);
-            let all = m.int(0xFFFF);
+            let all = m.int(((1u64 << N.max(16)) - 1) as i64);
             let norder = m.s_op(isa::SOp::Xor, order, all);
             let (first, second) = (m.s_and(mask, norder), m.s_and(mask, order));
             conds(m, &[first, right, second])

@@ -22,7 +22,9 @@
 //!   lists), the item with the most rays popped first; an occluded ray's
 //!   t_far becomes -1 so it drops out at its next box test.
 //!
-//! Deviations: runs on 4- and 8-lane flavours (the paper's Haswell kernel);
+//! Deviations: runs on 4 and 8 lanes (the paper's Haswell kernel) and, as an
+//! extension for lane-width experiments, 16 and 32 (4 and 8 rays an
+//! iteration, their records merged from 128-bit loads: `pipeline::blocks`);
 //! list counters live in a small array in memory, loaded and stored once per
 //! node (the paper keeps list pointers in registers).
 
@@ -83,7 +85,9 @@ pub fn trace<M: Machine>(
     match M::LANES {
         4 => trace_n::<M, 4>(m, s, st, trav, isect, hits, nrays, policy),
         8 => trace_n::<M, 8>(m, s, st, trav, isect, hits, nrays, policy),
-        n => panic!("the DRS kernel runs on 4- and 8-lane flavours, not {n}"),
+        16 => trace_n::<M, 16>(m, s, st, trav, isect, hits, nrays, policy),
+        32 => trace_n::<M, 32>(m, s, st, trav, isect, hits, nrays, policy),
+        n => panic!("the DRS kernel runs on 4 to 32 lanes, not {n}"),
     }
 }
 
@@ -432,7 +436,7 @@ fn closest_conds<M: Machine, const N: usize>(
     let gbits = m.movemask(le);
     // The 9 list conditions, bit-parallel for all r rays at once: ray q's
     // condition k is bit 4q of conds[k] (other bits are don't-care).
-    let all = m.int(0xFFFF);
+    let all = m.int(((1u64 << N.max(16)) - 1) as i64);
     let (h0, h1, h2, h3) = (hbits, shr(m, hbits, 1), shr(m, hbits, 2), shr(m, hbits, 3));
     let (a0, a2, g0) = (abits, shr(m, abits, 2), gbits);
     let na0 = m.s_op(isa::SOp::Xor, a0, all);

@@ -145,7 +145,7 @@ impl Kernel {
             | Kernel::PacketBvh4
             | Kernel::PacketBvh2
             | Kernel::HybridBvh4 => true,
-            Kernel::DrsBvh4 | Kernel::DrsBvh2 => matches!(lanes, 4 | 8),
+            Kernel::DrsBvh4 | Kernel::DrsBvh2 => matches!(lanes, 4 | 8 | 16 | 32),
         }
     }
 }

@@ -32,10 +32,13 @@ pub(crate) fn conds<M: Machine>(m: &mut M, v: &[M::S]) -> Conds<M> {
     std::array::from_fn(|k| v.get(k).copied().unwrap_or(zero))
 }
 
-/// One iteration's rays (LANES/4, at most 2): their indices and records as
-/// `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
+/// Most rays an iteration tests (LANES/4 on 32 lanes).
+const MAX_RAYS: usize = 8;
+
+/// One iteration's rays (LANES/4, at most [`MAX_RAYS`]): their indices and
+/// records as `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
 pub(crate) struct Rays<M: Machine> {
-    idx: [M::S; 2],
+    idx: [M::S; MAX_RAYS],
     dir_near: M::F,
     org_far: M::F,
 }
@@ -118,18 +121,20 @@ fn shifted<M: Machine>(m: &mut M, conds: &Conds<M>, q: usize, n: usize) -> Conds
 /// records, as `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
 fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S) -> Rays<M> {
     let r = N / 4;
+    assert!(r <= MAX_RAYS, "{N} lanes: at most {} rays", MAX_RAYS);
     let (dn, of) = (&Pat::<N>::DIR_NEAR, &Pat::<N>::ORG_FAR);
     let (dn_id, of_id) = (Pat::<N>::DN_ID, Pat::<N>::OF_ID);
     let first = m.s_load(lists, At::idx(p, 1, 0), 2, false);
-    let idx = [
-        first,
-        if r > 1 {
-            m.s_load(lists, At::idx(p, 1, 2), 2, false)
-        } else {
-            first
-        },
-    ];
-    let (dir_near, org_far) = if r == 1 {
+    let mut idx = [first; MAX_RAYS];
+    for (q, x) in idx.iter_mut().enumerate().take(r).skip(1) {
+        *x = m.s_load(lists, At::idx(p, 1, 2 * q), 2, false);
+    }
+    let (dir_near, org_far) = if r > 2 {
+        (
+            blocks(m, trav, &idx[..r], 0),
+            blocks(m, trav, &idx[..r], 16),
+        )
+    } else if r == 1 {
         let ro = m.s_shift(Shift::Shl, idx[0], 5);
         (
             m.load(trav, At::idx(ro, 1, 0)),
@@ -149,6 +154,22 @@ fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S
         dir_near,
         org_far,
     }
+}
+
+/// Wider than AVX2 (an extension: the paper's kernel is 8 lanes wide): the
+/// 16 bytes at `off` of each ray's record, ray q's in lanes 4q..4q+4 — a
+/// 128-bit load repeated across the lanes per ray, merged under a constant
+/// mask (AVX-512's merge-masked `vbroadcastf32x4`, here a load and a select).
+fn blocks<M: Machine>(m: &mut M, trav: &Buf, idx: &[M::S], off: usize) -> M::F {
+    let ro = m.s_shift(Shift::Shl, idx[0], 5);
+    let mut v = m.load_repeat(trav, At::idx(ro, 1, off), 4);
+    for (q, &i) in idx.iter().enumerate().skip(1) {
+        let ro = m.s_shift(Shift::Shl, i, 5);
+        let b = m.load_repeat(trav, At::idx(ro, 1, off), 4);
+        let k = m.mask(0xF << (4 * q));
+        v = m.select(k, b, v);
+    }
+    v
 }
 
 /// Append one ray index to every list (`cnt.len()` of them) with a scalar

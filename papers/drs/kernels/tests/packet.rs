@@ -68,7 +68,12 @@ fn packet_kernels_match_the_reference_on_primary_and_bounce_streams() {
     check(
         "saloon",
         &streams,
-        &[FlavourId::Avx2, FlavourId::Sse4, FlavourId::Lrb16],
+        &[
+            FlavourId::Avx2,
+            FlavourId::Sse4,
+            FlavourId::Lrb16,
+            FlavourId::Wide32,
+        ],
     );
 }
 

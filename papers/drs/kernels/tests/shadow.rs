@@ -47,7 +47,12 @@ fn every_kernel_answers_shadow_rays_as_the_reference() {
         for kernel in Kernel::ALL {
             let mut run = Run::new(kernel, scene, b2, b4, st.clone());
             run.packet_tile = Some((size, spp));
-            for fl in [FlavourId::Avx2, FlavourId::Sse4, FlavourId::Lrb16] {
+            for fl in [
+                FlavourId::Avx2,
+                FlavourId::Sse4,
+                FlavourId::Lrb16,
+                FlavourId::Wide32,
+            ] {
                 if !kernel.supports(fl.lanes()) {
                     continue;
                 }

@@ -77,6 +77,7 @@ fn single_ray_bvh4_matches_the_reference_on_the_sphere_scene() {
             FlavourId::Lrb16,
             FlavourId::Sse4,
             FlavourId::Avx512,
+            FlavourId::Wide32,
         ],
     );
 }
@@ -97,6 +98,7 @@ fn single_ray_bvh2_matches_the_reference_on_every_flavour() {
             FlavourId::Lrb16,
             FlavourId::Sse4,
             FlavourId::Avx512,
+            FlavourId::Wide32,
         ],
     );
     check(Kernel::SingleBvh2, "saloon", &[FlavourId::Avx2]);

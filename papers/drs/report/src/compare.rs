@@ -76,7 +76,7 @@ pub fn run_compare(a: &RunArgs, kernels: &[Kernel]) -> AppResult<()> {
     }
     if let Some(k) = kernels.iter().find(|k| !k.supports(m.flavour().lanes())) {
         return Err(AppError(format!(
-            "--kernel {}: runs on 4- and 8-lane ISAs, {} has {} lanes",
+            "--kernel {}: runs on 4, 8, 16 and 32 lanes, {} has {} lanes",
             k.name(),
             m.flavour(),
             m.flavour().lanes()

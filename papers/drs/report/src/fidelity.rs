@@ -149,7 +149,7 @@ pub fn fidelity_frame(m: &sim::MachineConfig, f: &FrameFidelity) -> AppResult<Re
     let kernel = Kernel::DrsBvh4;
     if !kernel.supports(fl.lanes()) {
         return Err(AppError(format!(
-            "--frame: runs Our BVH4 (drs-bvh4), which needs a 4- or 8-lane ISA; {} has {} lanes",
+            "--frame: runs Our BVH4 (drs-bvh4), which needs a 4, 8, 16 or 32-lane ISA; {} has {} lanes",
             m.name,
             fl.lanes()
         )));

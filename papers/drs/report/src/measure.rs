@@ -124,7 +124,7 @@ pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
     let fl = m.flavour();
     if !Kernel::DrsBvh4.supports(fl.lanes()) {
         return Err(AppError(format!(
-            "--machine {}: {} needs a 4- or 8-lane ISA, {fl} has {} lanes",
+            "--machine {}: {} needs a 4, 8, 16 or 32-lane ISA, {fl} has {} lanes",
             m.name,
             a.name,
             fl.lanes()

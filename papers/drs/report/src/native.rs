@@ -213,7 +213,7 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
     };
     if let Some(k) = kernels.iter().find(|k| !k.supports(a.isa.lanes())) {
         return Err(AppError(format!(
-            "--kernel {}: runs on 4- and 8-lane ISAs, {} has {} lanes",
+            "--kernel {}: runs on 4, 8, 16 and 32 lanes, {} has {} lanes",
             k.name(),
             a.isa,
             a.isa.lanes()

@@ -70,7 +70,7 @@ pub fn run_traversal(a: &RunArgs, kernel: Kernel) -> AppResult<()> {
     let fl = a.isa.unwrap_or_else(|| m.flavour());
     if !kernel.supports(fl.lanes()) {
         return Err(AppError(format!(
-            "--kernel {}: runs on 4- and 8-lane ISAs, {fl} has {} lanes",
+            "--kernel {}: runs on 4, 8, 16 and 32 lanes, {fl} has {} lanes",
             kernel.name(),
             fl.lanes()
         )));

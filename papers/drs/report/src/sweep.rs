@@ -125,7 +125,7 @@ fn machines(a: &SweepArgs, axes: &[Axis]) -> AppResult<Vec<(Vec<usize>, MachineC
                 .map_err(|e| AppError(format!("--vary: {e}")))?;
             if !a.kernel.supports(m.flavour().lanes()) {
                 return Err(AppError(format!(
-                    "--vary {}: {} runs on 4- and 8-lane ISAs, {} has {} lanes",
+                    "--vary {}: {} runs on 4, 8, 16 and 32 lanes, {} has {} lanes",
                     sets.join(" "),
                     a.kernel.name(),
                     m.isa,

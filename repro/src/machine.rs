@@ -37,7 +37,7 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
                 .unit("cycles"),
         );
     }
-    rows.extend(cpi_stack_rows(s));
+    rows.extend(cpi_stack_rows(s, m.core.ports as usize));
     rows.push(Row::new("lane_utilisation", s.lane_utilisation()));
     rows.push(Row::new("branches", s.branches as f64));
     rows.push(Row::new("mispredicts", s.mispredicts as f64));
@@ -72,9 +72,11 @@ pub fn stats_rows(s: &Stats, m: &MachineConfig, rays: Option<u64>) -> Vec<Row> {
 }
 
 /// Per code region its CPI stack (cycles per instruction by stall reason,
-/// summing to the region's CPI) and its bottleneck: the largest reason other
-/// than issue bandwidth, with its share of the region's cycles.
-fn cpi_stack_rows(s: &Stats) -> Vec<Row> {
+/// summing to the region's CPI), its port-pressure part split by port and
+/// each port's uops per cycle, and its bottleneck: the largest reason other
+/// than issue bandwidth, with its share of the region's cycles (port
+/// pressure also names its busiest port, `bottleneck_port_share`).
+fn cpi_stack_rows(s: &Stats, ports: usize) -> Vec<Row> {
     let mut rows = Vec::new();
     for r in Region::ALL {
         let (Some(stack), Some((worst, share))) = (s.cpi_stack(r), s.bottleneck(r)) else {
@@ -87,10 +89,47 @@ fn cpi_stack_rows(s: &Stats) -> Vec<Row> {
                     .key("reason", st.name()),
             );
         }
+        rows.extend(port_rows(s, r, ports));
         rows.push(
             Row::new("bottleneck_share", share)
                 .key("region", r.name())
                 .key("reason", worst.name()),
+        );
+        if worst == Stall::Ports {
+            let cycles = s.region_cycles[r as usize] as f64;
+            let by_port = &s.region_port_stalls[r as usize][..ports];
+            let (p, &c) = by_port
+                .iter()
+                .enumerate()
+                .max_by_key(|&(p, c)| (*c, std::cmp::Reverse(p)))
+                .expect("at least one port");
+            rows.push(
+                Row::new("bottleneck_port_share", c as f64 / cycles)
+                    .key("region", r.name())
+                    .key("port", format!("p{p}")),
+            );
+        }
+    }
+    rows
+}
+
+/// Region `r`'s port-pressure CPI by port and uops per cycle per port.
+fn port_rows(s: &Stats, r: Region, ports: usize) -> Vec<Row> {
+    let (Some(stack), Some(pressure)) = (s.port_stack(r), s.port_pressure(r)) else {
+        return Vec::new();
+    };
+    let mut rows = Vec::new();
+    for p in 0..ports {
+        let port = format!("p{p}");
+        rows.push(
+            Row::new("cpi_stack_ports", stack[p])
+                .key("region", r.name())
+                .key("port", &port),
+        );
+        rows.push(
+            Row::new("port_uops_per_cycle", pressure[p])
+                .key("region", r.name())
+                .key("port", &port),
         );
     }
     rows

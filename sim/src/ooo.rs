@@ -95,6 +95,10 @@ struct Issued {
     operands: u64,
     gather_lat: u64,
     gather_level: usize,
+    /// The port of the uop that waited longest for one after its operands.
+    wait_port: u8,
+    /// Each uop's port, 4 bits each, the first lowest.
+    ports: u64,
 }
 
 impl std::ops::Deref for Uops {
@@ -180,6 +184,8 @@ pub(crate) struct Calendar {
     busy: Box<[u16; WINDOW as usize]>,
     base: u64,
     uses: [u64; 16],
+    /// The port the latest booking took.
+    last: u8,
 }
 
 /// A cycle's slot in the ring.
@@ -198,6 +204,7 @@ impl Calendar {
                 .expect("WINDOW entries"),
             base: 0,
             uses: [0; 16],
+            last: 0,
         }
     }
 
@@ -263,6 +270,7 @@ impl Calendar {
 
     #[inline]
     fn mark(&mut self, p: usize, c: u64, occ: u64) {
+        self.last = p as u8;
         if c + occ > self.base + WINDOW {
             return;
         }
@@ -548,6 +556,8 @@ impl OooCore {
                 operands,
                 gather_lat,
                 gather_level,
+                wait_port,
+                ports,
             } = self.issue(t, op, ct, d, mem);
             let mut done = if fused {
                 first
@@ -586,6 +596,7 @@ impl OooCore {
             }
             if counted {
                 count(s, op, ct, why, ret - self.last_ret);
+                count_ports(s, op, ct, (why, ret - self.last_ret), (wait_port, ports));
             }
             if timeline {
                 self.note_timeline(i, op, (d, first, done, ret), why);
@@ -749,6 +760,7 @@ impl OooCore {
         let mut extra_occ = 0;
         let mut gather_lat = 0u64;
         let mut gather_level = 0;
+        let (mut wait, mut wait_port, mut ports) = (0, 0, 0u64);
         if ct.per_lane {
             // Distinct lines cost port cycles (per_line) and their latency.
             let lines = mem.lines_of(t, op);
@@ -779,6 +791,11 @@ impl OooCore {
                 (ct.occ, r_rest)
             };
             let c = self.cal.book(mask, ready, occ);
+            let p = self.cal.last;
+            ports |= u64::from(p) << (4 * k);
+            if c.saturating_sub(ready) > wait || k == 0 {
+                (wait, wait_port) = (c.saturating_sub(ready), p);
+            }
             first = first.min(c);
             last = last.max(c);
             debug_assert!(c > self.rs_cursor && c - self.rs_cursor < WINDOW);
@@ -796,6 +813,8 @@ impl OooCore {
             operands: r_first,
             gather_lat,
             gather_level,
+            wait_port,
+            ports,
         }
     }
 
@@ -1016,6 +1035,25 @@ fn count(s: &mut Stats, op: &Op, ct: &ClassT, why: Stall, delta: u64) {
     if ct.vector {
         s.vector_ops += 1;
         s.active_lanes += u64::from(op.mask.count());
+    }
+}
+
+/// An op's uops on their ports, and its port-pressure cycles on the port
+/// its longest-waiting uop took.
+#[inline(always)]
+fn count_ports(
+    s: &mut Stats,
+    op: &Op,
+    ct: &ClassT,
+    (why, delta): (Stall, u64),
+    (wait_port, ports): (u8, u64),
+) {
+    let r = op.region as usize;
+    for k in 0..ct.uops.len() {
+        s.region_port_uops[r][(ports >> (4 * k)) as usize & 15] += 1;
+    }
+    if why == Stall::Ports {
+        s.region_port_stalls[r][usize::from(wait_port)] += delta;
     }
 }
 

@@ -32,6 +32,9 @@ pub enum Stall {
     FrontEnd = 9,
 }
 
+/// Most execution ports a core has (the config checks it).
+pub const MAX_PORTS: usize = 16;
+
 impl Stall {
     /// How many reasons there are (the length of the stall arrays).
     pub const COUNT: usize = 10;
@@ -102,6 +105,12 @@ pub struct Stats {
     /// `region_cycles`; in-order cores charge waits to no region and leave
     /// this zero).
     pub region_stalls: [[u64; Stall::COUNT]; isa::Region::COUNT],
+    /// Of each region's port-pressure cycles ([`Stall::Ports`]), the part
+    /// charged to each port: the one its op's longest-waiting uop issued on
+    /// (out-of-order cores; a region's row sums to its `Ports` stall).
+    pub region_port_stalls: [[u64; MAX_PORTS]; isa::Region::COUNT],
+    /// Uops issued to each port, per code region (out-of-order cores).
+    pub region_port_uops: [[u64; MAX_PORTS]; isa::Region::COUNT],
     /// Conditional branches.
     pub branches: u64,
     /// Of which mispredicted.
@@ -196,6 +205,26 @@ impl Stats {
             .then(|| c.map(|x| x as f64 / ops as f64))
     }
 
+    /// Region `r`'s port-pressure CPI split by port: per port, the cycles
+    /// per instruction its ops waited for that port with their operands
+    /// ready (summing to the `ports` entry of [`Stats::cpi_stack`]), when
+    /// the region has a CPI stack.
+    #[must_use]
+    pub fn port_stack(&self, r: Region) -> Option<[f64; MAX_PORTS]> {
+        self.cpi_stack(r)?;
+        let ops = self.region_ops[r as usize] as f64;
+        Some(self.region_port_stalls[r as usize].map(|x| x as f64 / ops))
+    }
+
+    /// Region `r`'s uops per cycle on each port (its port pressure), when
+    /// it has a CPI stack.
+    #[must_use]
+    pub fn port_pressure(&self, r: Region) -> Option<[f64; MAX_PORTS]> {
+        self.cpi_stack(r)?;
+        let cycles = self.region_cycles[r as usize] as f64;
+        Some(self.region_port_uops[r as usize].map(|x| x as f64 / cycles))
+    }
+
     /// Region `r`'s largest stall reason other than issue bandwidth (the
     /// base cost of its instructions) and that reason's share of its cycles.
     #[must_use]
@@ -219,6 +248,10 @@ impl Stats {
             self.region_cycles[i] += o.region_cycles[i];
             for (a, b) in self.region_stalls[i].iter_mut().zip(&o.region_stalls[i]) {
                 *a += b;
+            }
+            for p in 0..MAX_PORTS {
+                self.region_port_stalls[i][p] += o.region_port_stalls[i][p];
+                self.region_port_uops[i][p] += o.region_port_uops[i][p];
             }
         }
         for (a, b) in self.class_ops.iter_mut().zip(&o.class_ops) {

@@ -701,3 +701,26 @@ fn a_missing_load_is_charged_to_the_level_that_served_it() {
     assert_eq!(sim::Stall::memory(1, 1), Some(MemoryDram));
     assert_eq!(sim::Stall::memory(2, 2), Some(MemoryDram));
 }
+
+#[test]
+fn port_pressure_is_charged_to_the_port_the_op_waited_for() {
+    let m = hsw();
+    let by_port = |body: &str| {
+        let t = trace(&m.isa, body);
+        let s = simulate(&m, &[&t], &SimOptions::default()).unwrap();
+        let sum = |a: &[[u64; sim::stats::MAX_PORTS]]| -> Vec<u64> {
+            (0..8).map(|p| a.iter().map(|r| r[p]).sum()).collect()
+        };
+        (sum(&s.region_port_stalls), sum(&s.region_port_uops))
+    };
+    // Three divides on p0 (see above): their 28 port cycles are all p0's,
+    // and p0 executed their three uops.
+    let (stalls, uops) = by_port("%1 = vdiv\n%2 = vdiv\n%3 = vdiv\n");
+    assert_eq!(stalls, [28, 0, 0, 0, 0, 0, 0, 0]);
+    assert_eq!(uops, [3, 0, 0, 0, 0, 0, 0, 0]);
+    // Two independent FMAs take p0 and p1 (least used first) and wait for
+    // no port: no port cycles.
+    let (stalls, uops) = by_port("%1 = vfma\n%2 = vfma\n");
+    assert_eq!(stalls, [0; 8]);
+    assert_eq!(uops, [1, 1, 0, 0, 0, 0, 0, 0]);
+}

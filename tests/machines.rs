@@ -462,6 +462,24 @@ fn run_times_the_traversal_kernels_and_checks_their_hits() {
         let share = of("bottleneck_share");
         assert_eq!(share.len(), 1, "{region}");
         assert!(share[0] > 0.0 && share[0] <= 1.0, "{region}: {share:?}");
+        // Its port-pressure entry split by Haswell's 8 ports sums to it,
+        // and every port's uops per cycle is at most one.
+        let ports = rows
+            .iter()
+            .find(|r| r["metric"] == "cpi_stack" && r["region"] == region && r["reason"] == "ports")
+            .and_then(|r| r["value"].as_f64())
+            .unwrap();
+        let by_port = of("cpi_stack_ports");
+        assert_eq!(by_port.len(), 8, "{region}");
+        let sum: f64 = by_port.iter().sum();
+        assert!((sum - ports).abs() < 1e-9, "{region}: {sum} vs {ports}");
+        let pressure = of("port_uops_per_cycle");
+        assert_eq!(pressure.len(), 8, "{region}");
+        assert!(
+            pressure.iter().all(|&u| (0.0..=1.0).contains(&u)),
+            "{pressure:?}"
+        );
+        assert!(pressure.iter().any(|&u| u > 0.0), "{region}");
     }
     // Wider than the paper's 8 lanes: the DRS kernel on Larrabee's 16 and
     // on the 32-lane what-if.

@@ -193,8 +193,22 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             show(drs_report::validate::validate_report(&a.args())?, f)
         }
         Cmd::Sweep(a) => {
-            let f = a.format;
-            show(drs_report::sweep::sweep_report(&a.args()?)?, f)
+            let (f, out) = (a.format, a.out.clone());
+            match a.args()? {
+                cli::Sweep::Kernel(k) => show(drs_report::sweep::sweep_report(&k)?, f),
+                cli::Sweep::Report(name, given, metric, vary) => {
+                    let all = reports();
+                    let def = repro::options::find(&all, &name)?;
+                    let s = repro::sweep::ReportSweep {
+                        def,
+                        given,
+                        vary,
+                        metric,
+                        out,
+                    };
+                    show(repro::sweep::report_sweep(&s)?, f)
+                }
+            }
         }
         Cmd::Render(a) => repro::scenes::render(&a.into_args()),
         Cmd::Volume(a) => {

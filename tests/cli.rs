@@ -597,3 +597,68 @@ fn sweep_times_a_kernel_on_a_two_field_grid_and_plots_it() {
         assert!(e.contains(says), "{bad}: {e}");
     }
 }
+
+#[test]
+fn sweep_runs_a_reports_cells_on_a_grid_and_plots_them() {
+    let dir = tmp("sweep-report-out");
+    let _ = std::fs::remove_dir_all(&dir);
+    let args = [
+        "sweep",
+        "--report",
+        "mft-table2",
+        "--quick",
+        "--res",
+        "64",
+        "--tiles",
+        "2",
+        "--metric",
+        "cycles",
+        "--vary",
+        "core.width=1,2",
+        "--out",
+        p(&dir),
+        "--format",
+        "json",
+    ];
+    let j = json(&rtsim(&args));
+    assert_eq!(j["report"], "sweep-mft-table2");
+    let rows = j["rows"].as_array().unwrap();
+    assert!(rows.iter().all(|r| r["metric"] == "cycles"));
+    // Every cell at both widths; one-wide (the U pipe alone) is slower.
+    let at = |w: &str| -> Vec<f64> {
+        rows.iter()
+            .filter(|r| r["core.width"] == w)
+            .map(|r| r["value"].as_f64().unwrap())
+            .collect()
+    };
+    let (one, two) = (at("1"), at("2"));
+    assert_eq!(one.len(), two.len());
+    assert!(!one.is_empty());
+    assert!(one.iter().zip(&two).all(|(a, b)| a > b), "{one:?} {two:?}");
+    assert!(dir.join("sweep.png").exists());
+    let again = json(&rtsim(&args));
+    assert_eq!(again["rows"], j["rows"], "deterministic");
+    for (bad, says) in [
+        (vec!["--report", "mft-table9"], "mft-table9"),
+        (vec!["--report", "mbvh-fig4-6"], "no --set"),
+        (
+            vec!["--report", "mft-table2", "--kernel", "drs-bvh4"],
+            "--kernel",
+        ),
+        (vec!["--report", "mft-table2", "--spp", "4"], "--spp"),
+        (
+            vec!["--report", "mft-table2", "--metric", "nope"],
+            "aabb_tests",
+        ),
+        (vec!["--quick"], "--report"),
+        (vec!["--metric", "cycles"], "--report"),
+    ] {
+        let mut a = vec!["sweep", "--vary", "core.width=1,2"];
+        if bad.contains(&"--report") {
+            a.extend(["--quick", "--res", "64", "--tiles", "1"]);
+        }
+        a.extend(bad.iter().copied());
+        let e = err(&rtsim(&a));
+        assert!(e.contains(says), "{bad:?}: {e}");
+    }
+}

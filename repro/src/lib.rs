@@ -6,7 +6,7 @@
 //! confidence intervals ([`sampling`]), machine-level reports and the
 //! statistics rows of a timed run ([`machine`]), trace files ([`traces`]),
 //! the default `rtsim run` workload ([`boxrun`]), scene listing and
-//! rendering ([`scenes`]), plots and PNG images, and files written whole or
+//! rendering ([`scenes`]), sweeps over config fields ([`sweep`]), plots and PNG images, and files written whole or
 //! not at all ([`io`]). It never holds a paper's figures: those live in each
 //! paper's report crate.
 
@@ -23,6 +23,7 @@ pub mod progress;
 pub mod report;
 pub mod sampling;
 pub mod scenes;
+pub mod sweep;
 pub mod text;
 pub mod timeline;
 pub mod traces;

@@ -7,9 +7,9 @@
 
 use crate::run::{stream_input, tile_stream, warm_then_time};
 use drs_kernels::methods::{Kernel, Run};
-use isa::FlavourId;
 use rayon::prelude::*;
 use repro::report::Format;
+use repro::sweep::{axes, grid, keyed, sets, Axis};
 use repro::{AppError, AppResult, MachineSpec, Report, Row};
 use scene::loaded::Loaded;
 use sim::MachineConfig;
@@ -42,53 +42,6 @@ pub struct SweepArgs {
     pub format: Format,
 }
 
-/// A varied field and its values.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Axis {
-    /// Config field path (as `--set` takes it).
-    pub field: String,
-    /// Its values, in order.
-    pub values: Vec<String>,
-}
-
-impl Axis {
-    /// `FIELD=V1,V2,...`.
-    ///
-    /// # Errors
-    /// No `=`, an empty field, no value or an empty one, a value twice.
-    pub fn parse(s: &str) -> AppResult<Axis> {
-        let (field, vals) = s
-            .split_once('=')
-            .ok_or_else(|| AppError(format!("--vary '{s}': expected FIELD=V1,V2,...")))?;
-        let values: Vec<String> = vals.split(',').map(|v| v.trim().to_string()).collect();
-        if field.is_empty() || values.iter().any(String::is_empty) {
-            return Err(AppError(format!(
-                "--vary '{s}': expected FIELD=V1,V2,... with no empty field or value"
-            )));
-        }
-        if let Some(v) = values
-            .iter()
-            .find(|v| values.iter().filter(|w| w == v).count() > 1)
-        {
-            return Err(AppError(format!("--vary {field}: value '{v}' given twice")));
-        }
-        Ok(Axis {
-            field: field.to_string(),
-            values,
-        })
-    }
-
-    /// Where value `i` sits on a plot's x axis: the number itself, an ISA's
-    /// lanes, or else its position.
-    fn x(&self, i: usize) -> f64 {
-        let v = &self.values[i];
-        v.parse::<f64>()
-            .ok()
-            .or_else(|| FlavourId::from_name(v).map(|f| f.lanes() as f64))
-            .unwrap_or(i as f64)
-    }
-}
-
 /// One grid point: the value index per axis, its machine and its timing.
 struct Point {
     at: Vec<usize>,
@@ -100,26 +53,10 @@ struct Point {
 /// The grid's machines, in order (the last axis fastest), each checked.
 fn machines(a: &SweepArgs, axes: &[Axis]) -> AppResult<Vec<(Vec<usize>, MachineConfig)>> {
     let base = a.machine.load()?;
-    let mut grid: Vec<Vec<usize>> = vec![Vec::new()];
-    for ax in axes {
-        grid = grid
-            .into_iter()
-            .flat_map(|g| {
-                (0..ax.values.len()).map(move |i| {
-                    let mut g = g.clone();
-                    g.push(i);
-                    g
-                })
-            })
-            .collect();
-    }
-    grid.into_iter()
+    grid(axes)
+        .into_iter()
         .map(|at| {
-            let sets: Vec<String> = axes
-                .iter()
-                .zip(&at)
-                .map(|(ax, &i)| format!("{}={}", ax.field, ax.values[i]))
-                .collect();
+            let sets = sets(axes, &at);
             let m = base
                 .with_sets(&sets)
                 .map_err(|e| AppError(format!("--vary: {e}")))?;
@@ -144,19 +81,7 @@ fn machines(a: &SweepArgs, axes: &[Axis]) -> AppResult<Vec<(Vec<usize>, MachineC
 /// differ from the reference, an unwritable `--out`.
 pub fn sweep_report(a: &SweepArgs) -> AppResult<Report> {
     let start = Instant::now();
-    if a.vary.is_empty() || a.vary.len() > 2 {
-        return Err(AppError(
-            "sweep: give one or two --vary FIELD=V1,V2,...".into(),
-        ));
-    }
-    let axes: Vec<Axis> = a
-        .vary
-        .iter()
-        .map(|s| Axis::parse(s))
-        .collect::<AppResult<_>>()?;
-    if axes.len() == 2 && axes[0].field == axes[1].field {
-        return Err(AppError(format!("--vary {}: given twice", axes[0].field)));
-    }
+    let axes = axes(&a.vary)?;
     let grid = machines(a, &axes)?;
     let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
     let (tile, rays) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
@@ -231,13 +156,7 @@ pub fn sweep_report(a: &SweepArgs) -> AppResult<Report> {
 fn rows(points: &[Point], axes: &[Axis], rays: usize) -> Vec<Row> {
     let mut rows = Vec::new();
     for p in points {
-        let row = |metric: &str, v: f64| {
-            axes.iter()
-                .zip(&p.at)
-                .fold(Row::new(metric, v), |r, (ax, &i)| {
-                    r.key(&ax.field, &ax.values[i])
-                })
-        };
+        let row = |metric: &str, v: f64| keyed(Row::new(metric, v), axes, &p.at);
         let secs = p.cycles as f64 / (p.machine.clock_ghz * 1e9);
         rows.push(row("cycles", p.cycles as f64).unit("cycles"));
         rows.push(row("instructions", p.instructions as f64));
@@ -276,11 +195,7 @@ fn plot(
     let mray = |p: &Point| rays as f64 / (p.cycles as f64 / (p.machine.clock_ghz * 1e9)) / 1e6;
     let cpi = |p: &Point| p.cycles as f64 / p.instructions.max(1) as f64;
     let title = format!("{} on {}, {} rays", a.kernel.name(), a.scene, a.stream);
-    let x = if axes[0].field == "isa" {
-        "isa (lanes)".to_string()
-    } else {
-        axes[0].field.clone()
-    };
+    let x = axes[0].label();
     repro::plot::write(
         &dir.join("sweep.png"),
         &[
@@ -298,21 +213,4 @@ fn plot(
             },
         ],
     )
-}
-
-#[cfg(test)]
-mod tests {
-    use super::Axis;
-
-    #[test]
-    fn axes_parse_and_place_their_values() {
-        let a = Axis::parse("core.width=2,4,6").unwrap();
-        assert_eq!(a.values, ["2", "4", "6"]);
-        assert_eq!(a.x(2), 6.0);
-        let isa = Axis::parse("isa=sse4,avx2,avx512").unwrap();
-        assert_eq!((isa.x(0), isa.x(1), isa.x(2)), (4.0, 8.0, 16.0));
-        for bad in ["core.width", "=1,2", "core.width=1,,2", "core.width=2,2"] {
-            assert!(Axis::parse(bad).is_err(), "{bad}");
-        }
-    }
 }

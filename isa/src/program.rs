@@ -338,7 +338,7 @@ mod tests {
         fn unit<M: Machine>(&self, m: &mut M, data: &Buf, &bits: &u32) -> i64 {
             let n = M::LANES;
             let mut out = m.space().alloc(MemKind::Rays, "out", 16384, 64);
-            let k = m.mask(bits & ((1u32 << n) - 1));
+            let k = m.mask(bits & crate::LaneMask::full(n).0);
             let at = |i: usize| At::off(4 * i);
             let a = m.load(data, at(64));
             let b = m.loadu(data, at(3));

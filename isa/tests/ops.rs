@@ -7,8 +7,8 @@
 #![allow(clippy::needless_range_loop, clippy::type_complexity)]
 
 use isa::{
-    At, Avx2, Avx512, BinOp, Cmp, FlavourId, Float, Fma, IOp, Int, Logic, Lrb16, Machine, MemKind,
-    Native, SOp, Shift, Sse4, Traced,
+    At, Avx2, Avx512, BinOp, Cmp, FlavourId, Float, Fma, IOp, Int, LaneMask, Logic, Lrb16, Machine,
+    MemKind, Native, SOp, Shift, Sse4, Traced, Wide32,
 };
 
 const SPECIAL: [f32; 16] = [
@@ -118,7 +118,7 @@ fn check_float_ops<M: Machine>(m: &mut M, a: &[f32], b: &[f32], c: &[f32]) {
                 m.lane(r, i)
             );
         }
-        let k = m.mask(0b1010_0110_0101_1001 & ((1u32 << n) - 1));
+        let k = m.mask(0b1010_0110_0101_1001 & LaneMask::full(n).0);
         let r = m.masked(op, k, vc, va, vb);
         for i in 0..n {
             let want = if m.bits(k) >> i & 1 == 1 {
@@ -191,7 +191,7 @@ fn check_float_ops<M: Machine>(m: &mut M, a: &[f32], b: &[f32], c: &[f32]) {
                 a[i], b[i], c[i]
             );
         }
-        let k = m.mask(0x5 & ((1u32 << n) - 1));
+        let k = m.mask(0x5 & LaneMask::full(n).0);
         let r2 = m.masked_fma(kind, k, va, vb, vc);
         for i in 0..n {
             let want = if i == 0 || i == 2 { m.lane(r, i) } else { c[i] };
@@ -452,7 +452,7 @@ fn check_int_and_mask_ops<M: Machine>(m: &mut M) {
             );
         }
     }
-    let full = if n == 32 { u32::MAX } else { (1u32 << n) - 1 };
+    let full = LaneMask::full(n).0;
     for (x, y) in [
         (0u32, 0u32),
         (full, 0),
@@ -545,7 +545,7 @@ fn check_memory_ops<M: Machine>(m: &mut M) {
         assert_eq!(m.lane(b, i), data[5]);
         assert_eq!(m.lane(r4, i), data[2 + i % 4.min(n)]);
     }
-    let full = (1u32 << n) - 1;
+    let full = LaneMask::full(n).0;
     let k = m.mask(0x5a5a & full);
     let z = m.splat(-9.0);
     let lm = m.load_masked(k, z, &src, At::off(0));
@@ -711,6 +711,15 @@ fn traced_avx2() {
 fn traced_sse4() {
     let m = check_all(Traced::<Sse4, 4>::new("test"));
     m.finish().validate().unwrap();
+}
+#[test]
+fn traced_wide32() {
+    let m = check_all(Traced::<Wide32, 32>::new("test"));
+    m.finish().validate().unwrap();
+}
+#[test]
+fn native_wide32() {
+    check_all(Native::<Wide32, 32>::new());
 }
 #[test]
 fn native_lrb16() {

@@ -6,7 +6,7 @@
 use isa::rng::Rng;
 use isa::{
     trace_file, trace_text, At, Avx2, Avx512, BinOp, Buf, Cmp, Float, Fma, IOp, Int, Logic, Lrb16,
-    Machine, MemKind, Native, SOp, Shift, Sse4, Trace, Traced,
+    Machine, MemKind, Native, SOp, Shift, Sse4, Trace, Traced, Wide32,
 };
 
 const SPECIAL: [f32; 12] = [
@@ -48,7 +48,7 @@ fn program<M: Machine>(m: &mut M, seed: u64, steps: usize) -> Vec<u64> {
         fs.push(m.consts(&v));
         let w: Vec<i32> = (0..n).map(|_| r.next_u64() as i32).collect();
         is.push(m.consts_i(&w));
-        ks.push(m.mask(r.next_u64() as u32 & ((1u32 << n) - 1)));
+        ks.push(m.mask(r.next_u64() as u32 & isa::LaneMask::full(n).0));
     }
     let vec_off = |r: &mut Rng| 4 * r.below((64 - n) as u64 + 1) as usize;
     for _ in 0..steps {
@@ -305,6 +305,11 @@ fn traced_equals_native_avx2() {
 #[test]
 fn traced_equals_native_sse4() {
     round_trips(&compare::<Sse4, 4>(300..360));
+}
+
+#[test]
+fn traced_equals_native_wide32() {
+    round_trips(&compare::<Wide32, 32>(400..460));
 }
 
 #[test]

@@ -351,7 +351,7 @@ fn step<M: Machine>(m: &mut M, op: ChainOp, v: Val<M>, flip: bool) -> Val<M> {
                 ChainOp::MinMax => m.bin(BinOp::Max, x, half),
                 ChainOp::Logic => m.and(x, x),
                 ChainOp::Blend => {
-                    let k = m.mask(0x5555 & ((1u32 << n) - 1));
+                    let k = m.mask(0x5555 & isa::LaneMask::full(n).0);
                     m.select(k, x, one)
                 }
                 ChainOp::Shuf => {

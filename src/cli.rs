@@ -651,14 +651,19 @@ pub struct SweepCli {
     /// Output format: text, json or csv.
     #[arg(long, value_parser = Format::from_name, default_value = "text")]
     pub format: Format,
+    /// With --report: no progress bar over the points (there is none when
+    /// standard error is not a terminal).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// What `rtsim sweep` was asked for, its options checked against the form.
 pub enum Sweep {
     /// One kernel over one tile's stream.
     Kernel(drs_report::sweep::SweepArgs),
-    /// A report's cells: its name, its options, the metric, the axes.
-    Report(String, Given, Option<String>, Vec<String>),
+    /// A report's cells: its name, its options, the metric, the axes,
+    /// whether to hide the progress bar.
+    Report(String, Given, Option<String>, Vec<String>, bool),
 }
 
 impl SweepCli {
@@ -693,7 +698,13 @@ impl SweepCli {
                 out: None,
                 quiet: true,
             };
-            return Ok(Sweep::Report(report, given, self.metric, self.vary));
+            return Ok(Sweep::Report(
+                report,
+                given,
+                self.metric,
+                self.vary,
+                self.quiet,
+            ));
         }
         named(
             &[
@@ -701,6 +712,7 @@ impl SweepCli {
                 ("--quick", self.quick),
                 ("--tiles", self.tiles.is_some()),
                 ("--res", self.res.is_some()),
+                ("--quiet", self.quiet),
             ],
             "is only read with --report NAME",
         )?;

@@ -196,7 +196,7 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             let (f, out) = (a.format, a.out.clone());
             match a.args()? {
                 cli::Sweep::Kernel(k) => show(drs_report::sweep::sweep_report(&k)?, f),
-                cli::Sweep::Report(name, given, metric, vary) => {
+                cli::Sweep::Report(name, given, metric, vary, quiet) => {
                     let all = reports();
                     let def = repro::options::find(&all, &name)?;
                     let s = repro::sweep::ReportSweep {
@@ -205,6 +205,7 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
                         vary,
                         metric,
                         out,
+                        quiet,
                     };
                     show(repro::sweep::report_sweep(&s)?, f)
                 }

@@ -141,6 +141,8 @@ pub struct ReportSweep<'a> {
     pub metric: Option<String>,
     /// Where the PNG goes.
     pub out: Option<std::path::PathBuf>,
+    /// No progress bar over the points.
+    pub quiet: bool,
 }
 
 /// One point's report.
@@ -166,14 +168,27 @@ pub fn report_sweep(s: &ReportSweep) -> AppResult<Report> {
             s.def.name
         )));
     }
-    let mut first = s.given.clone();
-    first.sets.extend(sets(&axes, &vec![0; axes.len()]));
-    // Options checked once, before any point runs.
-    s.def.resolve(first)?;
-    let points: Vec<PointReport> = grid(&axes)
+    // Every point's options and machine checked before any point runs.
+    for at in grid(&axes) {
+        let mut g = s.given.clone();
+        g.sets.extend(sets(&axes, &at));
+        s.def.resolve(g)?.machine.load()?;
+    }
+    let bar = crate::progress::Progress::for_terminal(&format!("sweep {}", s.def.name), s.quiet);
+    bar.add_units(grid(&axes).len() as u64);
+    // The first failing point in grid order, whichever failed first.
+    let points: AppResult<Vec<PointReport>> = grid(&axes)
         .into_par_iter()
-        .map(|at| point(s, &axes, at))
-        .collect::<AppResult<_>>()?;
+        .map(|at| {
+            let p = point(s, &axes, at);
+            bar.done(1);
+            p
+        })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .collect::<AppResult<_>>();
+    bar.finish();
+    let points = points?;
     let metric = match &s.metric {
         Some(m) => m.clone(),
         None => {

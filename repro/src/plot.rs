@@ -28,7 +28,7 @@ pub struct Panel<'a> {
     pub series: Vec<Series>,
 }
 
-const COLOURS: [RGBColor; 7] = [
+const COLOURS: [RGBColor; 10] = [
     RGBColor(31, 119, 180),
     RGBColor(214, 39, 40),
     RGBColor(44, 160, 44),
@@ -36,6 +36,9 @@ const COLOURS: [RGBColor; 7] = [
     RGBColor(148, 103, 189),
     RGBColor(140, 86, 75),
     RGBColor(23, 190, 207),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
 ];
 
 /// Register the embedded font once.
@@ -136,6 +139,16 @@ fn legend_box<'a, 'b: 'a>(
         .draw()
 }
 
+/// The unit a y axis up to `y1` is drawn in (1 below 10^5, else the power
+/// of ten of `y1`) and its label, `y` or `y (x1e7)`.
+fn y_scale(y1: f64, y: &str) -> (f64, String) {
+    if y1 < 1e5 || !y1.is_finite() {
+        return (1.0, y.to_string());
+    }
+    let e = y1.log10().floor() as i32;
+    (10f64.powi(e), format!("{y} (x1e{e})"))
+}
+
 /// Render `panels` side by side into a PNG at `path` (written atomically).
 pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
     font();
@@ -158,6 +171,10 @@ pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
             if !x0.is_finite() {
                 (x0, x1) = (0.0, 1.0);
             }
+            // Large values are drawn in units of a power of ten named on the
+            // axis, so their labels fit the label area.
+            let (scale, y_desc) = y_scale(y1, p.y);
+            let y1 = y1 / scale;
             let y1 = if y1 > 0.0 { y1 * 1.15 } else { 1.0 };
             let mut chart = ChartBuilder::on(&area)
                 .caption(p.title, ("sans-serif", 20))
@@ -169,19 +186,20 @@ pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
             chart
                 .configure_mesh()
                 .x_desc(p.x)
-                .y_desc(p.y)
+                .y_desc(&y_desc)
                 .label_style(("sans-serif", 14))
                 .draw()
                 .map_err(|e| err(&e))?;
             for (i, s) in p.series.iter().enumerate() {
                 let c = COLOURS[i % COLOURS.len()];
+                let pts: Vec<(f64, f64)> = s.points.iter().map(|&(x, y)| (x, y / scale)).collect();
                 chart
-                    .draw_series(LineSeries::new(s.points.iter().copied(), c.stroke_width(2)))
+                    .draw_series(LineSeries::new(pts.iter().copied(), c.stroke_width(2)))
                     .map_err(|e| err(&e))?
                     .label(s.label.clone())
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 18, y)], c));
                 chart
-                    .draw_series(s.points.iter().map(|&q| Circle::new(q, 3, c.filled())))
+                    .draw_series(pts.iter().map(|&q| Circle::new(q, 3, c.filled())))
                     .map_err(|e| err(&e))?;
             }
             legend_box(&mut chart).map_err(|e| err(&e))?;
@@ -189,4 +207,16 @@ pub fn write(path: &Path, panels: &[Panel]) -> AppResult<()> {
         root.present().map_err(|e| err(&e))?;
     }
     crate::io::write_atomic(path, &crate::png::encode(w, h, &buf))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::y_scale;
+
+    #[test]
+    fn large_axes_are_drawn_in_a_power_of_ten() {
+        assert_eq!(y_scale(0.45, "CPI"), (1.0, "CPI".into()));
+        assert_eq!(y_scale(99_999.0, "n"), (1.0, "n".into()));
+        assert_eq!(y_scale(7.9e7, "cycles"), (1e7, "cycles (x1e7)".into()));
+    }
 }

@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use isa::FlavourId;
 use repro::report::Format;
 use repro::scenes::{RenderArgs, Shade};
-use repro::{AppError, AppResult, Given, MachineSpec, ReportDef};
+use repro::{AppResult, Given, MachineSpec, ReportDef};
 use sim::{Fidelity, MachineConfig};
 use std::path::PathBuf;
 
@@ -44,7 +44,7 @@ pub enum Cmd {
     /// Time one traversal kernel over one tile's stream on a grid of one or two
     /// config fields (`--vary classes.vfma.lat=3,4,5,6 --vary core.width=2,4,6`;
     /// `--vary isa=sse4,avx2` varies the lanes): a table, and a PNG with --out.
-    Sweep(SweepCli),
+    Sweep(drs_report::sweep::SweepCli),
     /// Run the microkernels through a machine model next to what its config implies.
     Calibrate(CalibrateCli),
     /// Time one workload in every fidelity mode: host time and error against full.
@@ -596,141 +596,5 @@ impl ValidateCli {
             sets: self.sets,
             format: self.format,
         }
-    }
-}
-
-/// `rtsim sweep` arguments: one kernel over one tile's stream, or with
-/// `--report` a paper report's cells.
-#[derive(Args)]
-pub struct SweepCli {
-    /// Sweep this paper report's cells instead of one kernel (`rtsim reproduce --help` lists them).
-    #[arg(long)]
-    pub report: Option<String>,
-    /// With --report: the metric whose cells are swept [default: the report's first].
-    #[arg(long)]
-    pub metric: Option<String>,
-    /// With --report: the report's smaller sample.
-    #[arg(long)]
-    pub quick: bool,
-    /// With --report: rounds of tiles per scene, or runs of frusta sets.
-    #[arg(long)]
-    pub tiles: Option<u32>,
-    /// With --report: image width and height in pixels (MFT reports).
-    #[arg(long)]
-    pub res: Option<u32>,
-    /// Traversal kernel [default: drs-bvh4].
-    #[arg(long)]
-    pub kernel: Option<String>,
-    /// Scene (`rtsim list scenes`, a .ron or a mesh file) [default: conference].
-    #[arg(long)]
-    pub scene: Option<String>,
-    /// Ray stream: primary, bounce or shadow [default: bounce].
-    #[arg(long)]
-    pub stream: Option<String>,
-    /// Tile side in pixels: the stream is one tile at the image centre [default: 16].
-    #[arg(long)]
-    pub tile: Option<u32>,
-    /// Samples per pixel [default: 16; with --report the report's].
-    #[arg(long)]
-    pub spp: Option<u32>,
-    /// Ray seed [default: 7].
-    #[arg(long)]
-    pub seed: Option<u64>,
-    /// The machine every point starts from [default: haswell-i7-4750hq; with --report the report's].
-    #[arg(long)]
-    pub machine: Option<String>,
-    /// Override a config field at every point: `--set core.width=6`.
-    #[arg(long = "set", value_name = "FIELD=VALUE")]
-    pub sets: Vec<String>,
-    /// A config field and its values, `FIELD=V1,V2,...` (once or twice; `isa=sse4,avx2` varies the lanes).
-    #[arg(long, required = true)]
-    pub vary: Vec<String>,
-    /// Also write DIR/sweep.png.
-    #[arg(long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
-    /// Output format: text, json or csv.
-    #[arg(long, value_parser = Format::from_name, default_value = "text")]
-    pub format: Format,
-    /// With --report: no progress bar over the points (there is none when
-    /// standard error is not a terminal).
-    #[arg(long)]
-    pub quiet: bool,
-}
-
-/// What `rtsim sweep` was asked for, its options checked against the form.
-pub enum Sweep {
-    /// One kernel over one tile's stream.
-    Kernel(drs_report::sweep::SweepArgs),
-    /// A report's cells: its name, its options, the metric, the axes,
-    /// whether to hide the progress bar.
-    Report(String, Given, Option<String>, Vec<String>, bool),
-}
-
-impl SweepCli {
-    /// The library's options: an option the chosen form does not read is
-    /// an error naming it (the kernel name checked).
-    pub fn args(self) -> AppResult<Sweep> {
-        let named = |flags: &[(&str, bool)], why: &str| -> AppResult<()> {
-            match flags.iter().find(|f| f.1) {
-                Some((f, _)) => Err(AppError(format!("sweep: {f} {why}"))),
-                None => Ok(()),
-            }
-        };
-        if let Some(report) = self.report {
-            named(
-                &[
-                    ("--kernel", self.kernel.is_some()),
-                    ("--scene", self.scene.is_some()),
-                    ("--stream", self.stream.is_some()),
-                    ("--tile", self.tile.is_some()),
-                ],
-                "is not read with --report (the report chooses its kernels and scenes)",
-            )?;
-            let given = Given {
-                quick: self.quick,
-                machine: self.machine,
-                sets: self.sets,
-                tiles: self.tiles,
-                res: self.res,
-                spp: self.spp,
-                seed: self.seed,
-                format: self.format,
-                out: None,
-                quiet: true,
-            };
-            return Ok(Sweep::Report(
-                report,
-                given,
-                self.metric,
-                self.vary,
-                self.quiet,
-            ));
-        }
-        named(
-            &[
-                ("--metric", self.metric.is_some()),
-                ("--quick", self.quick),
-                ("--tiles", self.tiles.is_some()),
-                ("--res", self.res.is_some()),
-                ("--quiet", self.quiet),
-            ],
-            "is only read with --report NAME",
-        )?;
-        let kernel = drs_report::run::kernel_named(self.kernel.as_deref().unwrap_or("drs-bvh4"))?;
-        Ok(Sweep::Kernel(drs_report::sweep::SweepArgs {
-            kernel,
-            scene: self.scene.unwrap_or_else(|| "conference".into()),
-            stream: self.stream.unwrap_or_else(|| "bounce".into()),
-            tile: self.tile.unwrap_or(16),
-            spp: self.spp.unwrap_or(16),
-            seed: self.seed.unwrap_or(7),
-            machine: MachineSpec {
-                machine: self.machine.unwrap_or_else(|| "haswell-i7-4750hq".into()),
-                sets: self.sets,
-            },
-            vary: self.vary,
-            out: self.out,
-            format: self.format,
-        }))
     }
 }

@@ -195,8 +195,10 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
         Cmd::Sweep(a) => {
             let (f, out) = (a.format, a.out.clone());
             match a.args()? {
-                cli::Sweep::Kernel(k) => show(drs_report::sweep::sweep_report(&k)?, f),
-                cli::Sweep::Report(name, given, metric, vary, quiet) => {
+                drs_report::sweep::Sweep::Kernel(k) => {
+                    show(drs_report::sweep::sweep_report(&k)?, f)
+                }
+                drs_report::sweep::Sweep::Report(name, given, metric, vary, quiet) => {
                     let all = reports();
                     let def = repro::options::find(&all, &name)?;
                     let s = repro::sweep::ReportSweep {

@@ -169,15 +169,16 @@ pub fn report_sweep(s: &ReportSweep) -> AppResult<Report> {
         )));
     }
     // Every point's options and machine checked before any point runs.
-    for at in grid(&axes) {
+    let points = grid(&axes);
+    for at in &points {
         let mut g = s.given.clone();
-        g.sets.extend(sets(&axes, &at));
+        g.sets.extend(sets(&axes, at));
         s.def.resolve(g)?.machine.load()?;
     }
     let bar = crate::progress::Progress::for_terminal(&format!("sweep {}", s.def.name), s.quiet);
-    bar.add_units(grid(&axes).len() as u64);
+    bar.add_units(points.len() as u64);
     // The first failing point in grid order, whichever failed first.
-    let points: AppResult<Vec<PointReport>> = grid(&axes)
+    let points: AppResult<Vec<PointReport>> = points
         .into_par_iter()
         .map(|at| {
             let p = point(s, &axes, at);
@@ -208,7 +209,6 @@ pub fn report_sweep(s: &ReportSweep) -> AppResult<Report> {
             .iter()
             .map(|r| r.metric.as_str())
             .collect();
-        names.dedup();
         names.sort_unstable();
         names.dedup();
         return Err(AppError(format!(

@@ -43,12 +43,42 @@ impl Float for NX {
     }
 }
 
-/// A native machine of flavour `FL` with `N` lanes (e.g. `Native<Avx2, 8>`).
+/// Whether a native machine keeps a warming log: [`NoLog`] (nothing, and
+/// no test of it per memory op) or [`WarmLog`]. A type, not a field tested
+/// at run time, so the plain machine's memory ops compile to the access
+/// alone.
+pub trait LogKind: std::fmt::Debug {
+    /// The log to append to, if this machine keeps one.
+    fn get(&mut self) -> Option<&mut Trace>;
+}
+
+/// No warming log (the plain native machine).
+#[derive(Debug, Default)]
+pub struct NoLog;
+impl LogKind for NoLog {
+    #[inline(always)]
+    fn get(&mut self) -> Option<&mut Trace> {
+        None
+    }
+}
+
+/// A warming log of memory and branch ops ([`Native::logging`]).
 #[derive(Debug)]
-pub struct Native<FL, const N: usize> {
+pub struct WarmLog(Box<Trace>);
+impl LogKind for WarmLog {
+    #[inline(always)]
+    fn get(&mut self) -> Option<&mut Trace> {
+        Some(&mut self.0)
+    }
+}
+
+/// A native machine of flavour `FL` with `N` lanes (e.g. `Native<Avx2, 8>`);
+/// `L` says whether it keeps a warming log.
+#[derive(Debug)]
+pub struct Native<FL, const N: usize, L = NoLog> {
     space: AddrSpace,
     /// The warming log of a logging machine.
-    log: Option<Box<Trace>>,
+    log: L,
     _f: PhantomData<FL>,
 }
 
@@ -64,11 +94,13 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
     pub fn new() -> Self {
         Native {
             space: AddrSpace::new(),
-            log: None,
+            log: NoLog,
             _f: PhantomData,
         }
     }
+}
 
+impl<FL: Flavour<N>, const N: usize> Native<FL, N, WarmLog> {
     /// A machine that logs its memory accesses and branches for functional
     /// warming ([`Native::take_log`]); the log's header says it came from `source`.
     #[must_use]
@@ -82,18 +114,16 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
     pub fn logging_in(space: AddrSpace, source: &str) -> Self {
         Native {
             space,
-            log: Some(Box::new(Trace::new(FL::ID, source))),
+            log: WarmLog(Box::new(Trace::new(FL::ID, source))),
             _f: PhantomData,
         }
     }
 
     /// The memory and branch ops logged since the last take, as a trace with
-    /// the address space's current regions (empty unless [`Native::logging`]).
+    /// the address space's current regions.
     #[must_use]
     pub fn take_log(&mut self) -> Trace {
-        let Some(log) = self.log.as_deref_mut() else {
-            return Trace::new(FL::ID, "native");
-        };
+        let log = &mut *self.log.0;
         let mut t = Trace::new(FL::ID, &log.source);
         t.regions = self.space.regions().to_vec();
         let (ops, lanes) = crate::trace::pooled_buffers();
@@ -101,11 +131,13 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
         t.lane_addrs = std::mem::replace(&mut log.lane_addrs, lanes);
         t
     }
+}
 
+impl<FL: Flavour<N>, const N: usize, L: LogKind> Native<FL, N, L> {
     /// Log an access of `class` at byte `off` of `buf`.
     #[inline(always)]
     fn log_mem(&mut self, class: OpClass, buf: &Buf, off: usize, bytes: usize) {
-        if let Some(log) = self.log.as_deref_mut() {
+        if let Some(log) = self.log.get() {
             log_at(log, class, buf.addr(off), buf.id(), bytes);
         }
     }
@@ -119,7 +151,7 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
         k: Vk<N>,
         lane_off: impl Fn(usize) -> usize,
     ) {
-        if let Some(log) = self.log.as_deref_mut() {
+        if let Some(log) = self.log.get() {
             let first = log.lane_addrs.len() as u32;
             for i in (0..N).filter(|&i| k.get(i)) {
                 log.lane_addrs.push(buf.addr(lane_off(i)));
@@ -154,14 +186,14 @@ impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
     }
 }
 
-impl<FL: Flavour<N>, const N: usize> Native<FL, N> {
+impl<FL: Flavour<N>, const N: usize, L: LogKind> Native<FL, N, L> {
     /// Log a compress-store of `n` lanes at `off`: one compressing store, or
     /// (no compress instruction) the permutation's LUT load and a full store.
     #[inline(always)]
     fn log_compress(&mut self, k: Vk<N>, buf: &Buf, off: usize, n: usize) {
         if FL::COMPRESS {
             self.log_mem(OpClass::VCompress, buf, off, 4 * n);
-        } else if let Some(log) = self.log.as_deref_mut() {
+        } else if let Some(log) = self.log.get() {
             let lut = &self.space.regions()[0];
             let entry = Addr(lut.base.0 + (4 * N * k.bits() as usize) as u64);
             log_at(log, OpClass::VLoad, entry, lut.id, 4 * N);
@@ -275,7 +307,7 @@ pub(crate) fn idx_arr<const N: usize>(idx: &[u8], limit: usize) -> [u8; N] {
     r
 }
 
-impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
+impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     const LANES: usize = N;
     const FLAVOUR: FlavourId = FL::ID;
     type F = Vf<N>;
@@ -730,7 +762,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Native<FL, N> {
     #[inline(always)]
     fn branch(&mut self, site: Site, c: NS) -> bool {
         let taken = c.0 != 0;
-        if let Some(log) = self.log.as_deref_mut() {
+        if let Some(log) = self.log.get() {
             let mut op = Op::new(OpClass::Branch, Region::Other);
             op.aux = site.0;
             if taken {

@@ -2,7 +2,7 @@
 
 use crate::flavour::FlavourId;
 use crate::machine::Machine;
-use crate::native::Native;
+use crate::native::{Native, WarmLog};
 use crate::trace::Trace;
 use crate::traced::Traced;
 use crate::{Avx2, Avx512, Lrb16, Sse4, Wide32};
@@ -125,7 +125,7 @@ pub fn run_units<P: UnitProgram, E>(
         let _ = traced.take();
         // The warming machine: the same address space and laid-out buffers
         // (their bytes shared), made when the first warmed unit comes.
-        let mut native: Option<(Native<FL, N>, P::Laid)> = None;
+        let mut native: Option<(Native<FL, N, WarmLog>, P::Laid)> = None;
         for (u, d) in units {
             let (t, out) = match d {
                 Detail::Timed => run_unit(p, &mut traced, &laid, &u, Traced::take),
@@ -167,14 +167,17 @@ fn run_unit<P: UnitProgram, M: Machine, R>(
 /// The warming machine: the traced one's address space and laid-out
 /// buffers (their bytes shared), made when the first warmed unit comes.
 fn warming<'a, FL: crate::Flavour<N>, const N: usize, L: Clone>(
-    native: &'a mut Option<(Native<FL, N>, L)>,
+    native: &'a mut Option<(Native<FL, N, WarmLog>, L)>,
     traced: &mut Traced<FL, N>,
     laid: &L,
     source: &str,
-) -> &'a mut (Native<FL, N>, L) {
+) -> &'a mut (Native<FL, N, WarmLog>, L) {
     native.get_or_insert_with(|| {
         let space = traced.space().clone();
-        (Native::<FL, N>::logging_in(space, source), laid.clone())
+        (
+            Native::<FL, N, WarmLog>::logging_in(space, source),
+            laid.clone(),
+        )
     })
 }
 
@@ -247,7 +250,7 @@ fn steps_on<P: StepProgram, FL: crate::Flavour<N> + Send + Sync, const N: usize,
     let mut traced = Traced::<FL, N>::new(source);
     let laid = p.lay_out(&mut traced);
     let _ = traced.take();
-    let mut native: Option<(Native<FL, N>, P::Laid)> = None;
+    let mut native: Option<(Native<FL, N, WarmLog>, P::Laid)> = None;
     let mut recorders: Vec<Traced<FL, N>> = Vec::new();
     for step in steps {
         if step.detail == Detail::Warmed {

@@ -62,15 +62,32 @@ impl Default for AddrSpace {
     }
 }
 
-/// Words as little-endian bytes, written into one allocation of the right
-/// size (collecting a `flat_map` grows the vector step by step: slow for the
-/// scenes' hundreds of megabytes).
-fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> Vec<u8> {
-    let mut bytes = Vec::with_capacity(4 * n);
-    for w in words {
-        bytes.extend_from_slice(&w);
+/// `n` words as little-endian bytes, written straight into a buffer's
+/// padded storage ([`storage`]; collecting a `flat_map` grows a vector step
+/// by step: slow for the scenes' hundreds of megabytes), and their length.
+fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> (Vec<u8>, usize) {
+    let mut bytes = storage(4 * n);
+    for (c, w) in bytes.chunks_exact_mut(4).zip(words) {
+        c.copy_from_slice(&w);
     }
-    bytes
+    (bytes, 4 * n)
+}
+
+/// Bytes every buffer holds past its power-of-two span: the widest single
+/// access (32 lanes of 4 bytes), so an offset wrapped into the span plus
+/// its access stays inside the allocation ([`Buf::hot_off`]).
+pub const PAD: usize = 128;
+
+/// The power-of-two span of a buffer of `len` bytes.
+fn span(len: usize) -> usize {
+    len.next_power_of_two()
+}
+
+/// Zeroed storage for a buffer of `len` bytes: its span and [`PAD`] more.
+/// (`vec![0; n]` asks the allocator for zeroed memory: pages past the
+/// bytes a buffer writes are never touched.)
+fn storage(len: usize) -> Vec<u8> {
+    vec![0u8; span(len) + PAD]
 }
 
 impl AddrSpace {
@@ -151,25 +168,39 @@ impl AddrSpace {
     /// Register a zero-filled region of `size` bytes at `align` (power of two).
     pub fn alloc(&mut self, kind: MemKind, name: &str, size: usize, align: usize) -> Buf {
         let r = self.place(kind, name, size as u64, align as u64);
-        Buf::new(vec![0u8; size], r.base, r.id)
+        Buf::new(storage(size), size, r.base, r.id)
     }
 
     /// Register a region holding `bytes`.
     pub fn alloc_bytes(&mut self, kind: MemKind, name: &str, bytes: Vec<u8>, align: usize) -> Buf {
-        let r = self.place(kind, name, bytes.len() as u64, align as u64);
-        Buf::new(bytes, r.base, r.id)
+        let len = bytes.len();
+        let mut padded = storage(len);
+        padded[..len].copy_from_slice(&bytes);
+        self.alloc_padded(kind, name, (padded, len), align)
+    }
+
+    /// Register a region of `len` bytes held in `storage(len)`.
+    fn alloc_padded(
+        &mut self,
+        kind: MemKind,
+        name: &str,
+        (bytes, len): (Vec<u8>, usize),
+        align: usize,
+    ) -> Buf {
+        let r = self.place(kind, name, len as u64, align as u64);
+        Buf::new(bytes, len, r.base, r.id)
     }
 
     /// Register a region holding these f32 values (little-endian).
     pub fn alloc_f32(&mut self, kind: MemKind, name: &str, v: &[f32], align: usize) -> Buf {
         let bytes = le_bytes(v.iter().map(|x| x.to_le_bytes()), v.len());
-        self.alloc_bytes(kind, name, bytes, align)
+        self.alloc_padded(kind, name, bytes, align)
     }
 
     /// Register a region holding these u32 values (little-endian).
     pub fn alloc_u32(&mut self, kind: MemKind, name: &str, v: &[u32], align: usize) -> Buf {
         let bytes = le_bytes(v.iter().map(|x| x.to_le_bytes()), v.len());
-        self.alloc_bytes(kind, name, bytes, align)
+        self.alloc_padded(kind, name, bytes, align)
     }
 
     /// A buffer over the ISA lookup-table region (id 0). Its contents are not
@@ -177,7 +208,8 @@ impl AddrSpace {
     #[must_use]
     pub fn lut(&self) -> Buf {
         let r = &self.regions[0];
-        Buf::new(vec![0u8; r.size as usize], r.base, r.id)
+        let len = r.size as usize;
+        Buf::new(storage(len), len, r.base, r.id)
     }
 
     /// Every region, by id.
@@ -213,7 +245,11 @@ pub struct Buf {
     /// `Vec` is never resized, so these stay valid while `data` lives;
     /// a copy on write moves them to the copy.
     ptr: NonNull<u8>,
+    /// The region's size: `data` holds its span and [`PAD`] bytes more.
     len: usize,
+    /// The span less one: a kernel's offset ANDed with it stays in `data`
+    /// ([`Buf::hot_off`]).
+    wrap: usize,
     base: Addr,
     id: MemId,
 }
@@ -233,6 +269,7 @@ impl Clone for Buf {
             owned: AtomicBool::new(false),
             ptr: self.ptr,
             len: self.len,
+            wrap: self.wrap,
             base: self.base,
             id: self.id,
         }
@@ -240,26 +277,27 @@ impl Clone for Buf {
 }
 
 impl Buf {
-    /// A buffer owning `bytes`.
-    fn new(bytes: Vec<u8>, base: Addr, id: MemId) -> Buf {
+    /// A buffer of `len` bytes owning `bytes` ([`storage`]`(len)`).
+    fn new(bytes: Vec<u8>, len: usize, base: Addr, id: MemId) -> Buf {
+        assert_eq!(bytes.len(), span(len) + PAD, "padded storage");
         let mut data = Arc::new(bytes);
-        let (ptr, len) = Self::view(&mut data);
         Buf {
+            ptr: Self::view(&mut data),
             data,
             owned: AtomicBool::new(true),
-            ptr,
             len,
+            wrap: span(len) - 1,
             base,
             id,
         }
     }
 
-    /// Where `data`'s bytes are, and how many.
-    fn view(data: &mut Arc<Vec<u8>>) -> (NonNull<u8>, usize) {
+    /// Where `data`'s bytes are.
+    fn view(data: &mut Arc<Vec<u8>>) -> NonNull<u8> {
         let v = Arc::as_ptr(data);
         // SAFETY: `v` points at the live Vec inside the Arc; its buffer
-        // pointer is non-null (dangling but non-null when empty).
-        unsafe { (NonNull::new_unchecked((*v).as_ptr().cast_mut()), (*v).len()) }
+        // pointer is non-null (the storage is never empty).
+        unsafe { NonNull::new_unchecked((*v).as_ptr().cast_mut()) }
     }
 
     /// Simulated address of byte `off`.
@@ -282,16 +320,17 @@ impl Buf {
     /// Whether empty.
     #[must_use]
     pub fn is_empty(&self) -> bool {
-        self.data.is_empty()
+        self.len == 0
     }
     /// All bytes.
     #[must_use]
     pub fn bytes(&self) -> &[u8] {
-        &self.data
+        &self.data[..self.len]
     }
     /// All bytes, writable.
     pub fn bytes_mut(&mut self) -> &mut [u8] {
-        self.data_mut().as_mut_slice()
+        let len = self.len;
+        &mut self.data_mut()[..len]
     }
 
     /// The bytes, writable: copied first if another `Buf` shares them.
@@ -320,7 +359,7 @@ impl Buf {
     #[inline(never)]
     fn take_ownership(&mut self) {
         Arc::make_mut(&mut self.data);
-        (self.ptr, self.len) = Self::view(&mut self.data);
+        self.ptr = Self::view(&mut self.data);
         *self.owned.get_mut() = true;
     }
 
@@ -429,6 +468,124 @@ impl Buf {
             );
         }
     }
+    /// The offset a kernel's access of `n` bytes (at most [`PAD`]) at `off`
+    /// uses on the native backend's hot path: checked in debug builds (an
+    /// access outside the region panics naming it, as every other access
+    /// does); in release builds wrapped into the buffer's span (one AND, the
+    /// bounds check hoisted to the buffer's allocation). Memory-safe either
+    /// way: a wrong offset in a release build reads or writes other bytes of
+    /// this buffer, never another's, and the run's hit check reports it.
+    #[inline(always)]
+    #[must_use]
+    pub fn hot_off(&self, off: usize, n: usize) -> usize {
+        debug_assert!(n <= PAD, "a hot access of {n} bytes");
+        if cfg!(debug_assertions) {
+            self.check(off, n);
+            off
+        } else {
+            off & self.wrap
+        }
+    }
+
+    /// `B` bytes at `off` by [`Buf::hot_off`].
+    #[inline(always)]
+    fn hot_read<const B: usize>(&self, off: usize) -> [u8; B] {
+        let off = self.hot_off(off, B);
+        let mut r = [0u8; B];
+        // SAFETY: `hot_off` keeps `off + B` within the span and PAD bytes
+        // of storage `ptr` points at (B <= PAD, checked at compile time
+        // by the callers' fixed sizes and in debug builds).
+        unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
+        r
+    }
+
+    /// Write `B` bytes at `off` by [`Buf::hot_off`].
+    #[inline(always)]
+    fn hot_write<const B: usize>(&mut self, off: usize, b: [u8; B]) {
+        let off = self.hot_off(off, B);
+        self.own();
+        // SAFETY: as `hot_read`; the bytes are this `Buf`'s alone.
+        unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), self.ptr.as_ptr().add(off), B) };
+    }
+
+    /// [`Buf::f32_at`] by [`Buf::hot_off`].
+    #[inline(always)]
+    #[must_use]
+    pub fn hot_f32(&self, off: usize) -> f32 {
+        f32::from_le_bytes(self.hot_read::<4>(off))
+    }
+
+    /// [`Buf::set_f32`] by [`Buf::hot_off`].
+    #[inline(always)]
+    pub fn hot_set_f32(&mut self, off: usize, v: f32) {
+        self.hot_write(off, v.to_le_bytes());
+    }
+
+    /// [`Buf::f32s`] by [`Buf::hot_off`]: one load of `4 * N` bytes.
+    #[inline(always)]
+    #[must_use]
+    pub fn hot_f32s<const N: usize>(&self, off: usize) -> [f32; N] {
+        const { assert!(4 * N <= PAD) };
+        let off = self.hot_off(off, 4 * N);
+        let mut r = [0f32; N];
+        // SAFETY: as `hot_read` (4 * N <= PAD); unaligned read of plain bytes.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                self.ptr.as_ptr().add(off),
+                r.as_mut_ptr() as *mut u8,
+                4 * N,
+            );
+        }
+        #[cfg(target_endian = "big")]
+        for x in &mut r {
+            *x = f32::from_bits(x.to_bits().swap_bytes());
+        }
+        r
+    }
+
+    /// [`Buf::set_f32s`] by [`Buf::hot_off`]: one store of `4 * N` bytes.
+    #[inline(always)]
+    pub fn hot_set_f32s<const N: usize>(&mut self, off: usize, v: &[f32; N]) {
+        const { assert!(4 * N <= PAD) };
+        let off = self.hot_off(off, 4 * N);
+        #[cfg(target_endian = "big")]
+        let v = &v.map(|x| f32::from_bits(x.to_bits().swap_bytes()));
+        self.own();
+        // SAFETY: as `hot_read`; the bytes are this `Buf`'s alone.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                v.as_ptr() as *const u8,
+                self.ptr.as_ptr().add(off),
+                4 * N,
+            );
+        }
+    }
+
+    /// [`Buf::uint_at`] by [`Buf::hot_off`].
+    #[inline(always)]
+    #[must_use]
+    pub fn hot_uint(&self, off: usize, width: usize) -> u64 {
+        match width {
+            1 => u64::from(self.hot_read::<1>(off)[0]),
+            2 => u64::from(u16::from_le_bytes(self.hot_read::<2>(off))),
+            4 => u64::from(u32::from_le_bytes(self.hot_read::<4>(off))),
+            8 => u64::from_le_bytes(self.hot_read::<8>(off)),
+            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
+        }
+    }
+
+    /// [`Buf::set_uint`] by [`Buf::hot_off`].
+    #[inline(always)]
+    pub fn hot_set_uint(&mut self, off: usize, width: usize, v: u64) {
+        match width {
+            1 => self.hot_write(off, [v as u8]),
+            2 => self.hot_write(off, (v as u16).to_le_bytes()),
+            4 => self.hot_write(off, (v as u32).to_le_bytes()),
+            8 => self.hot_write(off, v.to_le_bytes()),
+            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
+        }
+    }
+
     /// Read an unsigned little-endian integer of `width` bytes (1, 2, 4 or 8).
     #[inline(always)]
     #[must_use]
@@ -559,5 +716,38 @@ mod tests {
         let mut s = AddrSpace::new();
         let b = s.alloc(MemKind::Other, "b", 16, 64);
         let _ = b.f32s::<8>(0);
+    }
+
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "outside region")]
+    fn hot_access_out_of_bounds_is_caught_in_debug_builds() {
+        let mut s = AddrSpace::new();
+        let b = s.alloc(MemKind::Other, "b", 40, 64);
+        assert_eq!(b.hot_f32s::<8>(8), [0.0; 8]);
+        let _ = b.hot_f32s::<8>(12);
+    }
+
+    #[test]
+    #[cfg(not(debug_assertions))]
+    fn hot_access_out_of_bounds_wraps_within_the_buffer_in_release_builds() {
+        let mut s = AddrSpace::new();
+        let mut b = s.alloc(MemKind::Other, "b", 40, 64);
+        b.set_u32(4, 7);
+        // Span 64: offset 68 wraps to 4.
+        assert_eq!(b.hot_uint(68, 4), 7);
+        assert_eq!(b.hot_f32s::<8>(64 + 4)[0], f32::from_bits(7));
+    }
+
+    #[test]
+    fn storage_is_padded_past_a_power_of_two_span() {
+        let mut s = AddrSpace::new();
+        for len in [0, 1, 40, 64, 65, 4096] {
+            let b = s.alloc(MemKind::Other, "b", len, 64);
+            assert_eq!(b.len(), len);
+            assert_eq!(b.bytes().len(), len);
+            assert_eq!(b.data.len(), len.next_power_of_two() + PAD);
+            assert!(b.wrap + 1 >= len && (b.wrap + 1).is_power_of_two());
+        }
     }
 }

@@ -228,9 +228,22 @@ fn negative_address(off: i64) -> ! {
     panic!("negative effective address {off}")
 }
 
+/// A native access's byte offset: [`ea_off`] in debug builds; in release
+/// builds the sum as it wraps (a negative offset then wraps too, and the
+/// buffer's [`Buf::hot_off`] keeps it inside the buffer).
 #[inline(always)]
 fn ea(at: At<NS>) -> usize {
-    ea_off(at.index.map(|s| s.0), at.scale, at.disp)
+    hot_ea(at.index.map(|s| s.0), at.scale, at.disp)
+}
+
+/// [`ea`] of a lane's index.
+#[inline(always)]
+fn hot_ea(index: Option<i64>, scale: u8, disp: usize) -> usize {
+    if cfg!(debug_assertions) {
+        return ea_off(index, scale, disp);
+    }
+    let i = index.map_or(0, |i| i.wrapping_mul(i64::from(scale)));
+    (i as usize).wrapping_add(disp)
 }
 
 /// Lanes stored by a compress: active lanes in order, then the inactive ones.
@@ -257,13 +270,24 @@ pub(crate) fn compress_lanes<const N: usize>(k: Vk<N>, v: Vf<N>) -> (Vf<N>, usiz
 /// Load an integer of `width` bytes, zero- or sign-extended.
 #[inline(always)]
 pub(crate) fn load_int(buf: &Buf, off: usize, width: u8, signed: bool) -> i64 {
-    let u = buf.uint_at(off, width as usize);
+    extend(buf.uint_at(off, width as usize), width, signed)
+}
+
+/// An integer of `width` bytes, zero- or sign-extended.
+#[inline(always)]
+fn extend(u: u64, width: u8, signed: bool) -> i64 {
     if signed && width < 8 {
         let sh = 64 - 8 * u32::from(width);
         ((u << sh) as i64) >> sh
     } else {
         u as i64
     }
+}
+
+/// `first` repeated across `N` lanes.
+#[inline(always)]
+fn repeat<const K: usize, const N: usize>(first: [f32; K]) -> Vf<N> {
+    Vf(std::array::from_fn(|i| first[i & (K - 1)]))
 }
 
 /// Horizontal reduction op.
@@ -548,19 +572,19 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
             buf.addr(off)
         );
         self.log_mem(OpClass::VLoad, buf, off, 4 * N);
-        Vf(buf.f32s::<N>(off))
+        Vf(buf.hot_f32s::<N>(off))
     }
     #[inline(always)]
     fn loadu(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
         let off = ea(at);
         self.log_mem(OpClass::VLoad, buf, off, 4 * N);
-        Vf(buf.f32s::<N>(off))
+        Vf(buf.hot_f32s::<N>(off))
     }
     #[inline(always)]
     fn load_bcast(&mut self, buf: &Buf, at: At<NS>) -> Vf<N> {
         let off = ea(at);
         self.log_mem(OpClass::VLoadBcast, buf, off, 4);
-        Vf([buf.f32_at(off); N])
+        Vf([buf.hot_f32(off); N])
     }
     #[inline(always)]
     fn load_repeat(&mut self, buf: &Buf, at: At<NS>, n: usize) -> Vf<N> {
@@ -568,19 +592,17 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         let off = ea(at);
         self.log_mem(OpClass::VLoad, buf, off, 4 * n);
         if n == N {
-            return Vf(buf.f32s::<N>(off));
+            return Vf(buf.hot_f32s::<N>(off));
         }
-        if n == 1 {
-            return Vf([buf.f32_at(off); N]);
+        // Each lane from the first n, read at once (n divides N, a power
+        // of two: lane i is lane i mod n = i & (n - 1) of the read).
+        match n {
+            1 => Vf([buf.hot_f32(off); N]),
+            2 => repeat::<2, N>(buf.hot_f32s::<2>(off)),
+            4 => repeat::<4, N>(buf.hot_f32s::<4>(off)),
+            8 => repeat::<8, N>(buf.hot_f32s::<8>(off)),
+            _ => repeat::<16, N>(buf.hot_f32s::<16>(off)),
         }
-        // Each lane from the first n (not from the lane n before it: a
-        // chain of dependent copies through memory).
-        // (n divides N, a power of two: i mod n is i & (n - 1).)
-        let mut first = [0f32; N];
-        for (i, x) in first.iter_mut().take(n).enumerate() {
-            *x = buf.f32_at(off + 4 * i);
-        }
-        Vf(std::array::from_fn(|i| first[i & (n - 1)]))
     }
     #[inline(always)]
     fn load_masked(&mut self, k: Vk<N>, src: Vf<N>, buf: &Buf, at: At<NS>) -> Vf<N> {
@@ -589,7 +611,7 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         let mut r = src.0;
         for (i, x) in r.iter_mut().enumerate() {
             if k.get(i) {
-                *x = buf.f32_at(off + 4 * i);
+                *x = buf.hot_f32(off + 4 * i);
             }
         }
         Vf(r)
@@ -603,13 +625,13 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
             buf.addr(off)
         );
         self.log_mem(OpClass::VStore, buf, off, 4 * N);
-        buf.set_f32s(off, &v.0);
+        buf.hot_set_f32s(off, &v.0);
     }
     #[inline(always)]
     fn storeu(&mut self, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
         let off = ea(at);
         self.log_mem(OpClass::VStore, buf, off, 4 * N);
-        buf.set_f32s(off, &v.0);
+        buf.hot_set_f32s(off, &v.0);
     }
     #[inline(always)]
     fn store_masked(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, v: Vf<N>) {
@@ -621,7 +643,7 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         }
         for i in 0..N {
             if k.get(i) {
-                buf.set_f32(off + 4 * i, v.0[i]);
+                buf.hot_set_f32(off + 4 * i, v.0[i]);
             }
         }
     }
@@ -636,7 +658,7 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         scale: u8,
     ) -> Vf<N> {
         let off = ea(at);
-        let lane = |i: usize| ea_off(Some(i64::from(idx.0[i])), scale, off);
+        let lane = |i: usize| hot_ea(Some(i64::from(idx.0[i])), scale, off);
         if FL::GATHER {
             self.log_lanes(OpClass::VGather, buf, k, lane);
         } else {
@@ -645,7 +667,7 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         let mut r = src.0;
         for (i, x) in r.iter_mut().enumerate() {
             if k.get(i) {
-                *x = buf.f32_at(ea_off(Some(i64::from(idx.0[i])), scale, off));
+                *x = buf.hot_f32(hot_ea(Some(i64::from(idx.0[i])), scale, off));
             }
         }
         Vf(r)
@@ -653,7 +675,7 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     #[inline(always)]
     fn scatter(&mut self, k: Vk<N>, buf: &mut Buf, at: At<NS>, idx: Vi<N>, scale: u8, v: Vf<N>) {
         let off = ea(at);
-        let lane = |i: usize| ea_off(Some(i64::from(idx.0[i])), scale, off);
+        let lane = |i: usize| hot_ea(Some(i64::from(idx.0[i])), scale, off);
         if FL::SCATTER {
             self.log_lanes(OpClass::VScatter, buf, k, lane);
         } else {
@@ -661,8 +683,8 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         }
         for i in 0..N {
             if k.get(i) {
-                let o = ea_off(Some(i64::from(idx.0[i])), scale, off);
-                buf.set_f32(o, v.0[i]);
+                let o = hot_ea(Some(i64::from(idx.0[i])), scale, off);
+                buf.hot_set_f32(o, v.0[i]);
             }
         }
     }
@@ -673,10 +695,10 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
         self.log_compress(k, buf, off, n);
         if FL::COMPRESS {
             for i in 0..n {
-                buf.set_f32(off + 4 * i, packed.0[i]);
+                buf.hot_set_f32(off + 4 * i, packed.0[i]);
             }
         } else {
-            buf.set_f32s(off, &packed.0);
+            buf.hot_set_f32s(off, &packed.0);
         }
         NS(n as i64)
     }
@@ -713,13 +735,13 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     fn s_load(&mut self, buf: &Buf, at: At<NS>, width: u8, signed: bool) -> NS {
         let off = ea(at);
         self.log_mem(OpClass::Load, buf, off, width as usize);
-        NS(load_int(buf, off, width, signed))
+        NS(extend(buf.hot_uint(off, width as usize), width, signed))
     }
     #[inline(always)]
     fn s_store(&mut self, buf: &mut Buf, at: At<NS>, width: u8, v: NS) {
         let off = ea(at);
         self.log_mem(OpClass::Store, buf, off, width as usize);
-        buf.set_uint(off, width as usize, v.0 as u64);
+        buf.hot_set_uint(off, width as usize, v.0 as u64);
     }
 
     #[inline(always)]
@@ -742,13 +764,13 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     fn x_load(&mut self, buf: &Buf, at: At<NS>) -> NX {
         let off = ea(at);
         self.log_mem(OpClass::Load, buf, off, 4);
-        NX(buf.f32_at(off))
+        NX(buf.hot_f32(off))
     }
     #[inline(always)]
     fn x_store(&mut self, buf: &mut Buf, at: At<NS>, v: NX) {
         let off = ea(at);
         self.log_mem(OpClass::Store, buf, off, 4);
-        buf.set_f32(off, v.0);
+        buf.hot_set_f32(off, v.0);
     }
     #[inline(always)]
     fn x_from_int(&mut self, a: NS) -> NX {

@@ -233,6 +233,14 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
 }
 
 fn main() -> ExitCode {
+    let missing = repro::host::missing_features();
+    if !missing.is_empty() {
+        eprintln!(
+            "rtsim: error: this binary was built for instruction sets this CPU lacks ({}): it was built on another machine; rebuild it here (`cargo clean`, then build)",
+            missing.join(", ")
+        );
+        return ExitCode::from(2);
+    }
     let matches = cli::with_registries(Cli::command(), &reports()).get_matches();
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     match dispatch(cli.cmd) {

@@ -1,7 +1,9 @@
 //! The native backend: the generic kernel code compiled to real SIMD where the
-//! host has it (lane arrays that LLVM vectorises; with `target-cpu=x86-64-v3`
-//! the 8-lane ops become AVX2 instructions). No recording, no allocation, no
-//! per-op branching. Results are bit-identical to the traced backend's.
+//! host has it (lane arrays that LLVM vectorises; with `target-cpu=native`
+//! on an AVX2 host the 8-lane ops become AVX2 instructions). No recording,
+//! no allocation, no per-op branching, and the bounds check of each access
+//! hoisted to the buffer ([`Buf::hot_off`]). Results are bit-identical to
+//! the traced backend's.
 //!
 //! A *logging* native machine ([`Native::logging`]) also keeps, for
 //! functional warming (SMARTS), the memory accesses and branches the traced

@@ -78,6 +78,13 @@ impl HostCpu {
         )
     }
 
+    /// [`HostCpu::describe`] and what this binary was built for
+    /// ([`built_for`]).
+    #[must_use]
+    pub fn describe_build(&self) -> String {
+        format!("{}, {}", self.describe(), built_for())
+    }
+
     /// The built-in machine config that models this CPU's core, and why;
     /// `None` when no config does (with what the CPU is).
     ///
@@ -104,6 +111,68 @@ impl HostCpu {
             ),
         )
     }
+}
+
+/// Per instruction set the native backend's code may use: its name,
+/// whether this binary was compiled to use it (`.cargo/config.toml`'s
+/// `target-cpu`), whether this host has it.
+macro_rules! feature_table {
+    ($($f:tt),*) => {
+        #[cfg(target_arch = "x86_64")]
+        fn feature_table() -> Vec<(&'static str, bool, bool)> {
+            vec![$(($f, cfg!(target_feature = $f), std::arch::is_x86_feature_detected!($f))),*]
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        fn feature_table() -> Vec<(&'static str, bool, bool)> {
+            Vec::new()
+        }
+    };
+}
+feature_table!(
+    "sse4.1", "sse4.2", "popcnt", "avx", "avx2", "fma", "bmi1", "bmi2", "lzcnt", "f16c", "avx512f",
+    "avx512bw", "avx512dq", "avx512vl", "avx512cd"
+);
+
+/// The instruction sets (of those the native backend's code may use) this
+/// binary was compiled to use.
+#[must_use]
+pub fn compiled_features() -> Vec<&'static str> {
+    feature_table()
+        .into_iter()
+        .filter(|f| f.1)
+        .map(|f| f.0)
+        .collect()
+}
+
+/// The widest vector instruction set this binary's code was compiled to
+/// use, for a report's input line (`built for AVX2+FMA`).
+#[must_use]
+pub fn built_for() -> String {
+    let has = |f: &str| compiled_features().contains(&f);
+    let isa = if has("avx512f") {
+        "AVX-512F"
+    } else if has("avx2") && has("fma") {
+        "AVX2+FMA"
+    } else if has("avx") {
+        "AVX"
+    } else if has("sse4.2") {
+        "SSE4.2"
+    } else {
+        "baseline x86-64 (SSE2)"
+    };
+    format!("built for {isa}")
+}
+
+/// Instruction sets this binary was compiled to use that this host lacks
+/// (a build from another machine): running its code would end in an
+/// illegal instruction.
+#[must_use]
+pub fn missing_features() -> Vec<&'static str> {
+    feature_table()
+        .into_iter()
+        .filter(|f| f.1 && !f.2)
+        .map(|f| f.0)
+        .collect()
 }
 
 #[cfg(test)]
@@ -135,5 +204,15 @@ mod tests {
         assert_eq!(intel.model_config().0, None);
         assert!(intel.model_config().1.contains("GenuineIntel"));
         assert_eq!(HostCpu::parse("").model_config().0, None);
+    }
+
+    #[test]
+    fn this_binary_runs_on_this_host() {
+        // The tests run on the machine that built them.
+        assert_eq!(missing_features(), Vec::<&str>::new());
+        #[cfg(target_feature = "avx2")]
+        assert!(compiled_features().contains(&"avx2"));
+        #[cfg(not(target_feature = "avx2"))]
+        assert!(!compiled_features().contains(&"avx2"));
     }
 }

@@ -247,7 +247,7 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
                 a.spp,
                 a.seed,
             ),
-            host.describe()
+            host.describe_build()
         )),
         ops_simulated: 0,
         host_seconds: start.elapsed().as_secs_f64(),

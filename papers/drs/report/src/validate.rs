@@ -318,7 +318,7 @@ pub fn validate_report(a: &ValidateArgs) -> AppResult<Report> {
             a.tile,
             a.spp,
             a.seed,
-            host.describe(),
+            host.describe_build(),
             m.name
         )),
         ops_simulated: 0,

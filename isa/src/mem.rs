@@ -62,32 +62,32 @@ impl Default for AddrSpace {
     }
 }
 
-/// `n` words as little-endian bytes, written straight into a buffer's
-/// padded storage ([`storage`]; collecting a `flat_map` grows a vector step
-/// by step: slow for the scenes' hundreds of megabytes), and their length.
+/// `n` words as little-endian bytes in a buffer's padded storage
+/// ([`padded`]), and their length (collecting a `flat_map` grows the vector
+/// step by step: slow for the scenes' hundreds of megabytes).
 fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> (Vec<u8>, usize) {
-    let mut bytes = storage(4 * n);
-    for (c, w) in bytes.chunks_exact_mut(4).zip(words) {
-        c.copy_from_slice(&w);
+    let mut bytes = Vec::with_capacity(4 * n + PAD);
+    for w in words {
+        bytes.extend_from_slice(&w);
     }
-    (bytes, 4 * n)
+    (padded(bytes), 4 * n)
 }
 
-/// Bytes every buffer holds past its power-of-two span: the widest single
-/// access (32 lanes of 4 bytes), so an offset wrapped into the span plus
-/// its access stays inside the allocation ([`Buf::hot_off`]).
+/// Bytes every buffer holds past its end: the widest single access (32
+/// lanes of 4 bytes), so an offset clamped to the end plus its access stays
+/// inside the allocation ([`Buf::hot_off`]).
 pub const PAD: usize = 128;
 
-/// The power-of-two span of a buffer of `len` bytes.
-fn span(len: usize) -> usize {
-    len.next_power_of_two()
+/// Zeroed storage for a buffer of `len` bytes and [`PAD`] more.
+fn storage(len: usize) -> Vec<u8> {
+    vec![0u8; len + PAD]
 }
 
-/// Zeroed storage for a buffer of `len` bytes: its span and [`PAD`] more.
-/// (`vec![0; n]` asks the allocator for zeroed memory: pages past the
-/// bytes a buffer writes are never touched.)
-fn storage(len: usize) -> Vec<u8> {
-    vec![0u8; span(len) + PAD]
+/// `bytes` as a buffer's storage: [`PAD`] zeros more (in place when the
+/// vector has room).
+fn padded(mut bytes: Vec<u8>) -> Vec<u8> {
+    bytes.resize(bytes.len() + PAD, 0);
+    bytes
 }
 
 impl AddrSpace {
@@ -174,9 +174,7 @@ impl AddrSpace {
     /// Register a region holding `bytes`.
     pub fn alloc_bytes(&mut self, kind: MemKind, name: &str, bytes: Vec<u8>, align: usize) -> Buf {
         let len = bytes.len();
-        let mut padded = storage(len);
-        padded[..len].copy_from_slice(&bytes);
-        self.alloc_padded(kind, name, (padded, len), align)
+        self.alloc_padded(kind, name, (padded(bytes), len), align)
     }
 
     /// Register a region of `len` bytes held in `storage(len)`.
@@ -245,11 +243,8 @@ pub struct Buf {
     /// `Vec` is never resized, so these stay valid while `data` lives;
     /// a copy on write moves them to the copy.
     ptr: NonNull<u8>,
-    /// The region's size: `data` holds its span and [`PAD`] bytes more.
+    /// The region's size: `data` holds [`PAD`] bytes more.
     len: usize,
-    /// The span less one: a kernel's offset ANDed with it stays in `data`
-    /// ([`Buf::hot_off`]).
-    wrap: usize,
     base: Addr,
     id: MemId,
 }
@@ -269,7 +264,6 @@ impl Clone for Buf {
             owned: AtomicBool::new(false),
             ptr: self.ptr,
             len: self.len,
-            wrap: self.wrap,
             base: self.base,
             id: self.id,
         }
@@ -279,14 +273,13 @@ impl Clone for Buf {
 impl Buf {
     /// A buffer of `len` bytes owning `bytes` ([`storage`]`(len)`).
     fn new(bytes: Vec<u8>, len: usize, base: Addr, id: MemId) -> Buf {
-        assert_eq!(bytes.len(), span(len) + PAD, "padded storage");
+        assert_eq!(bytes.len(), len + PAD, "padded storage");
         let mut data = Arc::new(bytes);
         Buf {
             ptr: Self::view(&mut data),
             data,
             owned: AtomicBool::new(true),
             len,
-            wrap: span(len) - 1,
             base,
             id,
         }
@@ -471,8 +464,9 @@ impl Buf {
     /// The offset a kernel's access of `n` bytes (at most [`PAD`]) at `off`
     /// uses on the native backend's hot path: checked in debug builds (an
     /// access outside the region panics naming it, as every other access
-    /// does); in release builds wrapped into the buffer's span (one AND, the
-    /// bounds check hoisted to the buffer's allocation). Memory-safe either
+    /// does); in release builds clamped to the buffer's end (a compare and a
+    /// conditional move, no branch: the bounds check hoisted to the buffer's
+    /// allocation, which holds [`PAD`] bytes past its end). Memory-safe either
     /// way: a wrong offset in a release build reads or writes other bytes of
     /// this buffer, never another's, and the run's hit check reports it.
     #[inline(always)]
@@ -483,7 +477,7 @@ impl Buf {
             self.check(off, n);
             off
         } else {
-            off & self.wrap
+            off.min(self.len)
         }
     }
 
@@ -492,8 +486,8 @@ impl Buf {
     fn hot_read<const B: usize>(&self, off: usize) -> [u8; B] {
         let off = self.hot_off(off, B);
         let mut r = [0u8; B];
-        // SAFETY: `hot_off` keeps `off + B` within the span and PAD bytes
-        // of storage `ptr` points at (B <= PAD, checked at compile time
+        // SAFETY: `hot_off` keeps `off + B` within the len + PAD bytes of
+        // storage `ptr` points at (B <= PAD, checked at compile time
         // by the callers' fixed sizes and in debug builds).
         unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
         r
@@ -730,24 +724,26 @@ mod tests {
 
     #[test]
     #[cfg(not(debug_assertions))]
-    fn hot_access_out_of_bounds_wraps_within_the_buffer_in_release_builds() {
+    fn hot_access_out_of_bounds_stays_within_the_buffer_in_release_builds() {
         let mut s = AddrSpace::new();
         let mut b = s.alloc(MemKind::Other, "b", 40, 64);
-        b.set_u32(4, 7);
-        // Span 64: offset 68 wraps to 4.
-        assert_eq!(b.hot_uint(68, 4), 7);
-        assert_eq!(b.hot_f32s::<8>(64 + 4)[0], f32::from_bits(7));
+        b.set_u32(36, 7);
+        // Clamped to the end: offset 400 reads the padding after byte 40.
+        assert_eq!(b.hot_uint(400, 4), 0);
+        assert_eq!(b.hot_f32s::<32>(1 << 40), [0.0; 32]);
+        assert_eq!(b.hot_uint(36, 4), 7);
     }
 
     #[test]
-    fn storage_is_padded_past_a_power_of_two_span() {
+    fn storage_is_padded_past_the_end() {
         let mut s = AddrSpace::new();
         for len in [0, 1, 40, 64, 65, 4096] {
             let b = s.alloc(MemKind::Other, "b", len, 64);
             assert_eq!(b.len(), len);
             assert_eq!(b.bytes().len(), len);
-            assert_eq!(b.data.len(), len.next_power_of_two() + PAD);
-            assert!(b.wrap + 1 >= len && (b.wrap + 1).is_power_of_two());
+            assert_eq!(b.data.len(), len + PAD);
+            let f = s.alloc_f32(MemKind::Other, "f", &vec![1.0; len], 64);
+            assert_eq!((f.len(), f.data.len()), (4 * len, 4 * len + PAD));
         }
     }
 }

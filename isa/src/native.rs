@@ -231,8 +231,8 @@ fn negative_address(off: i64) -> ! {
 }
 
 /// A native access's byte offset: [`ea_off`] in debug builds; in release
-/// builds the sum as it wraps (a negative offset then wraps too, and the
-/// buffer's [`Buf::hot_off`] keeps it inside the buffer).
+/// builds the sum as it wraps (a negative offset becomes a huge one, which
+/// the buffer's [`Buf::hot_off`] clamps to its end).
 #[inline(always)]
 fn ea(at: At<NS>) -> usize {
     hot_ea(at.index.map(|s| s.0), at.scale, at.disp)

@@ -198,27 +198,20 @@ fn core_node<M: Machine, const N: usize>(
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
-    // The listing's shuffle patterns, per 4-lane group (host side, once).
-    let org_axis: [[u8; N]; 3] = std::array::from_fn(|a| {
-        let a = a as u8;
-        groups::<N>([a, a, 4 + a, 4 + a])
-    });
-    let (near_far_ray, rhs_pat, lhs_pat) = (
-        groups::<N>([3, 3, 7, 7]),
-        groups::<N>([2, 3, 4, 4]),
-        groups::<N>([0, 1, 1, 1]),
-    );
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
     core_loop::<M, N>(
         m,
         st,
         trav,
-        at,
-        count,
+        (at, count),
         &mut cnt,
         sites,
         |m, dir_near, org_far| {
+            // The listing's shuffle patterns, named as constants here (not
+            // captured): each shuffle then compiles to one instruction natively.
+            let (org_axis, near_far_ray) = (&Groups::<N>::ORG_AXIS, &Groups::<N>::NEAR_FAR_RAY);
+            let (rhs_pat, lhs_pat) = (&Groups::<N>::RHS, &Groups::<N>::LHS);
             // Per axis a, each ray's 4 lanes: [near_l, near_r, -far_l, -far_r].
             let org_far_neg = m.logic(Logic::Xor, org_far, neg);
             let near_far: [M::F; 3] = std::array::from_fn(|a| {
@@ -227,14 +220,14 @@ fn core_node<M: Machine, const N: usize>(
                 let planes = m.blend_sign(d, bb[a], bb_neg[a]);
                 m.fmsub(planes, d, o)
             });
-            let ray = m.shuffle2(dir_near, org_far_neg, &near_far_ray);
+            let ray = m.shuffle2(dir_near, org_far_neg, near_far_ray);
             let m01 = m.max(ray, near_far[0]);
             let m23 = m.max(near_far[1], near_far[2]);
             let x = m.max(m01, m23);
             // Lanes 0, 1, 2: near_l <= far_l, near_r <= far_r, near_r <= near_l.
             let xn = m.logic(Logic::Xor, x, neg);
-            let rhs = m.shuffle2(xn, x, &rhs_pat);
-            let lhs = m.permute(x, &lhs_pat);
+            let rhs = m.shuffle2(xn, x, rhs_pat);
+            let lhs = m.permute(x, lhs_pat);
             let hit = m.cmp(Cmp::Le, lhs, rhs);
             let mask = m.movemask(hit);
             let shr = |m: &mut M, v: M::S, n: u32| m.s_shift(Shift::Shr, v, n);
@@ -281,11 +274,32 @@ fn core_node<M: Machine, const N: usize>(
     }
 }
 
+/// The listing's shuffle patterns, per 4-lane group of N lanes.
+struct Groups<const N: usize>;
+impl<const N: usize> Groups<N> {
+    /// Per axis a: each ray's `[org_a, org_a, -org_a, -org_a]` (times idir).
+    const ORG_AXIS: [[u8; N]; 3] = [
+        groups::<N>([0, 0, 4, 4]),
+        groups::<N>([1, 1, 5, 5]),
+        groups::<N>([2, 2, 6, 6]),
+    ];
+    /// Each ray's `[near, near, -far, -far]`.
+    const NEAR_FAR_RAY: [u8; N] = groups::<N>([3, 3, 7, 7]);
+    /// The hit test's right-hand sides.
+    const RHS: [u8; N] = groups::<N>([2, 3, 4, 4]);
+    /// The hit test's left-hand sides.
+    const LHS: [u8; N] = groups::<N>([0, 1, 1, 1]);
+}
+
 /// A 4-lane pattern repeated for each 4-lane group of N lanes: indices 0-3
 /// pick the group's lanes of the first source, 4-7 those of the second.
-fn groups<const N: usize>(p: [u8; 4]) -> [u8; N] {
-    std::array::from_fn(|l| {
+const fn groups<const N: usize>(p: [u8; 4]) -> [u8; N] {
+    let mut r = [0u8; N];
+    let mut l = 0;
+    while l < N {
         let (g, x) = (l / 4 * 4, p[l % 4] as usize);
-        (if x < 4 { g + x } else { N + g + x - 4 }) as u8
-    })
+        r[l] = (if x < 4 { g + x } else { N + g + x - 4 }) as u8;
+        l += 1;
+    }
+    r
 }

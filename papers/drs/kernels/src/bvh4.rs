@@ -346,18 +346,19 @@ fn core_node<M: Machine, const N: usize>(
         .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
         .collect();
     let mut cnt = starts.clone();
-    let sp4 = &Pat::<N>::SPLAT;
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
     core_loop::<M, N>(
         m,
         st,
         trav,
-        at,
-        count,
+        (at, count),
         &mut cnt,
         sites,
         |m, dir_near, org_far| {
+            // The patterns named as constants here (not captured): each
+            // permute then compiles to one shuffle natively.
+            let sp4 = &Pat::<N>::SPLAT;
             let mut tn = m.permute(dir_near, &sp4[3]);
             let mut tf = m.permute(org_far, &sp4[3]);
             for a in 0..3 {

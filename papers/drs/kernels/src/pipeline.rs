@@ -51,21 +51,59 @@ struct Deferred<M: Machine> {
 
 /// The core loop over an item: `count` ray indices at byte `at` of the
 /// lists; `test` takes an iteration's `dir_near`, `org_far` and returns one
-/// condition per list (ray q's at bit 4q); `cnt` are the lists' ends,
-/// advanced by the appends. `sites` are the loop's back edge and the
-/// padding check.
+/// condition per list (ray q's at bit 4q); `cnt` are the `L` lists' ends,
+/// advanced by the appends (a fixed-size array, so natively they stay in
+/// registers as the paper's list pointers do). `sites` are the loop's back
+/// edge and the padding check.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn core_loop<M: Machine, const N: usize>(
     m: &mut M,
     st: &mut StreamBufs,
     trav: &Buf,
+    (at, count): (M::S, M::S),
+    cnt: &mut [M::S],
+    sites: (Site, Site),
+    test: impl FnMut(&mut M, M::F, M::F) -> Conds<M>,
+) {
+    fn fixed<M: Machine, const N: usize, const L: usize>(
+        m: &mut M,
+        (st, trav): (&mut StreamBufs, &Buf),
+        (at, count): (M::S, M::S),
+        cnt: &mut [M::S],
+        sites: (Site, Site),
+        test: impl FnMut(&mut M, M::F, M::F) -> Conds<M>,
+    ) {
+        let mut c: [M::S; L] = std::array::from_fn(|k| cnt[k]);
+        core_loop_n::<M, N, L>(m, st, trav, at, count, &mut c, sites, test);
+        cnt.copy_from_slice(&c);
+    }
+    let bufs = (st, trav);
+    match cnt.len() {
+        2 => fixed::<M, N, 2>(m, bufs, (at, count), cnt, sites, test),
+        3 => fixed::<M, N, 3>(m, bufs, (at, count), cnt, sites, test),
+        4 => fixed::<M, N, 4>(m, bufs, (at, count), cnt, sites, test),
+        9 => fixed::<M, N, 9>(m, bufs, (at, count), cnt, sites, test),
+        n => panic!("{n} ray lists"),
+    }
+}
+
+/// [`core_loop`] over `L` lists.
+#[allow(clippy::too_many_arguments)]
+fn core_loop_n<M: Machine, const N: usize, const L: usize>(
+    m: &mut M,
+    st: &mut StreamBufs,
+    trav: &Buf,
     at: M::S,
     count: M::S,
-    cnt: &mut [M::S],
+    cnt: &mut [M::S; L],
     (back, pad): (Site, Site),
     mut test: impl FnMut(&mut M, M::F, M::F) -> Conds<M>,
 ) {
     let r = N / 4;
+    let list_bytes = st.cap * 2;
+    let out = cnt;
+    let mut cnt_reg = *out;
+    let cnt = &mut cnt_reg;
     let bytes = m.s_shift(Shift::Shl, count, 1);
     let end = m.s_add(at, bytes);
     let mut p = at;
@@ -78,35 +116,45 @@ pub(crate) fn core_loop<M: Machine, const N: usize>(
     let mut first = true;
     loop {
         // The previous iteration's last ray (nothing advances on the first).
-        append_ray(m, st, deferred.idx, &deferred.conds, cnt, !first);
+        append_ray(
+            m,
+            st,
+            list_bytes,
+            deferred.idx,
+            &deferred.conds,
+            cnt,
+            !first,
+        );
         first = false;
         let cur = next;
         p = m.s_addi(p, 2 * r as i64);
         next = fetch::<M, N>(m, &st.lists, trav, p);
         let conds = test(m, cur.dir_near, cur.org_far);
         for q in 0..r - 1 {
-            let c = shifted(m, &conds, q, cnt.len());
-            append_ray(m, st, cur.idx[q], &c, cnt, true);
+            let c = shifted(m, &conds, q, L);
+            append_ray(m, st, list_bytes, cur.idx[q], &c, cnt, true);
         }
         deferred = Deferred {
             idx: cur.idx[r - 1],
-            conds: shifted(m, &conds, r - 1, cnt.len()),
+            conds: shifted(m, &conds, r - 1, L),
         };
         if !m.branch_if(back, Cmp::Lt, p, end) {
             // The last ray, unless it is the padding copy of the one before.
             if r > 1 {
                 let dup = m.s_cmp(Cmp::Eq, cur.idx[r - 1], cur.idx[r - 2]);
                 if m.branch(pad, dup) {
-                    return;
+                    break;
                 }
             }
-            append_ray(m, st, deferred.idx, &deferred.conds, cnt, true);
-            return;
+            append_ray(m, st, list_bytes, deferred.idx, &deferred.conds, cnt, true);
+            break;
         }
     }
+    *out = cnt_reg;
 }
 
 /// The conditions of ray `q` at bit 0 (the first `n` lists).
+#[inline(always)]
 fn shifted<M: Machine>(m: &mut M, conds: &Conds<M>, q: usize, n: usize) -> Conds<M> {
     let mut c = *conds;
     if q > 0 {
@@ -119,6 +167,7 @@ fn shifted<M: Machine>(m: &mut M, conds: &Conds<M>, q: usize, n: usize) -> Conds
 
 /// The LANES/4 ray indices at byte `p` of `lists` and their traversal
 /// records, as `[dir, tnear]` and `[org * idir, tfar]` per 4 lanes.
+#[inline(always)]
 fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S) -> Rays<M> {
     let r = N / 4;
     assert!(r <= MAX_RAYS, "{N} lanes: at most {} rays", MAX_RAYS);
@@ -160,6 +209,7 @@ fn fetch<M: Machine, const N: usize>(m: &mut M, lists: &Buf, trav: &Buf, p: M::S
 /// 16 bytes at `off` of each ray's record, ray q's in lanes 4q..4q+4 — a
 /// 128-bit load repeated across the lanes per ray, merged under a constant
 /// mask (AVX-512's merge-masked `vbroadcastf32x4`, here a load and a select).
+#[inline(always)]
 fn blocks<M: Machine>(m: &mut M, trav: &Buf, idx: &[M::S], off: usize) -> M::F {
     let ro = m.s_shift(Shift::Shl, idx[0], 5);
     let mut v = m.load_repeat(trav, At::idx(ro, 1, off), 4);
@@ -172,23 +222,26 @@ fn blocks<M: Machine>(m: &mut M, trav: &Buf, idx: &[M::S], off: usize) -> M::F {
     v
 }
 
-/// Append one ray index to every list (`cnt.len()` of them) with a scalar
-/// store, advancing list k by bit 0 of `conds[k]` (branch-free). `counted`: a real ray-node test
-/// (not the first iteration's empty append).
-fn append_ray<M: Machine>(
+/// Append one ray index to every list (`L` of them, `list_bytes` apart)
+/// with a scalar store, advancing list k by bit 0 of `conds[k]`
+/// (branch-free). `counted`: a real ray-node test (not the first
+/// iteration's empty append).
+#[inline(always)]
+fn append_ray<M: Machine, const L: usize>(
     m: &mut M,
     st: &mut StreamBufs,
+    list_bytes: usize,
     idx: M::S,
     conds: &[M::S],
-    cnt: &mut [M::S],
+    cnt: &mut [M::S; L],
     counted: bool,
 ) {
     if counted {
         st.tests.core_loop += 1;
     }
     let one = m.int(1);
-    for k in 0..cnt.len() {
-        m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * st.cap * 2), 2, idx);
+    for k in 0..L {
+        m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * list_bytes), 2, idx);
         let inc = m.s_and(conds[k], one);
         cnt[k] = m.s_add(cnt[k], inc);
     }

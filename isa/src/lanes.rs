@@ -467,11 +467,12 @@ impl<const N: usize> Vk<N> {
     #[inline(always)]
     #[must_use]
     pub fn select(self, t: Vf<N>, f: Vf<N>) -> Vf<N> {
-        let mut r = f.0;
+        // Branch-free on the lane's sign (all ones when active), the form
+        // LLVM vectorises into one blend.
+        let mut r = [0f32; N];
         for i in 0..N {
-            if self.0[i] < 0 {
-                r[i] = t.0[i];
-            }
+            let k = (self.0[i] >> 31) as u32;
+            r[i] = f32::from_bits((t.0[i].to_bits() & k) | (f.0[i].to_bits() & !k));
         }
         Vf(r)
     }
@@ -479,11 +480,10 @@ impl<const N: usize> Vk<N> {
     #[inline(always)]
     #[must_use]
     pub fn select_i(self, t: Vi<N>, f: Vi<N>) -> Vi<N> {
-        let mut r = f.0;
+        let mut r = [0i32; N];
         for i in 0..N {
-            if self.0[i] < 0 {
-                r[i] = t.0[i];
-            }
+            let k = self.0[i] >> 31;
+            r[i] = (t.0[i] & k) | (f.0[i] & !k);
         }
         Vi(r)
     }

@@ -376,7 +376,9 @@ pub struct RayState<M: Machine> {
 }
 
 impl<M: Machine> RayState<M> {
-    /// Load ray `ray`'s records and its hit record.
+    /// Load ray `ray`'s records and its hit record (inlined: built in
+    /// place natively, not copied out).
+    #[inline(always)]
     fn load(m: &mut M, trav: &Buf, isect: &Buf, hits: &Buf, ray: M::S) -> Self {
         m.region(Region::SingleRay);
         let ro = m.s_shift(isa::Shift::Shl, ray, 5);
@@ -554,6 +556,7 @@ impl<M: Machine> RayState<M> {
     }
 
     /// Write the hit record and the new t_far.
+    #[inline(always)]
     fn write(self, m: &mut M, trav: &mut Buf, hits: &mut Buf) {
         let (ro, ho) = (self.ro, self.ho);
         m.x_store(hits, At::idx(ho, 1, 0), self.tfar_x);
@@ -578,26 +581,50 @@ pub struct Block<M: Machine> {
 
 /// Load pass `p` of `width` triangles (4 or 8, at most the lanes there
 /// are) of the block at byte `bb` of `tris`, repeated across wider vectors.
+#[inline]
 pub fn load_block<M: Machine>(m: &mut M, tris: &Buf, bb: M::S, p: usize, width: usize) -> Block<M> {
     let n = M::LANES;
     assert!(
         width <= n.min(8) && 8 % width == 0,
         "{width} triangles per pass"
     );
-    let mut row = |r: usize| {
-        let at = At::idx(bb, 1, 32 * r + 4 * width * p);
-        if n > width {
-            m.load_repeat(tris, at, width)
-        } else {
-            m.load(tris, at)
-        }
-    };
-    let v0 = [row(0), row(1), row(2)];
-    let e1 = [row(3), row(4), row(5)];
-    let e2 = [row(6), row(7), row(8)];
-    let pf = row(9);
+    let pw = (p, width);
+    let v0 = [
+        block_row(m, tris, bb, pw, 0),
+        block_row(m, tris, bb, pw, 1),
+        block_row(m, tris, bb, pw, 2),
+    ];
+    let e1 = [
+        block_row(m, tris, bb, pw, 3),
+        block_row(m, tris, bb, pw, 4),
+        block_row(m, tris, bb, pw, 5),
+    ];
+    let e2 = [
+        block_row(m, tris, bb, pw, 6),
+        block_row(m, tris, bb, pw, 7),
+        block_row(m, tris, bb, pw, 8),
+    ];
+    let pf = block_row(m, tris, bb, pw, 9);
     let prim = m.bits_to_i(pf);
     Block { v0, e1, e2, prim }
+}
+
+/// Row `r` of pass `p` of a block ([`load_block`]); inlined, so natively
+/// the row is one load into a register.
+#[inline(always)]
+fn block_row<M: Machine>(
+    m: &mut M,
+    tris: &Buf,
+    bb: M::S,
+    (p, width): (usize, usize),
+    r: usize,
+) -> M::F {
+    let at = At::idx(bb, 1, 32 * r + 4 * width * p);
+    if M::LANES > width {
+        m.load_repeat(tris, at, width)
+    } else {
+        m.load(tris, at)
+    }
 }
 
 /// The closest hit in a block pass.

@@ -66,11 +66,13 @@ impl Default for AddrSpace {
 /// ([`padded`]), and their length (collecting a `flat_map` grows the vector
 /// step by step: slow for the scenes' hundreds of megabytes).
 fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> (Vec<u8>, usize) {
-    let mut bytes = Vec::with_capacity(4 * n + PAD);
-    for w in words {
-        bytes.extend_from_slice(&w);
+    // Zeroed first, then each word into its 4 bytes: a loop the compiler
+    // vectorises (pushing 4 bytes at a time checks the capacity per word).
+    let mut bytes = storage(4 * n);
+    for (c, w) in bytes.chunks_exact_mut(4).zip(words) {
+        c.copy_from_slice(&w);
     }
-    (padded(bytes), 4 * n)
+    (bytes, 4 * n)
 }
 
 /// Bytes every buffer holds past its end: the widest single access (32

@@ -270,11 +270,13 @@ fn walk4_with<M: Machine>(
 fn sign_bits<M: Machine>(m: &mut M, idir: &[M::F; 3]) -> [usize; 3] {
     let zero_v = m.splat(0.0);
     let one = m.int(1);
-    idir.map(|d| {
+    let mut neg = [0; 3];
+    for (n, &d) in neg.iter_mut().zip(idir) {
         let lt = m.cmp(Cmp::Lt, d, zero_v);
         let bits = m.movemask(lt);
-        m.s_and(bits, one).get() as usize
-    })
+        *n = m.s_and(bits, one).get() as usize;
+    }
+    neg
 }
 
 /// The next node after a BVH4 node test, as Embree 2.0's single-ray

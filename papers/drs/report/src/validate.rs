@@ -344,7 +344,7 @@ fn notes(a: &ValidateArgs, v: &Verdict) -> Vec<String> {
             verdict(err <= GOAL_ERROR)
         ),
         format!(
-            "the native backend runs each op as lane arrays the compiler vectorises, with bounds-checked buffer access, not the instructions the traced backend records (several host instructions per recorded instruction: benches/RESULTS.md): native times follow the model's instruction counts with tau {:.3}{}",
+            "the native backend runs each op as lane arrays the compiler vectorises (each access's offset clamped to its buffer), not the instructions the traced backend records (4-5 host instructions per recorded one: rt/benches/RESULTS.md): native times follow the model's instruction counts with tau {:.3}{}",
             v.tau_ins,
             if v.tau_ins > tau {
                 ", closer than the model's cycles: the native runs are bound by that backend's cost per op, so the gap is not yet the model's error of any one mechanism"

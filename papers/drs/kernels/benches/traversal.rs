@@ -5,9 +5,9 @@
 //! out once per kernel; each iteration allocates the ray records, traces, and
 //! releases the records.
 //!
-//! Run: `cargo bench -p kernels --bench traversal` (reads the project's `data/`;
+//! Run: `cargo bench -p drs-kernels --bench traversal` (reads the project's `data/`;
 //! `RTSIM_BENCH_SCENE` picks another stand-in than `crown`). Results, with the
-//! machine they ran on, are in `kernels/benches/RESULTS.md`.
+//! machine they ran on, are in `rt/benches/RESULTS.md`.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use drs_kernels::methods::{Kernel, Run};

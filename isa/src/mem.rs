@@ -365,15 +365,116 @@ impl Buf {
         }
     }
 
+    /// A kernel or host access's offset of `n` bytes by `how`.
+    #[inline(always)]
+    fn at(&self, off: usize, n: usize, how: Bounds) -> usize {
+        match how {
+            Bounds::Checked => {
+                self.check(off, n);
+                off
+            }
+            Bounds::Hot => self.hot_off(off, n),
+        }
+    }
+
+    /// `B` bytes at `off`, its offset by `how`.
+    #[inline(always)]
+    fn read_by<const B: usize>(&self, off: usize, how: Bounds) -> [u8; B] {
+        let off = self.at(off, B, how);
+        let mut r = [0u8; B];
+        // SAFETY: `at` keeps `off + B` within the storage `ptr` points at
+        // (inside the region when checked; within its PAD bytes past the
+        // end when clamped, B <= PAD then).
+        unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
+        r
+    }
+
+    /// Write `B` bytes at `off`, its offset by `how`.
+    #[inline(always)]
+    fn write_by<const B: usize>(&mut self, off: usize, b: [u8; B], how: Bounds) {
+        let off = self.at(off, B, how);
+        self.own();
+        // SAFETY: as `read_by`; the bytes are this `Buf`'s alone.
+        unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), self.ptr.as_ptr().add(off), B) };
+    }
+
+    /// `N` f32 lanes at `off` (one load), its offset by `how`.
+    #[inline(always)]
+    fn f32s_by<const N: usize>(&self, off: usize, how: Bounds) -> [f32; N] {
+        let off = self.at(off, 4 * N, how);
+        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
+        if N == 8 {
+            // SAFETY: as `read_by`; one unaligned 32-byte load.
+            unsafe {
+                use std::arch::x86_64::*;
+                let v = _mm256_loadu_ps(self.ptr.as_ptr().add(off) as *const f32);
+                return std::mem::transmute_copy::<__m256, [f32; N]>(&v);
+            }
+        }
+        let mut r = [0f32; N];
+        // SAFETY: as `read_by`; unaligned read of plain bytes.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                self.ptr.as_ptr().add(off),
+                r.as_mut_ptr() as *mut u8,
+                4 * N,
+            );
+        }
+        #[cfg(target_endian = "big")]
+        for x in &mut r {
+            *x = f32::from_bits(x.to_bits().swap_bytes());
+        }
+        r
+    }
+
+    /// Write `N` f32 lanes at `off` (one store), its offset by `how`.
+    #[inline(always)]
+    fn set_f32s_by<const N: usize>(&mut self, off: usize, v: &[f32; N], how: Bounds) {
+        let off = self.at(off, 4 * N, how);
+        #[cfg(target_endian = "big")]
+        let v = &v.map(|x| f32::from_bits(x.to_bits().swap_bytes()));
+        self.own();
+        // SAFETY: as `read_by`; unaligned write of plain bytes this `Buf`
+        // alone holds.
+        unsafe {
+            std::ptr::copy_nonoverlapping(
+                v.as_ptr() as *const u8,
+                self.ptr.as_ptr().add(off),
+                4 * N,
+            );
+        }
+    }
+
+    /// An unsigned little-endian integer of `width` bytes (1, 2, 4 or 8),
+    /// its offset by `how`.
+    #[inline(always)]
+    fn uint_by(&self, off: usize, width: usize, how: Bounds) -> u64 {
+        match width {
+            1 => u64::from(self.read_by::<1>(off, how)[0]),
+            2 => u64::from(u16::from_le_bytes(self.read_by(off, how))),
+            4 => u64::from(u32::from_le_bytes(self.read_by(off, how))),
+            8 => u64::from_le_bytes(self.read_by(off, how)),
+            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
+        }
+    }
+
+    /// Write the low `width` bytes of `v` little-endian, its offset by `how`.
+    #[inline(always)]
+    fn set_uint_by(&mut self, off: usize, width: usize, v: u64, how: Bounds) {
+        match width {
+            1 => self.write_by(off, [v as u8], how),
+            2 => self.write_by(off, (v as u16).to_le_bytes(), how),
+            4 => self.write_by(off, (v as u32).to_le_bytes(), how),
+            8 => self.write_by(off, v.to_le_bytes(), how),
+            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
+        }
+    }
+
     /// Read `N` bytes at `off`.
     #[inline(always)]
     #[must_use]
     pub fn read<const B: usize>(&self, off: usize) -> [u8; B] {
-        self.check(off, B);
-        let mut r = [0u8; B];
-        // SAFETY: bounds checked above.
-        unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
-        r
+        self.read_by(off, Bounds::Checked)
     }
     /// Write bytes at `off`.
     #[inline(always)]
@@ -392,7 +493,7 @@ impl Buf {
     /// Write an f32 at `off`.
     #[inline(always)]
     pub fn set_f32(&mut self, off: usize, v: f32) {
-        self.write(off, &v.to_le_bytes());
+        self.write_by(off, v.to_le_bytes(), Bounds::Checked);
     }
     /// Read a u32 at `off`.
     #[inline(always)]
@@ -403,7 +504,7 @@ impl Buf {
     /// Write a u32 at `off`.
     #[inline(always)]
     pub fn set_u32(&mut self, off: usize, v: u32) {
-        self.write(off, &v.to_le_bytes());
+        self.write_by(off, v.to_le_bytes(), Bounds::Checked);
     }
     /// Read a u16 at `off`.
     #[inline(always)]
@@ -414,55 +515,31 @@ impl Buf {
     /// Write a u16 at `off`.
     #[inline(always)]
     pub fn set_u16(&mut self, off: usize, v: u16) {
-        self.write(off, &v.to_le_bytes());
+        self.write_by(off, v.to_le_bytes(), Bounds::Checked);
     }
-
     /// Read `N` f32 lanes at `off`.
     #[inline(always)]
     #[must_use]
     pub fn f32s<const N: usize>(&self, off: usize) -> [f32; N] {
-        self.check(off, 4 * N);
-        #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
-        if N == 8 {
-            // SAFETY: bounds checked above; one unaligned 32-byte load.
-            unsafe {
-                use std::arch::x86_64::*;
-                let v = _mm256_loadu_ps(self.ptr.as_ptr().add(off) as *const f32);
-                return std::mem::transmute_copy::<__m256, [f32; N]>(&v);
-            }
-        }
-        let mut r = [0f32; N];
-        // SAFETY: bounds checked above; unaligned read of plain bytes.
-        unsafe {
-            std::ptr::copy_nonoverlapping(
-                self.ptr.as_ptr().add(off),
-                r.as_mut_ptr() as *mut u8,
-                4 * N,
-            );
-        }
-        #[cfg(target_endian = "big")]
-        for x in &mut r {
-            *x = f32::from_bits(x.to_bits().swap_bytes());
-        }
-        r
+        self.f32s_by(off, Bounds::Checked)
     }
     /// Write `N` f32 lanes at `off`.
     #[inline(always)]
     pub fn set_f32s<const N: usize>(&mut self, off: usize, v: &[f32; N]) {
-        self.check(off, 4 * N);
-        #[cfg(target_endian = "big")]
-        let v = &v.map(|x| f32::from_bits(x.to_bits().swap_bytes()));
-        self.own();
-        // SAFETY: bounds checked above; unaligned write of plain bytes this
-        // `Buf` alone holds.
-        unsafe {
-            std::ptr::copy_nonoverlapping(
-                v.as_ptr() as *const u8,
-                self.ptr.as_ptr().add(off),
-                4 * N,
-            );
-        }
+        self.set_f32s_by(off, v, Bounds::Checked);
     }
+    /// Read an unsigned little-endian integer of `width` bytes (1, 2, 4 or 8).
+    #[inline(always)]
+    #[must_use]
+    pub fn uint_at(&self, off: usize, width: usize) -> u64 {
+        self.uint_by(off, width, Bounds::Checked)
+    }
+    /// Write the low `width` bytes of `v` little-endian.
+    #[inline(always)]
+    pub fn set_uint(&mut self, off: usize, width: usize, v: u64) {
+        self.set_uint_by(off, width, v, Bounds::Checked);
+    }
+
     /// The offset a kernel's access of `n` bytes (at most [`PAD`]) at `off`
     /// uses on the native backend's hot path: checked in debug builds (an
     /// access outside the region panics naming it, as every other access
@@ -482,129 +559,50 @@ impl Buf {
             off.min(self.len)
         }
     }
-
-    /// `B` bytes at `off` by [`Buf::hot_off`].
-    #[inline(always)]
-    fn hot_read<const B: usize>(&self, off: usize) -> [u8; B] {
-        let off = self.hot_off(off, B);
-        let mut r = [0u8; B];
-        // SAFETY: `hot_off` keeps `off + B` within the len + PAD bytes of
-        // storage `ptr` points at (B <= PAD, checked at compile time
-        // by the callers' fixed sizes and in debug builds).
-        unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
-        r
-    }
-
-    /// Write `B` bytes at `off` by [`Buf::hot_off`].
-    #[inline(always)]
-    fn hot_write<const B: usize>(&mut self, off: usize, b: [u8; B]) {
-        let off = self.hot_off(off, B);
-        self.own();
-        // SAFETY: as `hot_read`; the bytes are this `Buf`'s alone.
-        unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), self.ptr.as_ptr().add(off), B) };
-    }
-
     /// [`Buf::f32_at`] by [`Buf::hot_off`].
     #[inline(always)]
     #[must_use]
     pub fn hot_f32(&self, off: usize) -> f32 {
-        f32::from_le_bytes(self.hot_read::<4>(off))
+        f32::from_le_bytes(self.read_by(off, Bounds::Hot))
     }
-
     /// [`Buf::set_f32`] by [`Buf::hot_off`].
     #[inline(always)]
     pub fn hot_set_f32(&mut self, off: usize, v: f32) {
-        self.hot_write(off, v.to_le_bytes());
+        self.write_by(off, v.to_le_bytes(), Bounds::Hot);
     }
-
-    /// [`Buf::f32s`] by [`Buf::hot_off`]: one load of `4 * N` bytes.
+    /// [`Buf::f32s`] by [`Buf::hot_off`].
     #[inline(always)]
     #[must_use]
     pub fn hot_f32s<const N: usize>(&self, off: usize) -> [f32; N] {
         const { assert!(4 * N <= PAD) };
-        let off = self.hot_off(off, 4 * N);
-        let mut r = [0f32; N];
-        // SAFETY: as `hot_read` (4 * N <= PAD); unaligned read of plain bytes.
-        unsafe {
-            std::ptr::copy_nonoverlapping(
-                self.ptr.as_ptr().add(off),
-                r.as_mut_ptr() as *mut u8,
-                4 * N,
-            );
-        }
-        #[cfg(target_endian = "big")]
-        for x in &mut r {
-            *x = f32::from_bits(x.to_bits().swap_bytes());
-        }
-        r
+        self.f32s_by(off, Bounds::Hot)
     }
-
-    /// [`Buf::set_f32s`] by [`Buf::hot_off`]: one store of `4 * N` bytes.
+    /// [`Buf::set_f32s`] by [`Buf::hot_off`].
     #[inline(always)]
     pub fn hot_set_f32s<const N: usize>(&mut self, off: usize, v: &[f32; N]) {
         const { assert!(4 * N <= PAD) };
-        let off = self.hot_off(off, 4 * N);
-        #[cfg(target_endian = "big")]
-        let v = &v.map(|x| f32::from_bits(x.to_bits().swap_bytes()));
-        self.own();
-        // SAFETY: as `hot_read`; the bytes are this `Buf`'s alone.
-        unsafe {
-            std::ptr::copy_nonoverlapping(
-                v.as_ptr() as *const u8,
-                self.ptr.as_ptr().add(off),
-                4 * N,
-            );
-        }
+        self.set_f32s_by(off, v, Bounds::Hot);
     }
-
     /// [`Buf::uint_at`] by [`Buf::hot_off`].
     #[inline(always)]
     #[must_use]
     pub fn hot_uint(&self, off: usize, width: usize) -> u64 {
-        match width {
-            1 => u64::from(self.hot_read::<1>(off)[0]),
-            2 => u64::from(u16::from_le_bytes(self.hot_read::<2>(off))),
-            4 => u64::from(u32::from_le_bytes(self.hot_read::<4>(off))),
-            8 => u64::from_le_bytes(self.hot_read::<8>(off)),
-            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
-        }
+        self.uint_by(off, width, Bounds::Hot)
     }
-
     /// [`Buf::set_uint`] by [`Buf::hot_off`].
     #[inline(always)]
     pub fn hot_set_uint(&mut self, off: usize, width: usize, v: u64) {
-        match width {
-            1 => self.hot_write(off, [v as u8]),
-            2 => self.hot_write(off, (v as u16).to_le_bytes()),
-            4 => self.hot_write(off, (v as u32).to_le_bytes()),
-            8 => self.hot_write(off, v.to_le_bytes()),
-            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
-        }
+        self.set_uint_by(off, width, v, Bounds::Hot);
     }
+}
 
-    /// Read an unsigned little-endian integer of `width` bytes (1, 2, 4 or 8).
-    #[inline(always)]
-    #[must_use]
-    pub fn uint_at(&self, off: usize, width: usize) -> u64 {
-        match width {
-            1 => u64::from(self.read::<1>(off)[0]),
-            2 => u64::from(self.u16_at(off)),
-            4 => u64::from(self.u32_at(off)),
-            8 => u64::from_le_bytes(self.read::<8>(off)),
-            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
-        }
-    }
-    /// Write the low `width` bytes of `v` little-endian.
-    #[inline(always)]
-    pub fn set_uint(&mut self, off: usize, width: usize, v: u64) {
-        match width {
-            1 => self.write(off, &[v as u8]),
-            2 => self.set_u16(off, v as u16),
-            4 => self.set_u32(off, v as u32),
-            8 => self.write(off, &v.to_le_bytes()),
-            _ => panic!("integer width {width} is not 1, 2, 4 or 8"),
-        }
-    }
+/// How an access's offset is bounded: [`Buf::check`]ed (host setup and the
+/// traced backend: outside the region panics) or [`Buf::hot_off`] (the
+/// native backend's ops). Always a constant where an accessor is inlined.
+#[derive(Clone, Copy)]
+enum Bounds {
+    Checked,
+    Hot,
 }
 
 /// Out of line so the hot path keeps no panic arguments alive.

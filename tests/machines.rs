@@ -6,7 +6,7 @@ use common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 10] = [
+const MACHINES: [&str; 11] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",
@@ -17,6 +17,7 @@ const MACHINES: [&str; 10] = [
     "dunnington-x7460",
     "zen3",
     "zen4",
+    "icelake-sp",
 ];
 
 #[test]

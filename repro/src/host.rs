@@ -91,7 +91,11 @@ impl HostCpu {
     /// AMD family 19h model ranges (AMD's processor programming references,
     /// as Linux's `arch/x86` tables list them): 00h-0Fh Milan, 20h-2Fh
     /// Vermeer, 40h-5Fh Rembrandt/Cezanne are Zen 3; 10h-1Fh Genoa, 60h-7Fh
-    /// Raphael/Phoenix, A0h-AFh Bergamo are Zen 4.
+    /// Raphael/Phoenix, A0h-AFh Bergamo are Zen 4. Intel family 6 (Intel's
+    /// model list, as Linux's `arch/x86/include/asm/intel-family.h` names
+    /// them): 6Ah and 6Ch Ice Lake-SP and -D; 55h Skylake-SP, Cascade Lake
+    /// and Cooper Lake, 8Fh Sapphire Rapids and CFh Emerald Rapids have no
+    /// config of their own (the nearest is named).
     #[must_use]
     pub fn model_config(&self) -> (Option<&'static str>, String) {
         let (f, m) = (self.family, self.model);
@@ -103,10 +107,22 @@ impl HostCpu {
                 (Some("zen3"), format!("AMD family 19h model {m:#x}: Zen 3"))
             };
         }
+        let intel = self.vendor == "GenuineIntel" && f == 6;
+        if intel && matches!(m, 0x6a | 0x6c) {
+            let why = format!("Intel family 6 model {m:#x}: Ice Lake-SP (Sunny Cove)");
+            return (Some("icelake-sp"), why);
+        }
+        let nearest = match (intel, m) {
+            (true, 0x55) => " (Skylake-SP/Cascade Lake; the nearest config is icelake-sp)",
+            (true, 0x8f | 0xcf) => {
+                " (Sapphire/Emerald Rapids, Golden Cove cores; the nearest config is icelake-sp)"
+            }
+            _ => "",
+        };
         (
             None,
             format!(
-                "no built-in config models {} family {f:#x} model {m:#x} (configs exist for AMD Zen 3 and Zen 4)",
+                "no built-in config models {} family {f:#x} model {m:#x}{nearest} (configs exist for AMD Zen 3, Zen 4 and Intel Ice Lake-SP)",
                 if self.vendor.is_empty() { "this CPU" } else { &self.vendor }
             ),
         )
@@ -203,6 +219,20 @@ mod tests {
         };
         assert_eq!(intel.model_config().0, None);
         assert!(intel.model_config().1.contains("GenuineIntel"));
+        assert!(intel
+            .model_config()
+            .1
+            .contains("nearest config is icelake-sp"));
+        let icx = HostCpu {
+            model: 0x6a,
+            ..intel.clone()
+        };
+        assert_eq!(icx.model_config().0, Some("icelake-sp"));
+        let amd_family_6 = HostCpu {
+            vendor: "AuthenticAMD".into(),
+            ..icx
+        };
+        assert_eq!(amd_family_6.model_config().0, None);
         assert_eq!(HostCpu::parse("").model_config().0, None);
     }
 

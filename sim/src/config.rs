@@ -278,6 +278,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ),
     ("zen3", include_str!("../../configs/machines/zen3.ron")),
     ("zen4", include_str!("../../configs/machines/zen4.ron")),
+    (
+        "icelake-sp",
+        include_str!("../../configs/machines/icelake-sp.ron"),
+    ),
 ];
 
 impl MachineConfig {

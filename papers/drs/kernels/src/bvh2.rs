@@ -178,7 +178,6 @@ fn core_node<M: Machine, const N: usize>(
     let r = N / 4;
     m.region(Region::Traversal);
     let base = m.s_shift(Shift::Shl, node, 6);
-    let sp4 = &Pat::<N>::SPLAT;
     // The paper's bbX = [min_l, min_r, -max_l, -max_r] and bbXneg = [max_l,
     // max_r, -min_l, -min_r] (the planes for a negative direction): far
     // planes negated, so one max gives entry and negated exit distances.
@@ -210,16 +209,20 @@ fn core_node<M: Machine, const N: usize>(
         |m, dir_near, org_far| {
             // The listing's shuffle patterns, named as constants here (not
             // captured): each shuffle then compiles to one instruction natively.
-            let (org_axis, near_far_ray) = (&Groups::<N>::ORG_AXIS, &Groups::<N>::NEAR_FAR_RAY);
+            let near_far_ray = &Groups::<N>::NEAR_FAR_RAY;
             let (rhs_pat, lhs_pat) = (&Groups::<N>::RHS, &Groups::<N>::LHS);
             // Per axis a, each ray's 4 lanes: [near_l, near_r, -far_l, -far_r].
             let org_far_neg = m.logic(Logic::Xor, org_far, neg);
-            let near_far: [M::F; 3] = std::array::from_fn(|a| {
-                let d = m.permute(dir_near, &sp4[a]);
-                let o = m.shuffle2(org_far, org_far_neg, &org_axis[a]);
-                let planes = m.blend_sign(d, bb[a], bb_neg[a]);
-                m.fmsub(planes, d, o)
-            });
+            // An inlined function per axis, not a closure: natively the
+            // closure compiled to a call per axis with the axis a variable,
+            // so every shuffle pattern was checked and built at run time
+            // (a quarter of DRS BVH2's host time).
+            let rays = (dir_near, org_far, org_far_neg);
+            let near_far: [M::F; 3] = [
+                axis::<M, N>(m, 0, rays, (bb[0], bb_neg[0])),
+                axis::<M, N>(m, 1, rays, (bb[1], bb_neg[1])),
+                axis::<M, N>(m, 2, rays, (bb[2], bb_neg[2])),
+            ];
             let ray = m.shuffle2(dir_near, org_far_neg, near_far_ray);
             let m01 = m.max(ray, near_far[0]);
             let m23 = m.max(near_far[1], near_far[2]);
@@ -275,6 +278,22 @@ fn core_node<M: Machine, const N: usize>(
 }
 
 /// The listing's shuffle patterns, per 4-lane group of N lanes.
+/// Axis `a`'s `[near_l, near_r, -far_l, -far_r]` per ray of the core loop's
+/// iteration (`rays`: `dir_near`, `org_far` and `org_far` negated; `planes`:
+/// the node's bbX and bbXneg for the axis).
+#[inline(always)]
+fn axis<M: Machine, const N: usize>(
+    m: &mut M,
+    a: usize,
+    (dir_near, org_far, org_far_neg): (M::F, M::F, M::F),
+    (bb, bb_neg): (M::F, M::F),
+) -> M::F {
+    let d = m.permute(dir_near, &Pat::<N>::SPLAT[a]);
+    let o = m.shuffle2(org_far, org_far_neg, &Groups::<N>::ORG_AXIS[a]);
+    let planes = m.blend_sign(d, bb, bb_neg);
+    m.fmsub(planes, d, o)
+}
+
 struct Groups<const N: usize>;
 impl<const N: usize> Groups<N> {
     /// Per axis a: each ray's `[org_a, org_a, -org_a, -org_a]` (times idir).

@@ -49,4 +49,13 @@ impl StreamBufs {
             tests: rt::stats::Tests::default(),
         }
     }
+
+    /// Ready for another trace of a stream of the same size: list counters
+    /// and test counts zero (host-side, not recorded). The lists keep the
+    /// last trace's indices, all of rays of the stream, so the core loop's
+    /// read-ahead past an item still names rays in bounds.
+    pub fn reset(&mut self) {
+        self.counters.bytes_mut().fill(0);
+        self.tests = rt::stats::Tests::default();
+    }
 }

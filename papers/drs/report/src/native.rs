@@ -5,7 +5,7 @@
 //! `rtcIntersect1M` over exactly the same rays.
 
 use crate::run::{stream_input, tile_stream};
-use drs_kernels::methods::{Kernel, Run};
+use drs_kernels::methods::{Kernel, Laid, Run, Scratch};
 use isa::{FlavourId, Machine, Program};
 use repro::host::HostCpu;
 use repro::report::Format;
@@ -71,36 +71,58 @@ impl Timing {
     }
 }
 
-/// A kernel run once (its answers kept), then `repeat` more times timed,
-/// the scene laid out once and each run's buffers released after it.
-struct Repeated<'a> {
-    run: &'a Run<'a>,
+/// Every kernel run once (its answers kept), then `repeat` rounds that
+/// time each kernel once in turn, each run's buffers released after it. A
+/// slow spell of the host (another tenant's load, a clock change) then
+/// falls on every kernel alike instead of on whichever ran through it: run
+/// back to back, one kernel's median moved up to 2x between invocations on
+/// a shared 2-vCPU host. Each tree is laid out once and shared by the
+/// kernels reading it, and the DRS kernels' ray lists allocated once
+/// ([`Run::scratch`]).
+struct Interleaved<'a> {
+    runs: &'a [Run<'a>],
     repeat: u32,
 }
 
-impl Program for Repeated<'_> {
-    type Out = (Vec<Hit>, Vec<f64>);
+impl Program for Interleaved<'_> {
+    type Out = Vec<(Vec<Hit>, Vec<f64>)>;
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
-        let laid = self.run.lay_out(m);
-        let mark = m.space().mark();
-        let (first, _) = self.run.trace(m, &laid);
-        m.space().release(mark);
-        let seconds = (0..self.repeat)
-            .map(|_| {
-                let t = Instant::now();
-                let out = self.run.trace(m, &laid);
-                let s = t.elapsed().as_secs_f64();
-                std::hint::black_box(out);
-                m.space().release(mark);
-                s
+        let mut trees: [Option<Laid>; 2] = [None, None];
+        let laid: Vec<Laid> = self
+            .runs
+            .iter()
+            .map(|r| {
+                let t = usize::from(r.kernel.reads_bvh2());
+                trees[t].get_or_insert_with(|| r.lay_out(m)).clone()
             })
             .collect();
-        (first, seconds)
+        let mut scratch: Vec<Scratch> = (self.runs.iter().zip(&laid))
+            .map(|(r, l)| r.scratch(m, l))
+            .collect();
+        let mark = m.space().mark();
+        let mut out: Vec<(Vec<Hit>, Vec<f64>)> = (self.runs.iter().zip(&laid))
+            .zip(&mut scratch)
+            .map(|((r, l), s)| {
+                let (first, _) = r.trace_in(m, l, s);
+                m.space().release(mark);
+                (first, Vec::new())
+            })
+            .collect();
+        for _ in 0..self.repeat {
+            for (k, ((r, l), s)) in self.runs.iter().zip(&laid).zip(&mut scratch).enumerate() {
+                let t = Instant::now();
+                let res = r.trace_in(m, l, s);
+                out[k].1.push(t.elapsed().as_secs_f64());
+                std::hint::black_box(res);
+                m.space().release(mark);
+            }
+        }
+        out
     }
 }
 
 /// `kernels` natively on `fl` over `rays` (a tile of `tile` at `spp`),
-/// one after another on this thread.
+/// interleaved on this thread ([`Interleaved`]).
 #[must_use]
 pub fn time_kernels(
     ld: &Loaded,
@@ -111,20 +133,33 @@ pub fn time_kernels(
     repeat: u32,
 ) -> Vec<Timing> {
     let refi = ld.reference();
-    kernels
+    let runs: Vec<Run> = kernels
         .iter()
         .map(|&k| {
             let mut run = Run::new(k, &ld.scene, &ld.b2, &ld.b4, rays.clone());
             run.packet_tile = Some((tile.size, spp));
-            let (first, secs) = isa::run_native(&Repeated { run: &run, repeat }, fl);
-            Timing::of(k.name(), secs, run.mismatches(k.name(), &refi, &first))
+            run
+        })
+        .collect();
+    let timed = isa::run_native(
+        &Interleaved {
+            runs: &runs,
+            repeat,
+        },
+        fl,
+    );
+    runs.iter()
+        .zip(timed)
+        .map(|(run, (first, secs))| {
+            let name = run.kernel.name();
+            Timing::of(name, secs, run.mismatches(name, &refi, &first))
         })
         .collect()
 }
 
-/// Embree 3's three calls over `rays`, each once checked and `repeat` times
-/// timed (the scene built once, not timed; packets formed as the packet
-/// kernels form them).
+/// Embree 3's three calls over `rays`, each once checked, then `repeat`
+/// rounds timing each call once in turn (the scene built once, not timed;
+/// packets formed as the packet kernels form them).
 ///
 /// # Errors
 /// When Embree cannot build the scene.
@@ -139,21 +174,28 @@ pub fn time_embree(
     let e = Embree::new(&ld.scene.mesh, None).map_err(AppError)?;
     let refi = ld.reference();
     let slots = scene::workload::packet_slots(rays, tile.size, spp, 8);
-    Ok(Call::ALL
+    let bad: Vec<usize> = Call::ALL
         .iter()
         .map(|&call| {
             let mut first = e.trace(rays, call, &slots);
             e.witnesses(rays, &mut first);
-            let bad = drs_kernels::methods::stream_mismatches(call.name(), &refi, rays, &first);
-            let secs = (0..repeat)
-                .map(|_| {
-                    let t = Instant::now();
-                    std::hint::black_box(e.trace(rays, call, &slots));
-                    t.elapsed().as_secs_f64()
-                })
-                .collect();
-            Timing::of(call.name(), secs, bad)
+            drs_kernels::methods::stream_mismatches(call.name(), &refi, rays, &first)
         })
+        .collect();
+    // The calls in turn, round by round, as the kernels ([`Interleaved`]).
+    let mut secs = vec![Vec::new(); Call::ALL.len()];
+    for _ in 0..repeat {
+        for (k, &call) in Call::ALL.iter().enumerate() {
+            let t = Instant::now();
+            std::hint::black_box(e.trace(rays, call, &slots));
+            secs[k].push(t.elapsed().as_secs_f64());
+        }
+    }
+    Ok(Call::ALL
+        .iter()
+        .zip(secs)
+        .zip(bad)
+        .map(|((call, s), b)| Timing::of(call.name(), s, b))
         .collect())
 }
 
@@ -254,7 +296,8 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
         rows,
         notes: vec![format!(
             "each method ran once untimed (its answers checked against the reference), then {} \
-             timed runs on one host thread; Mray/s of the median run, and of the slowest and \
+             timed runs on one host thread (the kernels in turn, round by round, so a slow spell \
+             of the host falls on all; Embree's calls after them, likewise); Mray/s of the median run, and of the slowest and \
              fastest; time_vs_base: median time over single-bvh4's; the kernels run on the \
              native backend (the {} semantics as lane arrays the compiler vectorises); Embree \
              rows (built with --features embree) build the scene robust at the default quality, \

@@ -333,7 +333,7 @@ fn notes(a: &ValidateArgs, v: &Verdict) -> Vec<String> {
     let verdict = |ok: bool| if ok { "met" } else { "not met" };
     vec![
         format!(
-            "native: median of {} timed runs per kernel after one checked run, one host thread; model: one core, its caches and predictor warmed by a functional pass over the same rays, then timed in full detail",
+            "native: median of {} timed runs per kernel after one checked run, one host thread, the kernels timed in turn round by round (a slow spell of the host falls on all of them); model: one core, its caches and predictor warmed by a functional pass over the same rays, then timed in full detail",
             a.repeat
         ),
         format!(

@@ -81,7 +81,17 @@ impl Timing {
 /// ([`Run::scratch`]).
 struct Interleaved<'a> {
     runs: &'a [Run<'a>],
+    /// Timed after the kernels in every round.
+    peers: &'a [Peer<'a>],
     repeat: u32,
+}
+
+/// A method timed in the kernels' rounds (Embree's calls): its name, the
+/// answers of its checked run that differ from the reference, and the call.
+struct Peer<'a> {
+    name: &'static str,
+    mismatches: usize,
+    call: Box<dyn Fn() + 'a>,
 }
 
 impl Program for Interleaved<'_> {
@@ -108,6 +118,8 @@ impl Program for Interleaved<'_> {
                 (first, Vec::new())
             })
             .collect();
+        out.extend(self.peers.iter().map(|_| (Vec::new(), Vec::new())));
+        let n = self.runs.len();
         for _ in 0..self.repeat {
             for (k, ((r, l), s)) in self.runs.iter().zip(&laid).zip(&mut scratch).enumerate() {
                 let t = Instant::now();
@@ -116,22 +128,31 @@ impl Program for Interleaved<'_> {
                 std::hint::black_box(res);
                 m.space().release(mark);
             }
+            for (k, p) in self.peers.iter().enumerate() {
+                let t = Instant::now();
+                (p.call)();
+                out[n + k].1.push(t.elapsed().as_secs_f64());
+            }
         }
         out
     }
 }
 
-/// `kernels` natively on `fl` over `rays` (a tile of `tile` at `spp`),
-/// interleaved on this thread ([`Interleaved`]).
-#[must_use]
-pub fn time_kernels(
+/// `kernels` natively on `fl` over `rays` (a tile of `tile` at `spp`) and,
+/// built with the `embree` feature, Embree 3's three calls on the same rays,
+/// all in the same rounds on this thread ([`Interleaved`]): the kernels'
+/// timings, then Embree's.
+///
+/// # Errors
+/// When Embree cannot build the scene.
+pub fn time_methods(
     ld: &Loaded,
     (tile, spp): (Tile, u32),
     rays: &RayStream,
     kernels: &[Kernel],
     fl: FlavourId,
     repeat: u32,
-) -> Vec<Timing> {
+) -> AppResult<(Vec<Timing>, Vec<Timing>)> {
     let refi = ld.reference();
     let runs: Vec<Run> = kernels
         .iter()
@@ -141,71 +162,91 @@ pub fn time_kernels(
             run
         })
         .collect();
-    let timed = isa::run_native(
+    let embree = embree_setup(ld, (tile, spp), rays)?;
+    let peers = embree_peers(embree.as_ref(), ld, rays);
+    let mut timed = isa::run_native(
         &Interleaved {
             runs: &runs,
+            peers: &peers,
             repeat,
         },
         fl,
     );
-    runs.iter()
+    let peer_secs = timed.split_off(runs.len());
+    let ours = runs
+        .iter()
         .zip(timed)
         .map(|(run, (first, secs))| {
             let name = run.kernel.name();
             Timing::of(name, secs, run.mismatches(name, &refi, &first))
         })
-        .collect()
+        .collect();
+    let theirs = peers
+        .iter()
+        .zip(peer_secs)
+        .map(|(p, (_, secs))| Timing::of(p.name, secs, p.mismatches))
+        .collect();
+    Ok((ours, theirs))
 }
 
-/// Embree 3's three calls over `rays`, each once checked, then `repeat`
-/// rounds timing each call once in turn (the scene built once, not timed;
-/// packets formed as the packet kernels form them).
-///
-/// # Errors
-/// When Embree cannot build the scene.
+/// Embree 3's scene (built once, not timed) and the packets the packet
+/// kernels form (slots of 8 rays).
 #[cfg(feature = "embree")]
-pub fn time_embree(
+type EmbreeSetup = (embree_peer::Embree, Vec<u32>);
+/// Without the `embree` feature: nothing ([`embree_setup`] gives `None`).
+#[cfg(not(feature = "embree"))]
+type EmbreeSetup = ();
+
+#[cfg(feature = "embree")]
+fn embree_setup(
     ld: &Loaded,
     (tile, spp): (Tile, u32),
     rays: &RayStream,
-    repeat: u32,
-) -> AppResult<Vec<Timing>> {
-    use embree_peer::{Call, Embree};
-    let e = Embree::new(&ld.scene.mesh, None).map_err(AppError)?;
-    let refi = ld.reference();
-    let slots = scene::workload::packet_slots(rays, tile.size, spp, 8);
-    let bad: Vec<usize> = Call::ALL
-        .iter()
-        .map(|&call| {
-            let mut first = e.trace(rays, call, &slots);
-            e.witnesses(rays, &mut first);
-            drs_kernels::methods::stream_mismatches(call.name(), &refi, rays, &first)
-        })
-        .collect();
-    // The calls in turn, round by round, as the kernels ([`Interleaved`]).
-    let mut secs = vec![Vec::new(); Call::ALL.len()];
-    for _ in 0..repeat {
-        for (k, &call) in Call::ALL.iter().enumerate() {
-            let t = Instant::now();
-            std::hint::black_box(e.trace(rays, call, &slots));
-            secs[k].push(t.elapsed().as_secs_f64());
-        }
-    }
-    Ok(Call::ALL
-        .iter()
-        .zip(secs)
-        .zip(bad)
-        .map(|((call, s), b)| Timing::of(call.name(), s, b))
-        .collect())
+) -> AppResult<Option<EmbreeSetup>> {
+    let e = embree_peer::Embree::new(&ld.scene.mesh, None).map_err(AppError)?;
+    Ok(Some((
+        e,
+        scene::workload::packet_slots(rays, tile.size, spp, 8),
+    )))
 }
 
-/// Without the `embree` feature: nothing to time.
-///
-/// # Errors
-/// Never.
 #[cfg(not(feature = "embree"))]
-pub fn time_embree(_: &Loaded, _: (Tile, u32), _: &RayStream, _: u32) -> AppResult<Vec<Timing>> {
-    Ok(Vec::new())
+fn embree_setup(_: &Loaded, _: (Tile, u32), _: &RayStream) -> AppResult<Option<EmbreeSetup>> {
+    Ok(None)
+}
+
+/// Embree's `rtcIntersect1`, `rtcIntersect8` and `rtcIntersect1M` over
+/// `rays`, each run once and checked against the reference.
+#[cfg(feature = "embree")]
+fn embree_peers<'a>(
+    setup: Option<&'a EmbreeSetup>,
+    ld: &Loaded,
+    rays: &'a RayStream,
+) -> Vec<Peer<'a>> {
+    let Some((e, slots)) = setup else {
+        return Vec::new();
+    };
+    let refi = ld.reference();
+    embree_peer::Call::ALL
+        .iter()
+        .map(|&call| {
+            let mut first = e.trace(rays, call, slots);
+            e.witnesses(rays, &mut first);
+            let bad = drs_kernels::methods::stream_mismatches(call.name(), &refi, rays, &first);
+            Peer {
+                name: call.name(),
+                mismatches: bad,
+                call: Box::new(move || {
+                    std::hint::black_box(e.trace(rays, call, slots));
+                }),
+            }
+        })
+        .collect()
+}
+
+#[cfg(not(feature = "embree"))]
+fn embree_peers<'a>(_: Option<&'a EmbreeSetup>, _: &Loaded, _: &'a RayStream) -> Vec<Peer<'a>> {
+    Vec::new()
 }
 
 /// Rows of `timings` over `rays` rays: Mray/s median, slowest and fastest
@@ -263,8 +304,8 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
     }
     let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
     let (tile, rays) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
-    let mut timings = time_kernels(&ld, (tile, a.spp), &rays, &kernels, a.isa, a.repeat);
-    timings.extend(time_embree(&ld, (tile, a.spp), &rays, a.repeat)?);
+    let (mut timings, embree) = time_methods(&ld, (tile, a.spp), &rays, &kernels, a.isa, a.repeat)?;
+    timings.extend(embree);
     let bad: usize = timings.iter().map(|t| t.mismatches).sum();
     let mut rows = vec![Row::new("rays", rays.len() as f64)];
     rows.extend(timing_rows(&timings, rays.len(), Kernel::SingleBvh4.name()));
@@ -296,8 +337,8 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
         rows,
         notes: vec![format!(
             "each method ran once untimed (its answers checked against the reference), then {} \
-             timed runs on one host thread (the kernels in turn, round by round, so a slow spell \
-             of the host falls on all; Embree's calls after them, likewise); Mray/s of the median run, and of the slowest and \
+             timed runs on one host thread (every method in turn, round by round, Embree's calls \
+             after the kernels, so a slow spell of the host falls on all); Mray/s of the median run, and of the slowest and \
              fastest; time_vs_base: median time over single-bvh4's; the kernels run on the \
              native backend (the {} semantics as lane arrays the compiler vectorises); Embree \
              rows (built with --features embree) build the scene robust at the default quality, \

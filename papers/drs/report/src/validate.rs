@@ -5,7 +5,7 @@
 //! BVH4 on the same rays), which cancel the unknown clock: Kendall's tau of
 //! the kernels' order and the mean absolute error of the relative times.
 
-use crate::native::{time_embree, time_kernels, Timing};
+use crate::native::{time_methods, Timing};
 use crate::run::{tile_stream, warm_then_time};
 use drs_kernels::methods::{Kernel, Run};
 use rayon::prelude::*;
@@ -134,14 +134,15 @@ fn scene_points(
     let mut timed = Vec::new();
     for stream in &a.streams {
         let (tile, rays) = tile_stream(&ld, stream, a.tile, a.spp, a.seed)?;
-        let nat = time_kernels(&ld, (tile, a.spp), &rays, &kernels, m.flavour(), a.repeat);
+        let (nat, theirs) =
+            time_methods(&ld, (tile, a.spp), &rays, &kernels, m.flavour(), a.repeat)?;
         if let Some(t) = nat.iter().find(|t| t.mismatches > 0) {
             return Err(AppError(format!(
                 "{name} {stream}: {} answers of {} differ from the reference",
                 t.mismatches, t.method
             )));
         }
-        for t in time_embree(&ld, (tile, a.spp), &rays, a.repeat)? {
+        for t in theirs {
             if t.mismatches > 0 {
                 return Err(AppError(format!(
                     "{name} {stream}: {} answers of {} differ from the reference",

@@ -277,10 +277,9 @@ fn core_node<M: Machine, const N: usize>(
     }
 }
 
-/// The listing's shuffle patterns, per 4-lane group of N lanes.
 /// Axis `a`'s `[near_l, near_r, -far_l, -far_r]` per ray of the core loop's
-/// iteration (`rays`: `dir_near`, `org_far` and `org_far` negated; `planes`:
-/// the node's bbX and bbXneg for the axis).
+/// iteration (`dir_near`, `org_far` and `org_far` negated; the node's bbX
+/// and bbXneg for the axis).
 #[inline(always)]
 fn axis<M: Machine, const N: usize>(
     m: &mut M,
@@ -294,6 +293,7 @@ fn axis<M: Machine, const N: usize>(
     m.fmsub(planes, d, o)
 }
 
+/// The listing's shuffle patterns, per 4-lane group of N lanes.
 struct Groups<const N: usize>;
 impl<const N: usize> Groups<N> {
     /// Per axis a: each ray's `[org_a, org_a, -org_a, -org_a]` (times idir).

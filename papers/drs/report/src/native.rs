@@ -94,47 +94,55 @@ struct Peer<'a> {
     call: Box<dyn Fn() + 'a>,
 }
 
-impl Program for Interleaved<'_> {
-    type Out = Vec<(Vec<Hit>, Vec<f64>)>;
-    fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
+impl Interleaved<'_> {
+    /// Each run's layout (one per tree, shared by the kernels reading it)
+    /// and its scratch buffers, on `m`.
+    fn lay_out<M: Machine>(&self, m: &mut M) -> Vec<(Laid, Scratch)> {
         let mut trees: [Option<Laid>; 2] = [None, None];
-        let laid: Vec<Laid> = self
-            .runs
+        self.runs
             .iter()
             .map(|r| {
                 let t = usize::from(r.kernel.reads_bvh2());
-                trees[t].get_or_insert_with(|| r.lay_out(m)).clone()
+                let laid = trees[t].get_or_insert_with(|| r.lay_out(m)).clone();
+                let scratch = r.scratch(m, &laid);
+                (laid, scratch)
             })
-            .collect();
-        let mut scratch: Vec<Scratch> = (self.runs.iter().zip(&laid))
-            .map(|(r, l)| r.scratch(m, l))
-            .collect();
+            .collect()
+    }
+}
+
+/// Per kernel its checked run's answers and timed seconds; per peer its
+/// timed seconds.
+type Rounds = (Vec<(Vec<Hit>, Vec<f64>)>, Vec<Vec<f64>>);
+
+impl Program for Interleaved<'_> {
+    type Out = Rounds;
+    fn run<M: Machine>(&self, m: &mut M) -> Rounds {
+        let mut laid = self.lay_out(m);
         let mark = m.space().mark();
-        let mut out: Vec<(Vec<Hit>, Vec<f64>)> = (self.runs.iter().zip(&laid))
-            .zip(&mut scratch)
-            .map(|((r, l), s)| {
+        let mut ours: Vec<(Vec<Hit>, Vec<f64>)> = (self.runs.iter().zip(&mut laid))
+            .map(|(r, (l, s))| {
                 let (first, _) = r.trace_in(m, l, s);
                 m.space().release(mark);
                 (first, Vec::new())
             })
             .collect();
-        out.extend(self.peers.iter().map(|_| (Vec::new(), Vec::new())));
-        let n = self.runs.len();
+        let mut theirs = vec![Vec::new(); self.peers.len()];
         for _ in 0..self.repeat {
-            for (k, ((r, l), s)) in self.runs.iter().zip(&laid).zip(&mut scratch).enumerate() {
+            for ((r, (l, s)), (_, secs)) in self.runs.iter().zip(&mut laid).zip(&mut ours) {
                 let t = Instant::now();
                 let res = r.trace_in(m, l, s);
-                out[k].1.push(t.elapsed().as_secs_f64());
+                secs.push(t.elapsed().as_secs_f64());
                 std::hint::black_box(res);
                 m.space().release(mark);
             }
-            for (k, p) in self.peers.iter().enumerate() {
+            for (p, secs) in self.peers.iter().zip(&mut theirs) {
                 let t = Instant::now();
                 (p.call)();
-                out[n + k].1.push(t.elapsed().as_secs_f64());
+                secs.push(t.elapsed().as_secs_f64());
             }
         }
-        out
+        (ours, theirs)
     }
 }
 
@@ -164,7 +172,7 @@ pub fn time_methods(
         .collect();
     let embree = embree_setup(ld, (tile, spp), rays)?;
     let peers = embree_peers(embree.as_ref(), ld, rays);
-    let mut timed = isa::run_native(
+    let (timed, peer_secs) = isa::run_native(
         &Interleaved {
             runs: &runs,
             peers: &peers,
@@ -172,7 +180,6 @@ pub fn time_methods(
         },
         fl,
     );
-    let peer_secs = timed.split_off(runs.len());
     let ours = runs
         .iter()
         .zip(timed)
@@ -184,7 +191,7 @@ pub fn time_methods(
     let theirs = peers
         .iter()
         .zip(peer_secs)
-        .map(|(p, (_, secs))| Timing::of(p.name, secs, p.mismatches))
+        .map(|(p, secs)| Timing::of(p.name, secs, p.mismatches))
         .collect();
     Ok((ours, theirs))
 }

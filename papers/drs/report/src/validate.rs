@@ -295,22 +295,23 @@ fn cpi_by_kernel(
     points: &[Point],
     rel: &[Option<(f64, f64, f64)>],
 ) -> (Vec<Row>, Option<(Kernel, f64, f64)>) {
+    let per_kernel: Vec<(Kernel, f64, f64)> = Kernel::ALL
+        .into_iter()
+        .filter_map(|k| {
+            let logs: Vec<(f64, f64)> = points
+                .iter()
+                .zip(rel)
+                .filter(|(p, _)| p.kernel == k)
+                .filter_map(|(_, r)| *r)
+                .map(|(n, s, i)| ((s / i).ln(), (n / i).ln()))
+                .collect();
+            let len = logs.len() as f64;
+            let gm = |f: fn(&(f64, f64)) -> f64| (logs.iter().map(f).sum::<f64>() / len).exp();
+            (!logs.is_empty()).then(|| (k, gm(|x| x.0), gm(|x| x.1)))
+        })
+        .collect();
     let mut rows = Vec::new();
-    let mut worst: Option<(Kernel, f64, f64)> = None;
-    for k in Kernel::ALL {
-        let logs: Vec<(f64, f64)> = points
-            .iter()
-            .zip(rel)
-            .filter(|(p, _)| p.kernel == k)
-            .filter_map(|(_, r)| *r)
-            .map(|(n, s, i)| ((s / i).ln(), (n / i).ln()))
-            .collect();
-        if logs.is_empty() {
-            continue;
-        }
-        let gm =
-            |f: fn(&(f64, f64)) -> f64| (logs.iter().map(f).sum::<f64>() / logs.len() as f64).exp();
-        let (model, native) = (gm(|x| x.0), gm(|x| x.1));
+    for &(k, model, native) in &per_kernel {
         let row = |metric: &str, v: f64| {
             Row::new(metric, v)
                 .key("scene", "all")
@@ -318,15 +319,11 @@ fn cpi_by_kernel(
         };
         rows.push(row("model_cpi_vs_single_bvh4", model));
         rows.push(row("native_time_per_instruction_vs_single_bvh4", native));
-        let off = (model / native).ln().abs();
-        let further = match worst {
-            Some((_, m, n)) => off > (m / n).ln().abs(),
-            None => true,
-        };
-        if further {
-            worst = Some((k, model, native));
-        }
     }
+    let off = |&(_, model, native): &(Kernel, f64, f64)| (model / native).ln().abs();
+    let worst = per_kernel
+        .into_iter()
+        .max_by(|a, b| off(a).total_cmp(&off(b)));
     (rows, worst)
 }
 

@@ -15,6 +15,7 @@
 
 pub mod class;
 pub mod flavour;
+pub mod host;
 pub mod info;
 pub mod lanes;
 pub mod machine;

@@ -15,6 +15,7 @@
 
 use crate::class::OpClass;
 use crate::flavour::{Flavour, FlavourId};
+use crate::host::{self, ToInt, Unary};
 use crate::lanes::{
     cvt_round, cvt_trunc, permute2, rcp_approx, reduce, rsqrt_approx, BinOp, Cmp, Fma, IOp, Shift,
     Vf, Vi, Vk,
@@ -316,6 +317,24 @@ pub(crate) fn arr<T: Copy + Default, const N: usize>(v: &[T]) -> [T; N] {
     r
 }
 
+/// Bit i = lane i active, by the host's movemask where it has one.
+#[inline(always)]
+fn kbits<const N: usize>(k: Vk<N>) -> u32 {
+    host::mask_bits(k).unwrap_or_else(|| k.bits())
+}
+
+/// A binary float op by the flavour's semantics: the host's instruction
+/// where it has one (the flavour's approximate divide is the lane loop).
+#[inline(always)]
+fn bin<FL: Flavour<N>, const N: usize>(op: BinOp, a: Vf<N>, b: Vf<N>) -> Vf<N> {
+    if FL::DIV || op != BinOp::Div {
+        if let Some(r) = host::bin(op, a, b) {
+            return r;
+        }
+    }
+    a.zip(b, |x, y| FL::eval(op, x, y))
+}
+
 /// Permutation index array from a slice.
 #[inline(always)]
 pub(crate) fn idx_arr<const N: usize>(idx: &[u8], limit: usize) -> [u8; N] {
@@ -381,61 +400,70 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
 
     #[inline(always)]
     fn bin(&mut self, op: BinOp, a: Vf<N>, b: Vf<N>) -> Vf<N> {
-        a.zip(b, |x, y| FL::eval(op, x, y))
+        bin::<FL, N>(op, a, b)
     }
     #[inline(always)]
     fn masked(&mut self, op: BinOp, k: Vk<N>, src: Vf<N>, a: Vf<N>, b: Vf<N>) -> Vf<N> {
-        k.select(a.zip(b, |x, y| FL::eval(op, x, y)), src)
+        self.select(k, bin::<FL, N>(op, a, b), src)
     }
     #[inline(always)]
     fn fma(&mut self, kind: Fma, a: Vf<N>, b: Vf<N>, c: Vf<N>) -> Vf<N> {
-        a.zip3(b, c, |x, y, z| kind.eval(FL::FMA, x, y, z))
+        host::fma(kind, FL::FMA, a, b, c)
+            .unwrap_or_else(|| a.zip3(b, c, |x, y, z| kind.eval(FL::FMA, x, y, z)))
     }
     #[inline(always)]
     fn masked_fma(&mut self, kind: Fma, k: Vk<N>, a: Vf<N>, b: Vf<N>, c: Vf<N>) -> Vf<N> {
-        k.select(a.zip3(b, c, |x, y, z| kind.eval(FL::FMA, x, y, z)), c)
+        let r = self.fma(kind, a, b, c);
+        self.select(k, r, c)
     }
     #[inline(always)]
     fn abs(&mut self, a: Vf<N>) -> Vf<N> {
-        a.map(f32::abs)
+        host::unary(Unary::Abs, a).unwrap_or_else(|| a.map(f32::abs))
     }
     #[inline(always)]
     fn neg(&mut self, a: Vf<N>) -> Vf<N> {
-        a.map(|x| -x)
+        host::unary(Unary::Neg, a).unwrap_or_else(|| a.map(|x| -x))
     }
     #[inline(always)]
     fn sqrt(&mut self, a: Vf<N>) -> Vf<N> {
-        a.map(f32::sqrt)
+        host::unary(Unary::Sqrt, a).unwrap_or_else(|| a.map(f32::sqrt))
     }
     #[inline(always)]
     fn rcp(&mut self, a: Vf<N>) -> Vf<N> {
         if !FL::DIV {
             return self.rcp_approx(a);
         }
-        a.map(|x| 1.0 / x)
+        host::unary(Unary::Rcp, a).unwrap_or_else(|| a.map(|x| 1.0 / x))
     }
     #[inline(always)]
     fn rcp_approx(&mut self, a: Vf<N>) -> Vf<N> {
-        a.map(|x| rcp_approx(x, FL::RCP_BITS))
+        host::unary(Unary::Rcp, a)
+            .and_then(|r| host::truncate_mantissa(r, FL::RCP_BITS))
+            .unwrap_or_else(|| a.map(|x| rcp_approx(x, FL::RCP_BITS)))
     }
     #[inline(always)]
     fn rsqrt(&mut self, a: Vf<N>) -> Vf<N> {
-        a.map(|x| 1.0 / x.sqrt())
+        host::unary(Unary::Rsqrt, a).unwrap_or_else(|| a.map(|x| 1.0 / x.sqrt()))
     }
     #[inline(always)]
     fn rsqrt_approx(&mut self, a: Vf<N>) -> Vf<N> {
-        a.map(|x| rsqrt_approx(x, FL::RCP_BITS))
+        host::unary(Unary::Rsqrt, a)
+            .and_then(|r| host::truncate_mantissa(r, FL::RCP_BITS))
+            .unwrap_or_else(|| a.map(|x| rsqrt_approx(x, FL::RCP_BITS)))
     }
     #[inline(always)]
     fn cmp(&mut self, p: Cmp, a: Vf<N>, b: Vf<N>) -> Vk<N> {
-        a.cmp(p, b)
+        host::cmp(p, a, b).unwrap_or_else(|| a.cmp(p, b))
     }
     #[inline(always)]
     fn select(&mut self, k: Vk<N>, t: Vf<N>, f: Vf<N>) -> Vf<N> {
-        k.select(t, f)
+        host::select(k, t, f).unwrap_or_else(|| k.select(t, f))
     }
     #[inline(always)]
     fn blend_sign(&mut self, s: Vf<N>, a: Vf<N>, b: Vf<N>) -> Vf<N> {
+        if let Some(r) = host::blend_sign(s, a, b) {
+            return r;
+        }
         Vf(std::array::from_fn(|i| {
             if s.0[i].is_sign_negative() {
                 b.0[i]
@@ -446,7 +474,8 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     }
     #[inline(always)]
     fn logic(&mut self, op: Logic, a: Vf<N>, b: Vf<N>) -> Vf<N> {
-        a.zip(b, |x, y| f32::from_bits(op.eval(x.to_bits(), y.to_bits())))
+        host::logic(op, a, b)
+            .unwrap_or_else(|| a.zip(b, |x, y| f32::from_bits(op.eval(x.to_bits(), y.to_bits()))))
     }
     #[inline(always)]
     fn broadcast(&mut self, x: NX) -> Vf<N> {
@@ -470,6 +499,9 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     }
     #[inline(always)]
     fn to_int(&mut self, a: Vf<N>) -> Vi<N> {
+        if let Some(r) = host::to_int(ToInt::Trunc, a) {
+            return r;
+        }
         let mut r = [0i32; N];
         for i in 0..N {
             r[i] = cvt_trunc(a.0[i]);
@@ -478,6 +510,9 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     }
     #[inline(always)]
     fn to_int_round(&mut self, a: Vf<N>) -> Vi<N> {
+        if let Some(r) = host::to_int(ToInt::Round, a) {
+            return r;
+        }
         let mut r = [0i32; N];
         for i in 0..N {
             r[i] = cvt_round(a.0[i]);
@@ -486,6 +521,9 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     }
     #[inline(always)]
     fn to_float(&mut self, a: Vi<N>) -> Vf<N> {
+        if let Some(r) = host::to_float(a) {
+            return r;
+        }
         let mut r = [0f32; N];
         for i in 0..N {
             r[i] = a.0[i] as f32;
@@ -503,14 +541,17 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
 
     #[inline(always)]
     fn iop(&mut self, op: IOp, a: Vi<N>, b: Vi<N>) -> Vi<N> {
-        a.zip(b, |x, y| op.eval(x, y))
+        host::iop(op, a, b).unwrap_or_else(|| a.zip(b, |x, y| op.eval(x, y)))
     }
     #[inline(always)]
     fn ishift(&mut self, s: Shift, a: Vi<N>, n: u32) -> Vi<N> {
-        a.map(|x| s.eval32(x, n))
+        host::ishift(s, a, n).unwrap_or_else(|| a.map(|x| s.eval32(x, n)))
     }
     #[inline(always)]
     fn icmp(&mut self, p: Cmp, a: Vi<N>, b: Vi<N>) -> Vk<N> {
+        if let Some(r) = host::icmp(p, a, b) {
+            return r;
+        }
         let mut r = [0i32; N];
         for i in 0..N {
             r[i] = -(p.eval_i(i64::from(a.0[i]), i64::from(b.0[i])) as i32);
@@ -519,26 +560,26 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     }
     #[inline(always)]
     fn iselect(&mut self, k: Vk<N>, t: Vi<N>, f: Vi<N>) -> Vi<N> {
-        k.select_i(t, f)
+        host::select_i(k, t, f).unwrap_or_else(|| k.select_i(t, f))
     }
 
     #[inline(always)]
     fn keep(&mut self, k: Vk<N>, a: Vf<N>) -> Vf<N> {
-        k.select(a, Vf([0.0; N]))
+        self.select(k, a, Vf([0.0; N]))
     }
 
     #[inline(always)]
     fn keep_i(&mut self, k: Vk<N>, a: Vi<N>) -> Vi<N> {
-        k.select_i(a, Vi([0; N]))
+        self.iselect(k, a, Vi([0; N]))
     }
 
     #[inline(always)]
     fn klogic(&mut self, op: Logic, a: Vk<N>, b: Vk<N>) -> Vk<N> {
-        a.zip(b, |x, y| op.eval_b(x, y))
+        host::klogic(op, a, b).unwrap_or_else(|| a.zip(b, |x, y| op.eval_b(x, y)))
     }
     #[inline(always)]
     fn knot(&mut self, a: Vk<N>) -> Vk<N> {
-        a.zip(a, |x, _| !x)
+        host::knot(a).unwrap_or_else(|| a.zip(a, |x, _| !x))
     }
     #[inline(always)]
     fn kmov(&mut self, bits: NS) -> Vk<N> {
@@ -546,23 +587,23 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     }
     #[inline(always)]
     fn movemask(&mut self, k: Vk<N>) -> NS {
-        NS(i64::from(k.bits()))
+        NS(i64::from(kbits(k)))
     }
     #[inline(always)]
     fn popcnt(&mut self, k: Vk<N>) -> NS {
-        NS(i64::from(k.bits().count_ones()))
+        NS(i64::from(kbits(k).count_ones()))
     }
     #[inline(always)]
     fn bitscan(&mut self, k: Vk<N>) -> NS {
-        NS(i64::from(k.bits().trailing_zeros().min(N as u32)))
+        NS(i64::from(kbits(k).trailing_zeros().min(N as u32)))
     }
     #[inline(always)]
     fn any(&mut self, k: Vk<N>) -> NS {
-        NS(i64::from(k.bits() != 0))
+        NS(i64::from(kbits(k) != 0))
     }
     #[inline(always)]
     fn all(&mut self, k: Vk<N>) -> NS {
-        NS(i64::from(k.bits().count_ones() == N as u32))
+        NS(i64::from(kbits(k).count_ones() == N as u32))
     }
 
     #[inline(always)]

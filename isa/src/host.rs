@@ -276,11 +276,7 @@ macro_rules! chunk_helpers {
         }
         /// Float lanes from two float arrays.
         #[inline(always)]
-        pub unsafe fn ff<const N: usize>(
-            a: &Vf<N>,
-            b: &Vf<N>,
-            op: impl Fn($v, $v) -> $v,
-        ) -> Vf<N> {
+        pub unsafe fn ff<const N: usize>(a: &Vf<N>, b: &Vf<N>, op: impl Fn($v, $v) -> $v) -> Vf<N> {
             let mut r = Vf([0.0; N]);
             for c in 0..N / W {
                 $stf(r.0.as_mut_ptr().add(W * c), op(lf(a, c), lf(b, c)));
@@ -334,14 +330,13 @@ macro_rules! chunk_helpers {
         }
         /// A mask from two float arrays.
         #[inline(always)]
-        pub unsafe fn fk<const N: usize>(
-            a: &Vf<N>,
-            b: &Vf<N>,
-            op: impl Fn($v, $v) -> $v,
-        ) -> Vk<N> {
+        pub unsafe fn fk<const N: usize>(a: &Vf<N>, b: &Vf<N>, op: impl Fn($v, $v) -> $v) -> Vk<N> {
             let mut r = Vk([0; N]);
             for c in 0..N / W {
-                $stf(r.0.as_mut_ptr().add(W * c) as *mut f32, op(lf(a, c), lf(b, c)));
+                $stf(
+                    r.0.as_mut_ptr().add(W * c) as *mut f32,
+                    op(lf(a, c), lf(b, c)),
+                );
             }
             r
         }
@@ -372,7 +367,10 @@ macro_rules! chunk_helpers {
         ) -> Vi<N> {
             let mut r = Vi([0; N]);
             for c in 0..N / W {
-                $sti(r.0.as_mut_ptr().add(W * c) as *mut _, op(li(a, c), li(b, c)));
+                $sti(
+                    r.0.as_mut_ptr().add(W * c) as *mut _,
+                    op(li(a, c), li(b, c)),
+                );
             }
             r
         }
@@ -385,7 +383,10 @@ macro_rules! chunk_helpers {
         ) -> Vk<N> {
             let mut r = Vk([0; N]);
             for c in 0..N / W {
-                $sti(r.0.as_mut_ptr().add(W * c) as *mut _, op(li(a, c), li(b, c)));
+                $sti(
+                    r.0.as_mut_ptr().add(W * c) as *mut _,
+                    op(li(a, c), li(b, c)),
+                );
             }
             r
         }
@@ -398,7 +399,10 @@ macro_rules! chunk_helpers {
         ) -> Vk<N> {
             let mut r = Vk([0; N]);
             for c in 0..N / W {
-                $sti(r.0.as_mut_ptr().add(W * c) as *mut _, op(ki(a, c), ki(b, c)));
+                $sti(
+                    r.0.as_mut_ptr().add(W * c) as *mut _,
+                    op(ki(a, c), ki(b, c)),
+                );
             }
             r
         }
@@ -861,8 +865,18 @@ mod tests {
             let a = Vf::<N>(rot(&SPECIALS, 7, k));
             let b = Vf::<N>(rot(&SPECIALS, 7, k + 5));
             let c = Vf::<N>(rot(&SPECIALS, 3, k + 11));
-            for op in [BinOp::Add, BinOp::Sub, BinOp::Mul, BinOp::Div, BinOp::Min, BinOp::Max] {
-                assert!(same(bin(op, a, b), a.zip(b, |x, y| op.eval(x, y))), "{op:?}");
+            for op in [
+                BinOp::Add,
+                BinOp::Sub,
+                BinOp::Mul,
+                BinOp::Div,
+                BinOp::Min,
+                BinOp::Max,
+            ] {
+                assert!(
+                    same(bin(op, a, b), a.zip(b, |x, y| op.eval(x, y))),
+                    "{op:?}"
+                );
             }
             for kind in [Fma::MAdd, Fma::MSub, Fma::NMAdd, Fma::NMSub] {
                 for fused in [false, true] {

@@ -231,7 +231,11 @@ fn program<M: Machine>(m: &mut M, seed: u64, steps: usize) -> Vec<u64> {
     out.extend(ks.iter().map(|k| u64::from(m.bits(*k))));
     out.extend(ss.iter().map(|s| s.get() as u64));
     out.extend(xs.iter().map(|x| u64::from(x.get().to_bits())));
-    out.extend(buf.bytes().iter().map(|&b| u64::from(b)));
+    // The buffer as 4-byte words, so a stored NaN compares as a NaN.
+    let words = buf.bytes().chunks_exact(4);
+    let tail: Vec<u64> = words.remainder().iter().map(|&b| u64::from(b)).collect();
+    out.extend(words.map(|w| u64::from(u32::from_le_bytes([w[0], w[1], w[2], w[3]]))));
+    out.extend(tail);
     out
 }
 

@@ -15,14 +15,18 @@
 //! planes, not from a blend on the direction sign; rays are read in stream
 //! order, not through ray pointer lists (the DRS kernel, issue 5, does that).
 
+use crate::packet::{slab_test, PacketSlabs};
 use isa::lanes::{fmax, fmin};
 use isa::{At, Buf, Cmp, Machine, MemKind, Program, Region, Shift, Site};
 
 /// Loop-back branch of the ray loop.
 pub const SITE_RAYS: Site = isa::sites::BOXTEST.at(0);
 
+/// Loop-back branch of the packet-vs-nodes loop.
+pub const SITE_NODES: Site = isa::sites::BOXTEST.at(1);
+
 /// Every branch site of the module (checked for duplicates by the layout test).
-pub const SITES: [Site; 1] = [SITE_RAYS];
+pub const SITES: [Site; 2] = [SITE_RAYS, SITE_NODES];
 /// Bytes of a node.
 pub const NODE_BYTES: usize = 96;
 /// Bytes of a traversal ray.
@@ -245,6 +249,156 @@ pub fn box4_stream<M: Machine, const N: usize>(
     m.region(Region::Other);
 }
 
+/// The packet kernels' inner step: one packet of LANES rays (`packet`:
+/// rows idir.x idir.y idir.z oid.x oid.y oid.z t_near t_far of LANES floats)
+/// against the 4 child boxes of each of `nnodes` BVH4 nodes (rows as
+/// [`Node4`], 96 bytes apart), by the packet kernels' own box test
+/// ([`slab_test`], each plane a broadcast load). The hit mask of node `j`'s
+/// child `c` (bit i = lane i) is stored as the little-endian u32 `4 * j + c`
+/// of `out`.
+/// Deviation from the kernel's loop: no child order, push or early exit, the
+/// test alone (what the hand-written twin in `rt/benches/boxtest.rs` does).
+pub fn packet_nodes_stream<M: Machine>(
+    m: &mut M,
+    nodes: &Buf,
+    nnodes: usize,
+    packet: &Buf,
+    out: &mut Buf,
+) {
+    assert!(nnodes > 0, "no nodes");
+    m.region(Region::Setup);
+    let zero = m.int(0);
+    let row = |m: &mut M, r: usize| m.load(packet, At::idx(zero, 1, 4 * M::LANES * r));
+    let pk = PacketSlabs {
+        idir: [0, 1, 2].map(|a| row(m, a)),
+        oid: [3, 4, 5].map(|a| row(m, a)),
+        tnear: row(m, 6),
+        tfar: row(m, 7),
+    };
+    let count = m.int(nnodes as i64);
+    let (mut j, mut nb, mut ob) = (m.int(0), m.int(0), m.int(0));
+    m.region(Region::CoreLoop);
+    loop {
+        for c in 0..4 {
+            let plane =
+                |m: &mut M, r: usize| m.load_operand(nodes, At::idx(nb, 1, 16 * r + 4 * c), 1);
+            let (_, hit) = slab_test(m, &pk, plane);
+            let bits = m.movemask(hit);
+            m.s_store(out, At::idx(ob, 1, 4 * c), 4, bits);
+        }
+        nb = m.s_addi(nb, NODE_BYTES as i64);
+        ob = m.s_addi(ob, 16);
+        j = m.s_addi(j, 1);
+        if !m.branch_if(SITE_NODES, Cmp::Lt, j, count) {
+            break;
+        }
+    }
+    m.region(Region::Other);
+}
+
+/// Scalar reference of [`packet_nodes_stream`] for one child box and ray:
+/// whether the ray (`slabs`: idir.xyz, oid.xyz, t_near, t_far) overlaps
+/// child `c` of `node`, with the kernel's arithmetic and order.
+#[must_use]
+pub fn packet_box_ref(node: &Node4, c: usize, slabs: &[f32; 8], fused: bool) -> bool {
+    let (mut near, mut far) = (slabs[6], slabs[7]);
+    for a in 0..3 {
+        let f = |b: f32| {
+            if fused {
+                b.mul_add(slabs[a], -slabs[3 + a])
+            } else {
+                b * slabs[a] - slabs[3 + a]
+            }
+        };
+        let (t0, t1) = (f(node.f[8 * a + c]), f(node.f[8 * a + 4 + c]));
+        near = fmax(near, fmin(t0, t1));
+        far = fmin(far, fmax(t0, t1));
+    }
+    near <= far
+}
+
+/// The packet-vs-nodes workload: `nodes` BVH4 nodes and one packet of 8 rays
+/// (the box stream's rays, aimed at the first node's boxes).
+#[derive(Clone, Debug)]
+pub struct PacketNodes {
+    /// The nodes.
+    pub nodes: Vec<Node4>,
+    /// The packet's rays.
+    pub rays: [Ray32; 8],
+}
+
+impl PacketNodes {
+    /// A seeded workload of `n` nodes.
+    #[must_use]
+    pub fn generate(n: usize, seed: u64) -> PacketNodes {
+        let nodes: Vec<Node4> = (0..n)
+            .map(|j| BoxStream::generate(0, seed.wrapping_add(j as u64)).node)
+            .collect();
+        let first = BoxStream::generate(8, seed);
+        let rays = std::array::from_fn(|i| first.rays[i]);
+        PacketNodes { nodes, rays }
+    }
+
+    /// Ray `i`'s slab inputs: idir.xyz, oid.xyz, t_near, t_far.
+    #[must_use]
+    pub fn slabs(&self, i: usize) -> [f32; 8] {
+        let f = &self.rays[i].f;
+        [f[0], f[1], f[2], f[4], f[5], f[6], f[3], f[7]]
+    }
+
+    /// The packet's rows for `lanes` lanes (rays past 8 repeat).
+    #[must_use]
+    pub fn packet_rows(&self, lanes: usize) -> Vec<f32> {
+        (0..8)
+            .flat_map(|r| (0..lanes).map(move |i| (r, i)))
+            .map(|(r, i)| self.slabs(i % 8)[r])
+            .collect()
+    }
+
+    /// Register the nodes, the packet and the output in `m`'s address space.
+    pub fn buffers<M: Machine>(&self, m: &mut M) -> (Buf, Buf, Buf) {
+        let flat: Vec<f32> = self.nodes.iter().flat_map(|n| n.f).collect();
+        let nodes = m.space().alloc_f32(MemKind::Nodes, "bvh4-nodes", &flat, 64);
+        let rows = self.packet_rows(M::LANES);
+        let packet = m.space().alloc_f32(MemKind::Rays, "packet", &rows, 64);
+        let out = m
+            .space()
+            .alloc(MemKind::Hits, "hit-masks", 16 * self.nodes.len(), 64);
+        (nodes, packet, out)
+    }
+
+    /// Every node's child masks by [`packet_box_ref`] for `lanes` lanes.
+    #[must_use]
+    pub fn reference(&self, lanes: usize, fused: bool) -> Vec<u32> {
+        let slabs: Vec<[f32; 8]> = (0..8).map(|i| self.slabs(i)).collect();
+        let mask = |n: &Node4, c| {
+            (0..lanes)
+                .filter(|&i| packet_box_ref(n, c, &slabs[i % 8], fused))
+                .fold(0u32, |b, i| b | 1 << i)
+        };
+        let per_node = |n| (0..4).map(move |c| mask(n, c));
+        self.nodes.iter().flat_map(per_node).collect()
+    }
+}
+
+impl Program for PacketNodes {
+    type Out = Vec<u32>;
+
+    fn params(&self) -> Vec<(String, String)> {
+        vec![("nodes".into(), self.nodes.len().to_string())]
+    }
+
+    /// Each node's 4 child masks.
+    fn run<M: Machine>(&self, m: &mut M) -> Vec<u32> {
+        let (nodes, packet, mut out) = self.buffers(m);
+        packet_nodes_stream(m, &nodes, self.nodes.len(), &packet, &mut out);
+        out.bytes()[..16 * self.nodes.len()]
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
+    }
+}
+
 /// The ray-vs-4-boxes workload: a node and a stream of rays.
 #[derive(Clone, Debug)]
 pub struct BoxStream {
@@ -364,6 +518,24 @@ mod tests {
         assert!(
             hits > 100 && hits < 900,
             "a mix of hits and misses: {hits} of 1024"
+        );
+    }
+
+    #[test]
+    fn packet_nodes_match_the_reference_traced_and_native() {
+        let w = PacketNodes::generate(64, 9);
+        for fl in FlavourId::ALL {
+            let fused = fl != FlavourId::Sse4;
+            let want = w.reference(fl.lanes(), fused);
+            let (t, got) = isa::record(&w, fl, "packet-nodes");
+            t.validate().unwrap();
+            assert_eq!(got, want, "{fl} traced");
+            assert_eq!(isa::run_native(&w, fl), want, "{fl} native");
+        }
+        let hits: u32 = w.reference(8, true).iter().map(|b| b.count_ones()).sum();
+        assert!(
+            hits > 64 && hits < 8 * 64 * 4 - 64,
+            "a mix of hits and misses: {hits} of 2048"
         );
     }
 

@@ -589,6 +589,36 @@ fn down<M: Machine>(
 fn box_test<M: Machine>(
     m: &mut M,
     pk: &Packet<M>,
+    plane: impl FnMut(&mut M, usize) -> M::F,
+) -> (M::F, M::K) {
+    let slabs = PacketSlabs {
+        idir: pk.idir,
+        oid: pk.oid,
+        tnear: pk.tnear,
+        tfar: pk.tfar,
+    };
+    slab_test(m, &slabs, plane)
+}
+
+/// What a packet's box test reads: per axis the inverse directions and
+/// origins times them, and each ray's [t_near, t_far].
+#[derive(Clone, Copy, Debug)]
+pub struct PacketSlabs<F> {
+    /// 1 / dir per axis.
+    pub idir: [F; 3],
+    /// org * idir per axis.
+    pub oid: [F; 3],
+    /// Entry bound per ray.
+    pub tnear: F,
+    /// Exit bound per ray (the closest hit so far).
+    pub tfar: F,
+}
+
+/// The packet kernels' box test (the inner step of their down traversal),
+/// also timed alone against hand-written AVX2 (`rt::boxtest::packet_nodes_stream`).
+pub fn slab_test<M: Machine>(
+    m: &mut M,
+    pk: &PacketSlabs<M::F>,
     mut plane: impl FnMut(&mut M, usize) -> M::F,
 ) -> (M::F, M::K) {
     let mut near = pk.tnear;

@@ -59,6 +59,21 @@ pub fn intrinsics_for(n: usize) -> bool {
     (avx2 && n.is_multiple_of(8)) || (sse41 && n == 4)
 }
 
+/// How this binary runs the vector ops of `n` lanes, for reports.
+#[must_use]
+pub fn describe(n: usize) -> &'static str {
+    let fma = cfg!(target_feature = "fma");
+    match (intrinsics_for(n), n.is_multiple_of(8), fma) {
+        (true, true, true) => "std::arch AVX2 + FMA intrinsics on 8-lane chunks",
+        (true, true, false) => {
+            "std::arch AVX2 intrinsics on 8-lane chunks (fused forms as lane loops)"
+        }
+        (true, false, true) => "std::arch SSE4.1 + FMA intrinsics",
+        (true, false, false) => "std::arch SSE4.1 intrinsics (fused forms as lane loops)",
+        _ => "portable lane loops (this binary has no SIMD instruction set for this width)",
+    }
+}
+
 /// `op` lane-wise (Div is the IEEE divide: callers with an approximate
 /// divide do not come here).
 #[inline(always)]

@@ -1,9 +1,10 @@
-//! The native backend: the generic kernel code compiled to real SIMD where the
-//! host has it (lane arrays that LLVM vectorises; with `target-cpu=native`
-//! on an AVX2 host the 8-lane ops become AVX2 instructions). No recording,
-//! no allocation, no per-op branching, and the bounds check of each access
-//! hoisted to the buffer ([`Buf::hot_off`]). Results are bit-identical to
-//! the traced backend's.
+//! The native backend: the generic kernel code compiled to the host's
+//! instructions. Vector ops are `std::arch` intrinsics where the binary is
+//! built with AVX2 (8-lane chunks) or SSE4.1 (4 lanes) ([`crate::host`]),
+//! portable lane loops elsewhere; scalar ops are plain integer and float
+//! ops. No recording, no allocation, no per-op branching, and the bounds
+//! check of each access hoisted to the buffer ([`Buf::hot_off`]). Results
+//! are bit-identical to the traced backend's.
 //!
 //! A *logging* native machine ([`Native::logging`]) also keeps, for
 //! functional warming (SMARTS), the memory accesses and branches the traced

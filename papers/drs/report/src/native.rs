@@ -347,10 +347,12 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
              timed runs on one host thread (every method in turn, round by round, Embree's calls \
              after the kernels, so a slow spell of the host falls on all); Mray/s of the median run, and of the slowest and \
              fastest; time_vs_base: median time over single-bvh4's; the kernels run on the \
-             native backend (the {} semantics as lane arrays the compiler vectorises); Embree \
+             native backend (the {} semantics; vector ops as {}); Embree \
              rows (built with --features embree) build the scene robust at the default quality, \
              untimed, and trace primary rays with the coherent hint",
-            a.repeat, a.isa
+            a.repeat,
+            a.isa,
+            isa::host::describe(a.isa.lanes())
         )],
     };
     if bad > 0 {

@@ -379,11 +379,11 @@ pub fn validate_report(a: &ValidateArgs) -> AppResult<Report> {
         ops_simulated: 0,
         host_seconds: start.elapsed().as_secs_f64(),
         rows,
-        notes: notes(a, &verdict),
+        notes: notes(a, &verdict, m.flavour().lanes()),
     })
 }
 
-fn notes(a: &ValidateArgs, v: &Verdict) -> Vec<String> {
+fn notes(a: &ValidateArgs, v: &Verdict, lanes: usize) -> Vec<String> {
     let (tau, err) = (v.tau, v.err);
     let verdict = |ok: bool| if ok { "met" } else { "not met" };
     let worst = v.worst.map_or(String::new(), |(k, model, native)| {
@@ -405,7 +405,8 @@ fn notes(a: &ValidateArgs, v: &Verdict) -> Vec<String> {
             verdict(err <= GOAL_ERROR)
         ),
         format!(
-            "the native backend runs each op as lane arrays the compiler vectorises (each access's offset clamped to its buffer), not the instructions the traced backend records (4-5 host instructions per recorded one: rt/benches/RESULTS.md): native times follow the model's instruction counts with tau {:.3}{}",
+            "the native backend runs vector ops as {} and each access's offset clamped to its buffer, not the instructions the traced backend records (4-5 host instructions per recorded one: rt/benches/RESULTS.md): native times follow the model's instruction counts with tau {:.3}{}",
+            isa::host::describe(lanes),
             v.tau_ins,
             if v.tau_ins > tau {
                 ", closer than the model's cycles: the native runs are bound by that backend's cost per op, so the gap is not yet the model's error of any one mechanism"

@@ -160,10 +160,7 @@ fn packet_nodes(c: &mut Criterion) {
             );
         })
     });
-    let native_out: Vec<u32> = out.bytes()[..16 * NODES]
-        .chunks_exact(4)
-        .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-        .collect();
+    let native_out = w.masks(&out);
     assert_eq!(
         native_out,
         w.reference(8, true),

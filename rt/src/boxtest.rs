@@ -367,6 +367,15 @@ impl PacketNodes {
         (nodes, packet, out)
     }
 
+    /// The child masks [`packet_nodes_stream`] stored in `out`.
+    #[must_use]
+    pub fn masks(&self, out: &Buf) -> Vec<u32> {
+        out.bytes()[..16 * self.nodes.len()]
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            .collect()
+    }
+
     /// Every node's child masks by [`packet_box_ref`] for `lanes` lanes.
     #[must_use]
     pub fn reference(&self, lanes: usize, fused: bool) -> Vec<u32> {
@@ -392,10 +401,7 @@ impl Program for PacketNodes {
     fn run<M: Machine>(&self, m: &mut M) -> Vec<u32> {
         let (nodes, packet, mut out) = self.buffers(m);
         packet_nodes_stream(m, &nodes, self.nodes.len(), &packet, &mut out);
-        out.bytes()[..16 * self.nodes.len()]
-            .chunks_exact(4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect()
+        self.masks(&out)
     }
 }
 

@@ -825,11 +825,9 @@ pub fn trace_bvh2<M: Machine>(
 }
 
 /// One ray through a BVH2 from node `start` (a node index or leaf ref;
-/// hit record and `t_far` kept and written back as in [`trace_ray`]): per node one 16-byte load per axis
-/// (`[min_l, min_r, max_l, max_r]`, repeated across the lanes), one FMA per
-/// axis for all four planes, a lane swap (`vpermilps`) to pair each min with
-/// its max, so lanes 0 and 1 hold the two children's entry and exit; the
-/// nearer hit child is taken, the farther pushed with its entry distance.
+/// hit record and `t_far` kept and written back as in [`trace_ray`]): inner
+/// nodes by [`bvh2_node`], the nearer hit child taken, the farther pushed
+/// with its entry distance.
 ///
 /// Deviation: the node test uses the lanes there are (4 of them carry
 /// data), as Embree's BVH2 path does with SSE.
@@ -846,8 +844,6 @@ pub fn trace_ray_bvh2<M: Machine>(
     tests: &mut Tests,
     policy: HitPolicy,
 ) {
-    let n = M::LANES;
-    let swap: Vec<u8> = (0..n).map(|i| (i ^ 2) as u8).collect();
     let mut st = RayState::load(m, trav, isect, hits, ray);
     let (idir, oid, tnear_ray) = (st.idir, st.oid, st.tnear);
     let mut sp = m.int(0);
@@ -878,50 +874,13 @@ pub fn trace_ray_bvh2<M: Machine>(
             }
             let base = m.s_shift(isa::Shift::Shl, node, 6);
             tests.other += 1;
-            let mut tn_v = tnear_ray;
-            let mut tf_v = st.tfar;
-            for a in 0..3 {
-                let planes = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
-                let t = m.fmsub(planes, idir[a], oid[a]);
-                let sw = m.permute(t, &swap);
-                let mn = m.min(t, sw);
-                let mx = m.max(t, sw);
-                tn_v = m.max(tn_v, mn);
-                tf_v = m.min(tf_v, mx);
-            }
-            let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
-            let bits = m.movemask(hitk);
-            let lr = m.int(3);
-            let bits = m.s_and(bits, lr);
-            let none = m.s_cmp(Cmp::Eq, bits, zero);
-            if m.branch(site::ANY_CHILD, none) {
-                missed = true;
-                break;
-            }
-            let l = m.s_load(&s.nodes, At::idx(base, 1, 48), 4, false);
-            let r = m.s_load(&s.nodes, At::idx(base, 1, 52), 4, false);
-            let is_both = m.s_cmp(Cmp::Eq, bits, lr);
-            if m.branch(site::CHILD, is_both) {
-                let dl = m.extract(tn_v, 0);
-                let dr = m.extract(tn_v, 1);
-                let right_closer = m.x_cmp(Cmp::Lt, dr, dl);
-                let (near, far, dfar) = if m.branch(site::CLOSER, right_closer) {
-                    (r, l, dl)
-                } else {
-                    (l, r, dr)
-                };
-                m.s_store(stack, At::idx(sp, 8, 0), 4, far);
-                m.x_store(stack, At::idx(sp, 8, 4), dfar);
-                sp = m.s_addi(sp, 1);
-                node = near;
-            } else {
-                let one = m.int(1);
-                let only_left = m.s_cmp(Cmp::Eq, bits, one);
-                node = if m.branch(site::SIDE, only_left) {
-                    l
-                } else {
-                    r
-                };
+            let ray = (&idir, &oid, tnear_ray, st.tfar);
+            match bvh2_node(m, &s.nodes, base, ray, stack, &mut sp) {
+                Some(next) => node = next,
+                None => {
+                    missed = true;
+                    break;
+                }
             }
         }
         if missed {
@@ -934,4 +893,80 @@ pub fn trace_ray_bvh2<M: Machine>(
     }
     m.region(Region::SingleRay);
     st.write(m, trav, hits);
+}
+
+/// Lane i takes lane i ^ 2, for up to 32 lanes: pairs each plane of a BVH2
+/// node row `[min_l, min_r, max_l, max_r]` with its opposite. A constant, so
+/// natively the permute folds into one shuffle instruction.
+const SWAP_MIN_MAX: [u8; 32] = {
+    let mut p = [0u8; 32];
+    let mut i = 0;
+    while i < 32 {
+        p[i] = (i ^ 2) as u8;
+        i += 1;
+    }
+    p
+};
+
+/// Single-ray BVH2's inner step: the node at byte `base` of `nodes` against
+/// a ray (`idir`, `org * idir`, `t_near`, `t_far`, each broadcast); the next
+/// node: the only hit child, or the nearer of two with the farther pushed
+/// on `stack` at `sp` with its entry distance; `None` when neither child
+/// is hit. Per node one 16-byte load per axis (`[min_l, min_r, max_l,
+/// max_r]`, repeated across the lanes), one FMA per axis for all four
+/// planes, a lane swap (`vpermilps`) to pair each min with its max, so
+/// lanes 0 and 1 hold the two children's entry and exit.
+#[inline(always)]
+pub fn bvh2_node<M: Machine>(
+    m: &mut M,
+    nodes: &Buf,
+    base: M::S,
+    (idir, oid, tnear, tfar): (&[M::F; 3], &[M::F; 3], M::F, M::F),
+    stack: &mut Buf,
+    sp: &mut M::S,
+) -> Option<M::S> {
+    let swap = &SWAP_MIN_MAX[..M::LANES];
+    let (mut tn_v, mut tf_v) = (tnear, tfar);
+    for a in 0..3 {
+        let planes = m.load_repeat(nodes, At::idx(base, 1, 16 * a), 4);
+        let t = m.fmsub(planes, idir[a], oid[a]);
+        let sw = m.permute(t, swap);
+        let mn = m.min(t, sw);
+        let mx = m.max(t, sw);
+        tn_v = m.max(tn_v, mn);
+        tf_v = m.min(tf_v, mx);
+    }
+    let hitk = m.cmp(Cmp::Le, tn_v, tf_v);
+    let bits = m.movemask(hitk);
+    let lr = m.int(3);
+    let bits = m.s_and(bits, lr);
+    let zero = m.int(0);
+    let none = m.s_cmp(Cmp::Eq, bits, zero);
+    if m.branch(site::ANY_CHILD, none) {
+        return None;
+    }
+    let l = m.s_load(nodes, At::idx(base, 1, 48), 4, false);
+    let r = m.s_load(nodes, At::idx(base, 1, 52), 4, false);
+    let is_both = m.s_cmp(Cmp::Eq, bits, lr);
+    if !m.branch(site::CHILD, is_both) {
+        let one = m.int(1);
+        let only_left = m.s_cmp(Cmp::Eq, bits, one);
+        return Some(if m.branch(site::SIDE, only_left) {
+            l
+        } else {
+            r
+        });
+    }
+    let dl = m.extract(tn_v, 0);
+    let dr = m.extract(tn_v, 1);
+    let right_closer = m.x_cmp(Cmp::Lt, dr, dl);
+    let (near, far, dfar) = if m.branch(site::CLOSER, right_closer) {
+        (r, l, dl)
+    } else {
+        (l, r, dr)
+    };
+    m.s_store(stack, At::idx(*sp, 8, 0), 4, far);
+    m.x_store(stack, At::idx(*sp, 8, 4), dfar);
+    *sp = m.s_addi(*sp, 1);
+    Some(near)
 }

@@ -1,7 +1,8 @@
 //! Native backend vs hand-written AVX2 on the kernels' inner loops: the
 //! ray-vs-4-boxes test of single-ray BVH4 and DRS over a 4096-ray stream
 //! (the DRS paper's stream size), the packet kernels' 8-rays-vs-one-box test
-//! over the children of 1024 BVH4 nodes, and the traced backend's recording
+//! over the children of 1024 BVH4 nodes, single-ray BVH2's node step (each of
+//! the 4096 rays against 16 nodes), and the traced backend's recording
 //! speed on the first.
 //!
 //! Run: `cargo bench -p rt --bench boxtest`. Results, with the machine
@@ -9,10 +10,13 @@
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use isa::{Avx2, Machine, Native, Traced};
+use rt::boxtest::bvh2::{bvh2_nodes_stream, words, Bvh2Nodes};
 use rt::boxtest::{box4_stream, packet_nodes_stream, BoxStream, PacketNodes};
 
 const RAYS: usize = 4096;
 const NODES: usize = 1024;
+/// Nodes every ray of the BVH2-step stream is tested against.
+const BVH2_NODES: usize = 16;
 
 #[cfg(target_arch = "x86_64")]
 mod hand {
@@ -88,6 +92,85 @@ mod hand {
             }
         }
     }
+
+    /// Single-ray BVH2's node step written with SSE + FMA (the 4 lanes that
+    /// carry data, as Embree's BVH2 path): every ray (`rays`, 8 floats
+    /// each) against the nodes (`nodes`, 16 words each) in turn up to its
+    /// first miss, the next node (`u32::MAX`: none) into `out` at
+    /// `nodes * ray + node`, the farther child and its entry distance
+    /// pushed on `stack` when both are hit; the number of pushes.
+    /// `BRANCH_FREE`: after the miss test, selects instead of the kernel's
+    /// branches, and the entry past the last push holds a candidate never
+    /// pushed.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA; `out.len()` is rays times nodes,
+    /// `stack.len()` twice that plus 2.
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn bvh2_nodes_avx2<const BRANCH_FREE: bool>(
+        nodes: &[u32],
+        rays: &[f32],
+        out: &mut [u32],
+        stack: &mut [u32],
+    ) -> usize {
+        let nn = nodes.len() / 16;
+        let (mut rb, mut sp) = (0, 0);
+        for ray in rays.chunks_exact(8) {
+            let b = |k: usize| _mm_set1_ps(*ray.get_unchecked(k));
+            let (idir, oid) = ([b(0), b(1), b(2)], [b(4), b(5), b(6)]);
+            let (tnear, tfar) = (b(3), b(7));
+            for j in 0..nn {
+                let nb = nodes.as_ptr().add(16 * j);
+                let (mut tn, mut tf) = (tnear, tfar);
+                for a in 0..3 {
+                    let p = _mm_loadu_ps(nb.add(4 * a) as *const f32);
+                    let t = _mm_fmsub_ps(p, idir[a], oid[a]);
+                    let sw = _mm_permute_ps::<0b01_00_11_10>(t);
+                    tn = _mm_max_ps(tn, _mm_min_ps(t, sw));
+                    tf = _mm_min_ps(tf, _mm_max_ps(t, sw));
+                }
+                let bits = _mm_movemask_ps(_mm_cmp_ps::<_CMP_LE_OQ>(tn, tf)) & 3;
+                let o = rb + j;
+                if bits == 0 {
+                    // A miss ends the descent.
+                    *out.get_unchecked_mut(o) = u32::MAX;
+                    break;
+                }
+                let (l, r) = (*nb.add(12), *nb.add(13));
+                let dl = _mm_cvtss_f32(tn);
+                let dr = _mm_cvtss_f32(_mm_permute_ps::<1>(tn));
+                let next = if BRANCH_FREE {
+                    // The farther child is stored every step and kept (sp
+                    // advanced) only when both are hit.
+                    let (near, far, d) = if dr < dl { (r, l, dl) } else { (l, r, dr) };
+                    *stack.get_unchecked_mut(2 * sp) = far;
+                    *stack.get_unchecked_mut(2 * sp + 1) = d.to_bits();
+                    sp += usize::from(bits == 3);
+                    let one = if bits == 1 { l } else { r };
+                    if bits == 3 {
+                        near
+                    } else {
+                        one
+                    }
+                } else if bits == 3 {
+                    // The kernel's (and Embree's) branches: one or both
+                    // children, then which is nearer.
+                    let (near, far, d) = if dr < dl { (r, l, dl) } else { (l, r, dr) };
+                    *stack.get_unchecked_mut(2 * sp) = far;
+                    *stack.get_unchecked_mut(2 * sp + 1) = d.to_bits();
+                    sp += 1;
+                    near
+                } else if bits == 1 {
+                    l
+                } else {
+                    r
+                };
+                *out.get_unchecked_mut(o) = next;
+            }
+            rb += nn;
+        }
+        sp
+    }
 }
 
 fn bench(c: &mut Criterion) {
@@ -102,6 +185,8 @@ fn bench(c: &mut Criterion) {
             box4_stream::<_, 8>(&mut m, black_box(&node), black_box(&rays), RAYS, &mut out);
         })
     });
+    // Once more outside the timing loop: a filter may have skipped it.
+    box4_stream::<_, 8>(&mut m, &node, &rays, RAYS, &mut out);
     let native_out = out.bytes()[..RAYS / 2].to_vec();
 
     #[cfg(target_arch = "x86_64")]
@@ -114,6 +199,8 @@ fn bench(c: &mut Criterion) {
                 hand::box4_avx2(black_box(&w.node.f), black_box(&flat), &mut hand_out)
             })
         });
+        // SAFETY: as above.
+        unsafe { hand::box4_avx2(&w.node.f, &flat, &mut hand_out) };
         assert_eq!(
             hand_out, native_out,
             "hand-written and native results agree"
@@ -140,6 +227,7 @@ fn bench(c: &mut Criterion) {
     );
     let _ = m.space();
     packet_nodes(c);
+    bvh2_nodes(c);
 }
 
 /// The packet kernels' inner loop, native and hand-written.
@@ -160,6 +248,7 @@ fn packet_nodes(c: &mut Criterion) {
             );
         })
     });
+    packet_nodes_stream(&mut m, &nodes, NODES, &packet, &mut out);
     let native_out = w.masks(&out);
     assert_eq!(
         native_out,
@@ -178,10 +267,81 @@ fn packet_nodes(c: &mut Criterion) {
                 hand::packet_nodes_avx2(black_box(&flat), black_box(&rows), &mut hand_out)
             })
         });
+        // SAFETY: as above.
+        unsafe { hand::packet_nodes_avx2(&flat, &rows, &mut hand_out) };
         assert_eq!(
             hand_out, native_out,
             "hand-written and native results agree"
         );
+    }
+    group.finish();
+}
+
+/// Single-ray BVH2's inner step, native and hand-written.
+fn bvh2_nodes(c: &mut Criterion) {
+    let w = Bvh2Nodes::generate(BVH2_NODES, RAYS, 7);
+    let steps = BVH2_NODES * RAYS;
+    let mut group = c.benchmark_group("ray-vs-bvh2-node");
+    group.throughput(Throughput::Elements(RAYS as u64));
+    let mut m = Native::<Avx2, 8>::new();
+    let [nodes, rays, mut stack, mut out] = w.buffers(&mut m);
+    group.bench_function("native-avx2", |b| {
+        b.iter(|| {
+            let nodes = (black_box(&nodes), BVH2_NODES);
+            bvh2_nodes_stream(
+                &mut m,
+                nodes,
+                (black_box(&rays), RAYS),
+                &mut stack,
+                &mut out,
+            );
+        })
+    });
+    bvh2_nodes_stream(
+        &mut m,
+        (&nodes, BVH2_NODES),
+        (&rays, RAYS),
+        &mut stack,
+        &mut out,
+    );
+    let native_out = (words(&out, steps), words(&stack, w.stack_words()));
+    assert_eq!(
+        native_out,
+        w.reference(true),
+        "native agrees with the reference"
+    );
+
+    #[cfg(target_arch = "x86_64")]
+    if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+        let (node_words, flat) = (w.node_words(), w.ray_floats());
+        for (name, branch_free) in [("hand-avx2", false), ("hand-avx2-branch-free", true)] {
+            let mut hand_out = vec![0u32; steps];
+            let mut hand_stack = vec![0u32; w.stack_words() + 2];
+            let mut run = |n: &[u32], r: &[f32]| {
+                // SAFETY: features checked above; sizes match.
+                unsafe {
+                    if branch_free {
+                        hand::bvh2_nodes_avx2::<true>(n, r, &mut hand_out, &mut hand_stack)
+                    } else {
+                        hand::bvh2_nodes_avx2::<false>(n, r, &mut hand_out, &mut hand_stack)
+                    }
+                }
+            };
+            group.bench_function(name, |b| {
+                b.iter(|| run(black_box(&node_words), black_box(&flat)))
+            });
+            let pushes = run(&node_words, &flat);
+            let (next, stack) = &native_out;
+            assert!(
+                stack[2 * pushes..].iter().all(|&w| w == 0),
+                "as many pushes"
+            );
+            assert_eq!(
+                (&hand_out, &hand_stack[..2 * pushes]),
+                (next, &stack[..2 * pushes]),
+                "{name} and native results agree"
+            );
+        }
     }
     group.finish();
 }

@@ -15,6 +15,8 @@
 //! planes, not from a blend on the direction sign; rays are read in stream
 //! order, not through ray pointer lists (the DRS kernel, issue 5, does that).
 
+pub mod bvh2;
+
 use crate::packet::{slab_test, PacketSlabs};
 use isa::lanes::{fmax, fmin};
 use isa::{At, Buf, Cmp, Machine, MemKind, Program, Region, Shift, Site};
@@ -25,8 +27,14 @@ pub const SITE_RAYS: Site = isa::sites::BOXTEST.at(0);
 /// Loop-back branch of the packet-vs-nodes loop.
 pub const SITE_NODES: Site = isa::sites::BOXTEST.at(1);
 
+/// Loop-back branch of the BVH2-step stream's ray loop.
+pub const SITE_BVH2_RAYS: Site = isa::sites::BOXTEST.at(2);
+
+/// Loop-back branch of the BVH2-step stream's node loop.
+pub const SITE_BVH2_NODES: Site = isa::sites::BOXTEST.at(3);
+
 /// Every branch site of the module (checked for duplicates by the layout test).
-pub const SITES: [Site; 2] = [SITE_RAYS, SITE_NODES];
+pub const SITES: [Site; 4] = [SITE_RAYS, SITE_NODES, SITE_BVH2_RAYS, SITE_BVH2_NODES];
 /// Bytes of a node.
 pub const NODE_BYTES: usize = 96;
 /// Bytes of a traversal ray.

@@ -908,6 +908,14 @@ const SWAP_MIN_MAX: [u8; 32] = {
     p
 };
 
+/// A ray's slab inputs, each broadcast: `idir`, `org * idir`, `t_near`, `t_far`.
+pub type SlabRay<'a, M> = (
+    &'a [<M as Machine>::F; 3],
+    &'a [<M as Machine>::F; 3],
+    <M as Machine>::F,
+    <M as Machine>::F,
+);
+
 /// Single-ray BVH2's inner step: the node at byte `base` of `nodes` against
 /// a ray (`idir`, `org * idir`, `t_near`, `t_far`, each broadcast); the next
 /// node: the only hit child, or the nearer of two with the farther pushed
@@ -921,7 +929,7 @@ pub fn bvh2_node<M: Machine>(
     m: &mut M,
     nodes: &Buf,
     base: M::S,
-    (idir, oid, tnear, tfar): (&[M::F; 3], &[M::F; 3], M::F, M::F),
+    (idir, oid, tnear, tfar): SlabRay<'_, M>,
     stack: &mut Buf,
     sp: &mut M::S,
 ) -> Option<M::S> {

@@ -10,8 +10,8 @@
 
 use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use isa::{Avx2, Machine, Native, Traced};
-use rt::boxtest::bvh2::{bvh2_nodes_stream, words, Bvh2Nodes};
-use rt::boxtest::{box4_stream, packet_nodes_stream, BoxStream, PacketNodes};
+use rt::boxtest::bvh2::{bvh2_nodes_stream, Bvh2Nodes};
+use rt::boxtest::{box4_stream, packet_nodes_stream, words, BoxStream, PacketNodes};
 
 const RAYS: usize = 4096;
 const NODES: usize = 1024;

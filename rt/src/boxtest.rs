@@ -378,10 +378,7 @@ impl PacketNodes {
     /// The child masks [`packet_nodes_stream`] stored in `out`.
     #[must_use]
     pub fn masks(&self, out: &Buf) -> Vec<u32> {
-        out.bytes()[..16 * self.nodes.len()]
-            .chunks_exact(4)
-            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-            .collect()
+        words(out, 4 * self.nodes.len())
     }
 
     /// Every node's child masks by [`packet_box_ref`] for `lanes` lanes.
@@ -489,6 +486,15 @@ impl Program for BoxStream {
         }
         unpack_masks(out.bytes(), M::LANES, self.rays.len())
     }
+}
+
+/// The first `n` little-endian u32 words of a buffer.
+#[must_use]
+pub fn words(b: &Buf, n: usize) -> Vec<u32> {
+    b.bytes()[..4 * n]
+        .chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }
 
 /// Per-ray hit bits from the group masks `box4_stream` stores.

@@ -13,7 +13,7 @@
 //! by the step's choice, a miss ends the ray instead of popping the stack,
 //! and no leaf is tested (the step alone, what the hand-written twin does).
 
-use super::{Ray32, SITE_BVH2_NODES, SITE_BVH2_RAYS};
+use super::{words, Ray32, SITE_BVH2_NODES, SITE_BVH2_RAYS};
 use crate::single::bvh2_node;
 use isa::lanes::{fmax, fmin};
 use isa::{At, Buf, Cmp, Machine, MemKind, Program, Region, Shift};
@@ -264,15 +264,6 @@ impl Bvh2Nodes {
         }
         (next, stack)
     }
-}
-
-/// The first `n` little-endian u32 words of a buffer.
-#[must_use]
-pub fn words(b: &Buf, n: usize) -> Vec<u32> {
-    b.bytes()[..4 * n]
-        .chunks_exact(4)
-        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-        .collect()
 }
 
 impl Program for Bvh2Nodes {

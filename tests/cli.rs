@@ -471,6 +471,12 @@ fn native_times_every_kernel_on_the_same_rays_and_checks_them() {
         assert!(lo > 0.0 && lo <= mid && mid <= hi, "{k}: {lo} {mid} {hi}");
     }
     assert_eq!(of("single-bvh4", "time_vs_base"), Some(1.0));
+    // The hand-written twin of single-bvh4 where the host runs AVX2 + FMA
+    // (the default ISA on this build's hosts is avx2).
+    if let Some(bad) = of("hand-single-bvh4", "hit_mismatches") {
+        assert_eq!(bad, 0.0);
+        assert!(of("hand-single-bvh4", "time_vs_base").unwrap() > 0.0);
+    }
     let embree = of("embree-1m", "hit_mismatches");
     assert_eq!(embree.is_some(), cfg!(feature = "embree"));
     assert!(j["input"].as_str().unwrap().contains("host "));
@@ -507,9 +513,16 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
     assert_eq!(j["machine"], "zen3");
     let rows = j["rows"].as_array().unwrap();
     let count = |metric: &str| rows.iter().filter(|r| r["metric"] == metric).count();
+    // Single-bvh4's hand-written twin on both streams where the host runs
+    // AVX2 + FMA; Embree's three calls on both with the feature.
+    let hand = rows
+        .iter()
+        .filter(|r| r["method"] == "hand-single-bvh4")
+        .count();
+    assert!(hand == 0 || hand == 2, "{hand}");
     assert_eq!(
         count("native_mray_per_s"),
-        14 + if cfg!(feature = "embree") { 6 } else { 0 }
+        14 + hand + if cfg!(feature = "embree") { 6 } else { 0 }
     );
     assert_eq!(count("model_mray_per_s"), 14);
     assert_eq!(count("relative_error"), 12, "every kernel but the baseline");

@@ -12,6 +12,7 @@
 
 pub mod boxtest;
 pub mod filter;
+pub mod hand;
 pub mod layout;
 pub mod packet;
 pub mod single;

@@ -265,6 +265,21 @@ impl Run<'_> {
         self.trace_rays(m, laid, &self.rays, scratch.stream.as_mut())
     }
 
+    /// The hand-written twin of the run's kernel ([`rt::hand`]) over the
+    /// run's rays and `view` (the layout's BVH4): its answers as
+    /// [`Run::trace_in`] gives them (ray records built, hits read back), or
+    /// `None` when the kernel has no twin or the host lacks AVX2 and FMA.
+    #[must_use]
+    pub fn trace_hand(&self, view: &rt::hand::Bvh4View) -> Option<Vec<Hit>> {
+        if self.kernel != Kernel::SingleBvh4 {
+            return None;
+        }
+        let r = &self.rays;
+        let (trav, isect) = ray_records(&r.org, &r.dir, &r.tmax);
+        let recs = rt::hand::single_bvh4(view, &trav, &isect, r.policy())?;
+        Some(recs.iter().map(|h| Hit::from_record(h.t, h.prim)).collect())
+    }
+
     /// [`Run::trace`] over `rays` instead of the run's own; the DRS
     /// kernels' stream buffers from `stream` when given.
     fn trace_rays<M: Machine>(

@@ -10,6 +10,8 @@ use isa::{FlavourId, Machine, Program};
 use repro::host::HostCpu;
 use repro::report::Format;
 use repro::{AppError, AppResult, Report, Row};
+use rt::hand::Bvh4View;
+use rt::layout::Bvh4Bufs;
 use scene::loaded::Loaded;
 use scene::workload::{RayStream, Tile};
 use scene::Hit;
@@ -84,6 +86,9 @@ struct Interleaved<'a> {
     /// Timed after the kernels in every round.
     peers: &'a [Peer<'a>],
     repeat: u32,
+    /// Whether the kernels' hand-written twins ([`Run::trace_hand`]) are
+    /// timed too (after the kernels, before the peers).
+    hand: bool,
 }
 
 /// A method timed in the kernels' rounds (Embree's calls): its name, the
@@ -109,11 +114,27 @@ impl Interleaved<'_> {
             })
             .collect()
     }
+
+    /// The runs whose kernel has a hand-written twin this host runs: each
+    /// run's index and its BVH4 layout (a copy sharing the bytes, which the
+    /// twin reads).
+    fn twins(&self, laid: &[(Laid, Scratch)]) -> Vec<(usize, Bvh4Bufs)> {
+        if !self.hand || !rt::hand::available() {
+            return Vec::new();
+        }
+        (self.runs.iter().zip(laid).enumerate())
+            .filter(|(_, (r, _))| r.kernel == Kernel::SingleBvh4)
+            .filter_map(|(i, (_, (l, _)))| Some((i, l.bvh4.clone()?)))
+            .collect()
+    }
 }
 
-/// Per kernel its checked run's answers and timed seconds; per peer its
-/// timed seconds.
-type Rounds = (Vec<(Vec<Hit>, Vec<f64>)>, Vec<Vec<f64>>);
+/// Answers of a method's checked run and the seconds of its timed runs.
+type Timed = (Vec<Hit>, Vec<f64>);
+
+/// Per kernel its [`Timed`]; per twin its run's index and [`Timed`]; per
+/// peer its timed seconds.
+type Rounds = (Vec<Timed>, Vec<(usize, Timed)>, Vec<Vec<f64>>);
 
 impl Program for Interleaved<'_> {
     type Out = Rounds;
@@ -127,6 +148,15 @@ impl Program for Interleaved<'_> {
                 (first, Vec::new())
             })
             .collect();
+        let twin_bufs = self.twins(&laid);
+        let views: Vec<(usize, Bvh4View)> = (twin_bufs.iter())
+            .map(|(i, b)| (*i, Bvh4View::new(b).expect("a BVH4 as rt lays it out")))
+            .collect();
+        let hand_trace =
+            |i: usize, v: &Bvh4View| self.runs[i].trace_hand(v).expect("a kernel with a twin");
+        let mut hand: Vec<(usize, Timed)> = (views.iter())
+            .map(|(i, v)| (*i, (hand_trace(*i, v), Vec::new())))
+            .collect();
         let mut theirs = vec![Vec::new(); self.peers.len()];
         for _ in 0..self.repeat {
             for ((r, (l, s)), (_, secs)) in self.runs.iter().zip(&mut laid).zip(&mut ours) {
@@ -136,13 +166,18 @@ impl Program for Interleaved<'_> {
                 std::hint::black_box(res);
                 m.space().release(mark);
             }
+            for ((i, v), (_, (_, secs))) in views.iter().zip(&mut hand) {
+                let t = Instant::now();
+                std::hint::black_box(hand_trace(*i, v));
+                secs.push(t.elapsed().as_secs_f64());
+            }
             for (p, secs) in self.peers.iter().zip(&mut theirs) {
                 let t = Instant::now();
                 (p.call)();
                 secs.push(t.elapsed().as_secs_f64());
             }
         }
-        (ours, theirs)
+        (ours, hand, theirs)
     }
 }
 
@@ -172,11 +207,12 @@ pub fn time_methods(
         .collect();
     let embree = embree_setup(ld, (tile, spp), rays)?;
     let peers = embree_peers(embree.as_ref(), ld, rays);
-    let (timed, peer_secs) = isa::run_native(
+    let (timed, hand, peer_secs) = isa::run_native(
         &Interleaved {
             runs: &runs,
             peers: &peers,
             repeat,
+            hand: fl == FlavourId::Avx2,
         },
         fl,
     );
@@ -188,11 +224,14 @@ pub fn time_methods(
             Timing::of(name, secs, run.mismatches(name, &refi, &first))
         })
         .collect();
-    let theirs = peers
-        .iter()
-        .zip(peer_secs)
-        .map(|(p, secs)| Timing::of(p.name, secs, p.mismatches))
-        .collect();
+    let twins = hand.into_iter().map(|(i, (first, secs))| {
+        let name = format!("hand-{}", runs[i].kernel.name());
+        let bad = runs[i].mismatches(&name, &refi, &first);
+        Timing::of(&name, secs, bad)
+    });
+    let embree =
+        (peers.iter().zip(peer_secs)).map(|(p, secs)| Timing::of(p.name, secs, p.mismatches));
+    let theirs = twins.chain(embree).collect();
     Ok((ours, theirs))
 }
 
@@ -347,7 +386,10 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
              timed runs on one host thread (every method in turn, round by round, Embree's calls \
              after the kernels, so a slow spell of the host falls on all); Mray/s of the median run, and of the slowest and \
              fastest; time_vs_base: median time over single-bvh4's; the kernels run on the \
-             native backend (the {} semantics; vector ops as {}); Embree \
+             native backend (the {} semantics; vector ops as {}); hand-single-bvh4 (avx2 \
+             only, on a host with AVX2 and FMA) is single-bvh4's hand-written std::arch twin \
+             (rt::hand: same algorithm, layout and answers, bit for bit), timed after the kernels \
+             and before Embree; Embree \
              rows (built with --features embree) build the scene robust at the default quality, \
              untimed, and trace primary rays with the coherent hint",
             a.repeat,

@@ -119,12 +119,13 @@ fn simulate(run: &Run, m: &MachineConfig) -> AppResult<(u64, u64)> {
 }
 
 /// One scene: every stream's native timings (one host thread, nothing else
-/// running), then its simulations (every host core).
+/// running), then its simulations (every host core); the timings of the
+/// methods beside the kernels (the hand-written twin, Embree) go to `peers`.
 fn scene_points(
     a: &ValidateArgs,
     m: &MachineConfig,
     name: &str,
-    embree: &mut Vec<(String, String, Timing, usize)>,
+    peers: &mut Vec<(String, String, Timing, usize)>,
 ) -> AppResult<Vec<Point>> {
     let ld = Loaded::load(name, &drs_kernels::BVH).map_err(AppError)?;
     let kernels: Vec<Kernel> = Kernel::ALL
@@ -149,7 +150,7 @@ fn scene_points(
                     t.mismatches, t.method
                 )));
             }
-            embree.push((name.to_string(), stream.clone(), t, rays.len()));
+            peers.push((name.to_string(), stream.clone(), t, rays.len()));
         }
         timed.push((stream.clone(), tile, rays, nat));
     }
@@ -345,12 +346,12 @@ pub fn validate_report(a: &ValidateArgs) -> AppResult<Report> {
     let host = HostCpu::detect();
     let (m, why) = model(a, &host)?;
     let mut points = Vec::new();
-    let mut embree = Vec::new();
+    let mut peers = Vec::new();
     for s in &a.scenes {
-        points.extend(scene_points(a, &m, s, &mut embree)?);
+        points.extend(scene_points(a, &m, s, &mut peers)?);
     }
     let (mut rows, verdict) = rows(&points, &m);
-    for (scene, stream, t, n) in &embree {
+    for (scene, stream, t, n) in &peers {
         rows.push(
             Row::new("native_mray_per_s", *n as f64 / t.median() / 1e6)
                 .key("scene", scene)

@@ -458,6 +458,7 @@ impl<M: Machine> RayState<M> {
     /// Leaf `node`: one block of 8 triangles, in passes of `leaf_lanes`
     /// triangles; whether a triangle was hit. A shadow ray's t_far becomes -1 on a
     /// hit (it is done).
+    #[inline(always)]
     fn leaf(&mut self, m: &mut M, tris: &Buf, node: M::S, policy: HitPolicy) -> bool {
         let mut any = false;
         let width = self.leaf_lanes;
@@ -583,7 +584,7 @@ pub struct Block<M: Machine> {
 
 /// Load pass `p` of `width` triangles (4 or 8, at most the lanes there
 /// are) of the block at byte `bb` of `tris`, repeated across wider vectors.
-#[inline]
+#[inline(always)]
 pub fn load_block<M: Machine>(m: &mut M, tris: &Buf, bb: M::S, p: usize, width: usize) -> Block<M> {
     let n = M::LANES;
     assert!(
@@ -657,6 +658,7 @@ pub struct BlockHit<M: Machine> {
 /// needs one cross product; the block holds v0, e1, e2 only, so det and the
 /// depth take a second cross product (6 more ops per test, 9 fewer floats
 /// per triangle).
+#[inline(always)]
 pub fn moller<M: Machine>(
     m: &mut M,
     b: &Block<M>,
@@ -678,6 +680,7 @@ pub enum Sides {
 }
 
 /// [`moller`] with a choice of faces.
+#[inline(always)]
 pub fn moller_sided<M: Machine>(
     m: &mut M,
     b: &Block<M>,
@@ -729,9 +732,14 @@ pub fn moller_sided<M: Machine>(
     let ok_uv = m.cmp(Cmp::Le, suv, adet);
     let zi = m.splat_i(0);
     let ok_p = m.icmp(Cmp::Ge, b.prim, zi);
+    // One And per mask, written out: natively an iterator over the masks
+    // went through the stack (a store-forwarding stall per leaf).
     let mut valid = m.klogic(Logic::And, ok_det, ok_u);
-    for k in [ok_v, ok_uv, ok_p].into_iter().chain(live) {
-        valid = m.klogic(Logic::And, valid, k);
+    valid = m.klogic(Logic::And, valid, ok_v);
+    valid = m.klogic(Logic::And, valid, ok_uv);
+    valid = m.klogic(Logic::And, valid, ok_p);
+    if let Some(l) = live {
+        valid = m.klogic(Logic::And, valid, l);
     }
     let any = m.any(valid);
     if !m.branch(sites[0], any) {
@@ -774,6 +782,7 @@ pub struct Moller<M: Machine> {
 
 /// Moller-Trumbore of one ray (`org`, `dir` broadcast) against a block
 /// pass of `width` triangles, hits with 0 < t < `tfar`; the closest, if any.
+#[inline(always)]
 pub fn intersect<M: Machine>(
     m: &mut M,
     b: &Block<M>,

@@ -523,6 +523,11 @@ pub struct NativeCli {
     /// The ISA whose semantics the native backend runs.
     #[arg(long, value_parser = parse_isa, default_value = "avx2")]
     pub isa: FlavourId,
+    /// Extra Embree device configuration, e.g. `tri_accel=bvh4.triangle4`
+    /// (Embree's BVH4 and Moller test instead of its default for the host);
+    /// needs a build with `--features embree`.
+    #[arg(long, value_name = "KEY=VALUE,...")]
+    pub embree_config: Option<String>,
     /// Output format: text, json or csv.
     #[arg(long, value_parser = Format::from_name, default_value = "text")]
     pub format: Format,
@@ -545,6 +550,7 @@ impl NativeCli {
             repeat: self.repeat,
             kernels,
             isa: self.isa,
+            embree_config: self.embree_config,
             format: self.format,
         })
     }

@@ -486,6 +486,54 @@ fn native_times_every_kernel_on_the_same_rays_and_checks_them() {
     assert!(e.contains("--repeat"), "{e}");
     let e = err(&rtsim(&["native", "--isa", "avx1024"]));
     assert!(e.contains("avx1024"), "{e}");
+    // Embree's device settings: checked (Embree ignores unknown keys), and
+    // refused without the feature.
+    for (c, says) in [
+        ("tri_accel=bvh4.triangle4,foo=1", "unknown key \"foo\""),
+        ("tri_accel", "not key=value"),
+        ("isa=", "value"),
+    ] {
+        let e = err(&rtsim(&["native", "--scene", "sphere", "--embree-config", c]));
+        let want = if cfg!(feature = "embree") { says } else { "--features embree" };
+        assert!(e.contains("--embree-config") && e.contains(want), "{c}: {e}");
+    }
+}
+
+#[cfg(feature = "embree")]
+#[test]
+fn native_builds_embree_as_its_device_config_says() {
+    let j = json(&rtsim(&[
+        "native",
+        "--scene",
+        "sphere",
+        "--kernel",
+        "single-bvh4",
+        "--tile",
+        "8",
+        "--spp",
+        "1",
+        "--repeat",
+        "1",
+        "--embree-config",
+        "tri_accel=bvh4.triangle4",
+        "--format",
+        "json",
+    ]));
+    let rows = j["rows"].as_array().unwrap();
+    let bad = rows
+        .iter()
+        .find(|r| r["method"] == "embree-1" && r["metric"] == "hit_mismatches");
+    assert_eq!(bad.and_then(|r| r["value"].as_f64()), Some(0.0));
+    let notes = j["notes"].to_string();
+    assert!(notes.contains("threads=1,tri_accel=bvh4.triangle4"), "{notes}");
+    let e = err(&rtsim(&[
+        "native",
+        "--scene",
+        "sphere",
+        "--embree-config",
+        "tri_accel=bvh9.nothing",
+    ]));
+    assert!(e.contains("--embree-config") && e.contains("bvh9.nothing"), "{e}");
 }
 
 #[test]

@@ -58,12 +58,33 @@ impl Embree {
     /// # Errors
     /// When Embree cannot make the device or reports an error building.
     pub fn new(mesh: &Mesh, filter: Option<FilterFn>) -> Result<Embree, String> {
+        Self::with_config(mesh, filter, "")
+    }
+
+    /// [`Embree::new`] on a device configured by `config` too (Embree's
+    /// `key=value,...` device string after `threads=1`: e.g.
+    /// `tri_accel=bvh4.triangle4` for its BVH4 with the Moller test).
+    ///
+    /// # Errors
+    /// As [`Embree::new`], and when Embree refuses the configuration.
+    pub fn with_config(
+        mesh: &Mesh,
+        filter: Option<FilterFn>,
+        config: &str,
+    ) -> Result<Embree, String> {
+        let full = if config.is_empty() {
+            "threads=1".to_string()
+        } else {
+            format!("threads=1,{config}")
+        };
+        let cfg = std::ffi::CString::new(full)
+            .map_err(|_| format!("embree config {config:?}: contains a NUL byte"))?;
         // SAFETY: plain Embree API calls with buffers Embree allocates and
         // we fill within their sizes.
         unsafe {
-            let device = ffi::rtcNewDevice(c"threads=1".as_ptr());
+            let device = ffi::rtcNewDevice(cfg.as_ptr());
             if device.is_null() {
-                return Err("embree: rtcNewDevice failed".into());
+                return Err(format!("embree: rtcNewDevice refused config {config:?}"));
             }
             let scene = ffi::rtcNewScene(device);
             ffi::rtcSetSceneFlags(scene, ffi::SCENE_FLAG_ROBUST);
@@ -99,7 +120,9 @@ impl Embree {
             if err != 0 {
                 ffi::rtcReleaseScene(scene);
                 ffi::rtcReleaseDevice(device);
-                return Err(format!("embree: error {err} building the scene"));
+                return Err(format!(
+                    "embree: error {err} building the scene (device config {config:?})"
+                ));
             }
             Ok(Embree { device, scene })
         }

@@ -36,6 +36,9 @@ pub struct NativeArgs {
     pub kernels: Vec<Kernel>,
     /// The ISA whose semantics the native backend runs.
     pub isa: FlavourId,
+    /// Extra Embree device configuration (`key=value,...`), or `None`
+    /// for Embree's defaults.
+    pub embree_config: Option<String>,
     /// Output format.
     pub format: Format,
 }
@@ -195,6 +198,7 @@ pub fn time_methods(
     kernels: &[Kernel],
     fl: FlavourId,
     repeat: u32,
+    embree_config: &str,
 ) -> AppResult<(Vec<Timing>, Vec<Timing>)> {
     let refi = ld.reference();
     let runs: Vec<Run> = kernels
@@ -205,7 +209,7 @@ pub fn time_methods(
             run
         })
         .collect();
-    let embree = embree_setup(ld, (tile, spp), rays)?;
+    let embree = embree_setup(ld, (tile, spp), rays, embree_config)?;
     let peers = embree_peers(embree.as_ref(), ld, rays);
     let (timed, hand, peer_secs) = isa::run_native(
         &Interleaved {
@@ -248,8 +252,10 @@ fn embree_setup(
     ld: &Loaded,
     (tile, spp): (Tile, u32),
     rays: &RayStream,
+    config: &str,
 ) -> AppResult<Option<EmbreeSetup>> {
-    let e = embree_peer::Embree::new(&ld.scene.mesh, None).map_err(AppError)?;
+    let e = embree_peer::Embree::with_config(&ld.scene.mesh, None, config)
+        .map_err(|e| AppError(format!("--embree-config: {e}")))?;
     Ok(Some((
         e,
         scene::workload::packet_slots(rays, tile.size, spp, 8),
@@ -257,7 +263,12 @@ fn embree_setup(
 }
 
 #[cfg(not(feature = "embree"))]
-fn embree_setup(_: &Loaded, _: (Tile, u32), _: &RayStream) -> AppResult<Option<EmbreeSetup>> {
+fn embree_setup(
+    _: &Loaded,
+    _: (Tile, u32),
+    _: &RayStream,
+    _: &str,
+) -> AppResult<Option<EmbreeSetup>> {
     Ok(None)
 }
 
@@ -293,6 +304,47 @@ fn embree_peers<'a>(
 #[cfg(not(feature = "embree"))]
 fn embree_peers<'a>(_: Option<&'a EmbreeSetup>, _: &Loaded, _: &'a RayStream) -> Vec<Peer<'a>> {
     Vec::new()
+}
+
+/// The Embree device settings `--embree-config` may set (Embree ignores
+/// keys it does not know, so a misspelt one would silently change nothing):
+/// the triangle acceleration structure, its builder and traverser, and the
+/// instruction set. `threads` stays 1 (the kernels run on one thread) and
+/// `verbose` would print into the report.
+pub const EMBREE_KEYS: [&str; 6] = [
+    "tri_accel",
+    "tri_builder",
+    "tri_traverser",
+    "isa",
+    "max_isa",
+    "frequency_level",
+];
+
+/// `--embree-config`: comma-separated `key=value` pairs, every key one of
+/// [`EMBREE_KEYS`], every value non-empty.
+///
+/// # Errors
+/// Naming the first pair that is not.
+pub fn check_embree_config(c: &str) -> AppResult<()> {
+    let bad = |what: String| Err(AppError(format!("--embree-config {c:?}: {what}")));
+    if c.trim().is_empty() {
+        return bad("empty".into());
+    }
+    for pair in c.split(',') {
+        let Some((k, v)) = pair.split_once('=') else {
+            return bad(format!("{pair:?} is not key=value"));
+        };
+        if !EMBREE_KEYS.contains(&k) {
+            return bad(format!(
+                "unknown key {k:?} (one of {})",
+                EMBREE_KEYS.join(", ")
+            ));
+        }
+        if v.is_empty() || v.contains(['=', ' ']) {
+            return bad(format!("{k}: value {v:?}"));
+        }
+    }
+    Ok(())
 }
 
 /// Rows of `timings` over `rays` rays: Mray/s median, slowest and fastest
@@ -332,6 +384,14 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
     if a.repeat == 0 || a.repeat > 1000 {
         return Err(AppError("--repeat: must be 1 to 1000".into()));
     }
+    if a.embree_config.is_some() && !cfg!(feature = "embree") {
+        return Err(AppError(
+            "--embree-config: this build has no Embree (build with --features embree)".into(),
+        ));
+    }
+    if let Some(c) = &a.embree_config {
+        check_embree_config(c)?;
+    }
     let kernels: Vec<Kernel> = if a.kernels.is_empty() {
         Kernel::ALL
             .into_iter()
@@ -350,7 +410,9 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
     }
     let ld = Loaded::load(&a.scene, &drs_kernels::BVH).map_err(AppError)?;
     let (tile, rays) = tile_stream(&ld, &a.stream, a.tile, a.spp, a.seed)?;
-    let (mut timings, embree) = time_methods(&ld, (tile, a.spp), &rays, &kernels, a.isa, a.repeat)?;
+    let config = a.embree_config.as_deref().unwrap_or("");
+    let (mut timings, embree) =
+        time_methods(&ld, (tile, a.spp), &rays, &kernels, a.isa, a.repeat, config)?;
     timings.extend(embree);
     let bad: usize = timings.iter().map(|t| t.mismatches).sum();
     let mut rows = vec![Row::new("rays", rays.len() as f64)];
@@ -391,10 +453,14 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
              (rt::hand: same algorithm, layout and answers, bit for bit), timed after the kernels \
              and before Embree; Embree \
              rows (built with --features embree) build the scene robust at the default quality, \
-             untimed, and trace primary rays with the coherent hint",
+             untimed (Embree device config: threads=1{}), and trace primary rays with the \
+             coherent hint",
             a.repeat,
             a.isa,
-            isa::host::describe(a.isa.lanes())
+            isa::host::describe(a.isa.lanes()),
+            a.embree_config
+                .as_ref()
+                .map_or(String::new(), |c| format!(",{c}"))
         )],
     };
     if bad > 0 {

@@ -135,8 +135,15 @@ fn scene_points(
     let mut timed = Vec::new();
     for stream in &a.streams {
         let (tile, rays) = tile_stream(&ld, stream, a.tile, a.spp, a.seed)?;
-        let (nat, theirs) =
-            time_methods(&ld, (tile, a.spp), &rays, &kernels, m.flavour(), a.repeat)?;
+        let (nat, theirs) = time_methods(
+            &ld,
+            (tile, a.spp),
+            &rays,
+            &kernels,
+            m.flavour(),
+            a.repeat,
+            "",
+        )?;
         if let Some(t) = nat.iter().find(|t| t.mismatches > 0) {
             return Err(AppError(format!(
                 "{name} {stream}: {} answers of {} differ from the reference",

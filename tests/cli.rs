@@ -493,9 +493,22 @@ fn native_times_every_kernel_on_the_same_rays_and_checks_them() {
         ("tri_accel", "not key=value"),
         ("isa=", "value"),
     ] {
-        let e = err(&rtsim(&["native", "--scene", "sphere", "--embree-config", c]));
-        let want = if cfg!(feature = "embree") { says } else { "--features embree" };
-        assert!(e.contains("--embree-config") && e.contains(want), "{c}: {e}");
+        let e = err(&rtsim(&[
+            "native",
+            "--scene",
+            "sphere",
+            "--embree-config",
+            c,
+        ]));
+        let want = if cfg!(feature = "embree") {
+            says
+        } else {
+            "--features embree"
+        };
+        assert!(
+            e.contains("--embree-config") && e.contains(want),
+            "{c}: {e}"
+        );
     }
 }
 
@@ -525,7 +538,10 @@ fn native_builds_embree_as_its_device_config_says() {
         .find(|r| r["method"] == "embree-1" && r["metric"] == "hit_mismatches");
     assert_eq!(bad.and_then(|r| r["value"].as_f64()), Some(0.0));
     let notes = j["notes"].to_string();
-    assert!(notes.contains("threads=1,tri_accel=bvh4.triangle4"), "{notes}");
+    assert!(
+        notes.contains("threads=1,tri_accel=bvh4.triangle4"),
+        "{notes}"
+    );
     let e = err(&rtsim(&[
         "native",
         "--scene",
@@ -533,7 +549,10 @@ fn native_builds_embree_as_its_device_config_says() {
         "--embree-config",
         "tri_accel=bvh9.nothing",
     ]));
-    assert!(e.contains("--embree-config") && e.contains("bvh9.nothing"), "{e}");
+    assert!(
+        e.contains("--embree-config") && e.contains("bvh9.nothing"),
+        "{e}"
+    );
 }
 
 #[test]

@@ -181,22 +181,24 @@ fn core_node<M: Machine, const N: usize>(
     // The paper's bbX = [min_l, min_r, -max_l, -max_r] and bbXneg = [max_l,
     // max_r, -min_l, -min_r] (the planes for a negative direction): far
     // planes negated, so one max gives entry and negated exit distances.
-    let pos_neg: Vec<f32> = (0..N).map(|l| if l % 4 < 2 { 0.0 } else { -0.0 }).collect();
-    let pos_neg = m.consts(&pos_neg);
-    let mut bb = Vec::with_capacity(3);
-    let mut bb_neg = Vec::with_capacity(3);
-    for a in 0..3 {
+    // Arrays, not vectors: natively a Vec here was an allocation per node.
+    let pos_neg = m.consts(&POS_NEG[..N]);
+    let planes: [(M::F, M::F); 3] = std::array::from_fn(|a| {
         let row = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * a), 4);
         let swapped = m.permute(row, &Pat::<N>::SWAP_GROUPS);
-        bb.push(m.logic(Logic::Xor, row, pos_neg));
-        bb_neg.push(m.logic(Logic::Xor, swapped, pos_neg));
-    }
+        let bb = m.logic(Logic::Xor, row, pos_neg);
+        (bb, m.logic(Logic::Xor, swapped, pos_neg))
+    });
+    let (bb, bb_neg) = (planes.map(|p| p.0), planes.map(|p| p.1));
     let neg = m.splat(-0.0);
     let nlists = if policy.is_any() { 2 } else { 3 };
-    let starts: Vec<M::S> = (0..nlists)
-        .map(|k| m.s_load(&st.counters, At::off(8 * k), 8, false))
-        .collect();
-    let mut cnt = starts.clone();
+    let mut starts_at = [count; 3];
+    for (k, s) in starts_at.iter_mut().enumerate().take(nlists) {
+        *s = m.s_load(&st.counters, At::off(8 * k), 8, false);
+    }
+    let starts = &starts_at[..nlists];
+    let mut cnt_at = starts_at;
+    let cnt = &mut cnt_at[..nlists];
     m.region(Region::CoreLoop);
     let sites = (site::CORE, site::PAD);
     core_loop::<M, N>(
@@ -204,7 +206,7 @@ fn core_node<M: Machine, const N: usize>(
         st,
         trav,
         (at, count),
-        &mut cnt,
+        cnt,
         sites,
         |m, dir_near, org_far| {
             // The listing's shuffle patterns, named as constants here (not
@@ -292,6 +294,20 @@ fn axis<M: Machine, const N: usize>(
     let planes = m.blend_sign(d, bb, bb_neg);
     m.fmsub(planes, d, o)
 }
+
+/// The listing's `posNegMask`, for up to 32 lanes: per 4-lane group
+/// `[0, 0, -0, -0]` (xor negates the far planes).
+const POS_NEG: [f32; 32] = {
+    let mut p = [0.0f32; 32];
+    let mut l = 0;
+    while l < 32 {
+        if l % 4 >= 2 {
+            p[l] = -0.0;
+        }
+        l += 1;
+    }
+    p
+};
 
 /// The listing's shuffle patterns, per 4-lane group of N lanes.
 struct Groups<const N: usize>;

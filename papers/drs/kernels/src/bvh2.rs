@@ -162,6 +162,32 @@ fn trace_n<M: Machine, const N: usize>(
     }
 }
 
+/// One inner node's item as the traversal meets it: the core loop over the
+/// `count` ray indices at byte `at` of the lists (list counters as
+/// `st.counters` holds them), then the new items pushed at `sp`. Public for
+/// the `listloop` bench, which times it against the paper's listing
+/// written by hand.
+#[allow(clippy::too_many_arguments)]
+pub fn node_item<M: Machine>(
+    m: &mut M,
+    s: &Bvh2Bufs,
+    st: &mut StreamBufs,
+    trav: &Buf,
+    sp: &mut M::S,
+    node: M::S,
+    (at, count): (M::S, M::S),
+    policy: HitPolicy,
+) {
+    let args = (s, st, trav, sp, node);
+    match M::LANES {
+        4 => core_node::<M, 4>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
+        8 => core_node::<M, 8>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
+        16 => core_node::<M, 16>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
+        32 => core_node::<M, 32>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
+        n => panic!("the DRS kernel runs on 4 to 32 lanes, not {n}"),
+    }
+}
+
 /// One inner node: the core loop over the item's rays, then the new items.
 #[allow(clippy::too_many_arguments)]
 fn core_node<M: Machine, const N: usize>(

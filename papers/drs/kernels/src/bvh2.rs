@@ -234,7 +234,7 @@ fn core_node<M: Machine, const N: usize>(
         (at, count),
         cnt,
         sites,
-        |m, dir_near, org_far| {
+        move |m, dir_near, org_far| {
             // The listing's shuffle patterns, named as constants here (not
             // captured): each shuffle then compiles to one instruction natively.
             let near_far_ray = &Groups::<N>::NEAR_FAR_RAY;

@@ -355,7 +355,7 @@ fn core_node<M: Machine, const N: usize>(
         (at, count),
         &mut cnt,
         sites,
-        |m, dir_near, org_far| {
+        move |m, dir_near, org_far| {
             // The patterns named as constants here (not captured): each
             // permute then compiles to one shuffle natively.
             let sp4 = &Pat::<N>::SPLAT;
@@ -391,17 +391,18 @@ fn node_planes<M: Machine>(
     s: &Bvh4Bufs,
     base: M::S,
     oct: M::S,
-) -> (Vec<M::F>, Vec<M::F>) {
-    let mut near = Vec::with_capacity(3);
-    let mut far = Vec::with_capacity(3);
-    for a in 0..3 {
+) -> ([M::F; 3], [M::F; 3]) {
+    let planes: [(M::F, M::F); 3] = std::array::from_fn(|a| {
         let sh = m.s_shift(Shift::Shr, oct, a as u32);
         let one = m.int(1);
         let neg = m.s_and(sh, one).get() as usize;
-        near.push(m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + neg)), 4));
-        far.push(m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + 1 - neg)), 4));
-    }
-    (near, far)
+        let near = m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + neg)), 4);
+        (
+            near,
+            m.load_repeat(&s.nodes, At::idx(base, 1, 16 * (2 * a + 1 - neg)), 4),
+        )
+    });
+    (planes.map(|p| p.0), planes.map(|p| p.1))
 }
 
 /// The node's valid children, repeated for the LANES/4 rays of an

@@ -46,7 +46,7 @@ pub struct NativeArgs {
 /// One method's native timings over a stream.
 #[derive(Clone, Debug)]
 pub struct Timing {
-    /// Kernel name, or `embree-1`, `embree-8`, `embree-1m`.
+    /// Kernel name, `hand-single-bvh4` (the twin), or `embree-1`, `embree-8`, `embree-1m`.
     pub method: String,
     /// Seconds of each timed run, sorted.
     pub seconds: Vec<f64>,

@@ -108,7 +108,7 @@ mod avx2 {
     //! The AVX2 + FMA single-ray BVH4 twin, step by step.
     use super::{Bvh4View, HitRecord};
     use crate::layout::{is_leaf, BLOCK_BYTES, NODE_BYTES};
-    use crate::single::STACK_ENTRIES;
+    use crate::single::{sort_network, STACK_ENTRIES};
     use scene::bvh::{EMPTY_SLOT, LEAF};
     use scene::HitPolicy;
     use std::arch::x86_64::*;
@@ -266,12 +266,7 @@ mod avx2 {
             }
             _ => {
                 if !policy.is_any() {
-                    let net: &[(usize, usize)] = if n == 3 {
-                        &[(0, 1), (1, 2), (0, 1)]
-                    } else {
-                        &[(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)]
-                    };
-                    for &(i, j) in net {
+                    for &(i, j) in sort_network(n) {
                         if hit[i].1 < hit[j].1 {
                             hit.swap(i, j);
                         }

@@ -333,12 +333,7 @@ fn descend4<M: Machine>(
         _ => {
             if !policy.is_any() {
                 // Nearest last: it is popped first.
-                let net: &[(usize, usize)] = if n == 3 {
-                    &[(0, 1), (1, 2), (0, 1)]
-                } else {
-                    &[(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)]
-                };
-                for &(i, j) in net {
+                for &(i, j) in sort_network(n) {
                     let swap = m.x_cmp(Cmp::Lt, at(&hit, i).1, at(&hit, j).1);
                     if m.branch(site::SORT, swap) {
                         hit.swap(i, j);
@@ -351,6 +346,18 @@ fn descend4<M: Machine>(
             *sp = m.s_addi(*sp, -1);
             m.s_load(stack, At::idx(*sp, 8, 0), 4, false)
         }
+    }
+}
+
+/// Embree's compare-exchange network over `n` (3 or 4) hit children: each
+/// pair (i, j) is swapped when child i is nearer than child j, which leaves
+/// the nearest last (popped first).
+#[must_use]
+pub fn sort_network(n: usize) -> &'static [(usize, usize)] {
+    match n {
+        3 => &[(0, 1), (1, 2), (0, 1)],
+        4 => &[(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)],
+        _ => panic!("a sort network for 3 or 4 children, not {n}"),
     }
 }
 

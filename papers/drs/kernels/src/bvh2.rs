@@ -178,12 +178,11 @@ pub fn node_item<M: Machine>(
     (at, count): (M::S, M::S),
     policy: HitPolicy,
 ) {
-    let args = (s, st, trav, sp, node);
     match M::LANES {
-        4 => core_node::<M, 4>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
-        8 => core_node::<M, 8>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
-        16 => core_node::<M, 16>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
-        32 => core_node::<M, 32>(m, args.0, args.1, args.2, args.3, args.4, at, count, policy),
+        4 => core_node::<M, 4>(m, s, st, trav, sp, node, at, count, policy),
+        8 => core_node::<M, 8>(m, s, st, trav, sp, node, at, count, policy),
+        16 => core_node::<M, 16>(m, s, st, trav, sp, node, at, count, policy),
+        32 => core_node::<M, 32>(m, s, st, trav, sp, node, at, count, policy),
         n => panic!("the DRS kernel runs on 4 to 32 lanes, not {n}"),
     }
 }

@@ -6,7 +6,7 @@ use common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 11] = [
+const MACHINES: [&str; 12] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",
@@ -15,6 +15,7 @@ const MACHINES: [&str; 11] = [
     "nehalem-x5550",
     "nehalem-w5580",
     "dunnington-x7460",
+    "zen1",
     "zen3",
     "zen4",
     "icelake-sp",

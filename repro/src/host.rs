@@ -88,6 +88,10 @@ impl HostCpu {
     /// The built-in machine config that models this CPU's core, and why;
     /// `None` when no config does (with what the CPU is).
     ///
+    /// AMD family 17h models 00h-2Fh (01h Naples and Summit Ridge, 08h
+    /// Pinnacle Ridge, 11h Raven Ridge, 18h Picasso, 20h Dali) are Zen and
+    /// Zen+; 30h and above (31h Rome, 60h Renoir, 71h Matisse) Zen 2, which
+    /// has no config of its own (the nearest is named).
     /// AMD family 19h model ranges (AMD's processor programming references,
     /// as Linux's `arch/x86` tables list them): 00h-0Fh Milan, 20h-2Fh
     /// Vermeer, 40h-5Fh Rembrandt/Cezanne are Zen 3; 10h-1Fh Genoa, 60h-7Fh
@@ -99,6 +103,11 @@ impl HostCpu {
     #[must_use]
     pub fn model_config(&self) -> (Option<&'static str>, String) {
         let (f, m) = (self.family, self.model);
+        let zen2 = self.vendor == "AuthenticAMD" && f == 0x17 && m >= 0x30;
+        if self.vendor == "AuthenticAMD" && f == 0x17 && !zen2 {
+            let why = format!("AMD family 17h model {m:#x}: Zen or Zen+");
+            return (Some("zen1"), why);
+        }
         if self.vendor == "AuthenticAMD" && f == 0x19 {
             let zen4 = matches!(m, 0x10..=0x1f | 0x60..=0x7f | 0xa0..=0xaf);
             return if zen4 {
@@ -117,12 +126,13 @@ impl HostCpu {
             (true, 0x8f | 0xcf) => {
                 " (Sapphire/Emerald Rapids, Golden Cove cores; the nearest config is icelake-sp)"
             }
+            _ if zen2 => " (Zen 2: 256-bit FP pipes as Zen 3's; the nearest config is zen3)",
             _ => "",
         };
         (
             None,
             format!(
-                "no built-in config models {} family {f:#x} model {m:#x}{nearest} (configs exist for AMD Zen 3, Zen 4 and Intel Ice Lake-SP)",
+                "no built-in config models {} family {f:#x} model {m:#x}{nearest} (configs exist for AMD Zen, Zen 3, Zen 4 and Intel Ice Lake-SP)",
                 if self.vendor.is_empty() { "this CPU" } else { &self.vendor }
             ),
         )
@@ -234,6 +244,19 @@ mod tests {
         };
         assert_eq!(amd_family_6.model_config().0, None);
         assert_eq!(HostCpu::parse("").model_config().0, None);
+        let naples = HostCpu {
+            vendor: "AuthenticAMD".into(),
+            family: 0x17,
+            model: 0x01,
+            ..HostCpu::default()
+        };
+        assert_eq!(naples.model_config().0, Some("zen1"));
+        let rome = HostCpu {
+            model: 0x31,
+            ..naples
+        };
+        assert_eq!(rome.model_config().0, None);
+        assert!(rome.model_config().1.contains("nearest config is zen3"));
     }
 
     #[test]

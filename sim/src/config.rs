@@ -276,6 +276,7 @@ pub const BUILTIN: &[(&str, &str)] = &[
         "dunnington-x7460",
         include_str!("../../configs/machines/dunnington-x7460.ron"),
     ),
+    ("zen1", include_str!("../../configs/machines/zen1.ron")),
     ("zen3", include_str!("../../configs/machines/zen3.ron")),
     ("zen4", include_str!("../../configs/machines/zen4.ron")),
     (

@@ -2,19 +2,21 @@
 //! backend) on one scene's primary, bounce and shadow streams of one 16 x 16
 //! pixel x 16 spp tile, so their real speed on this machine can be set beside
 //! the simulated ranking of `rtsim reproduce drs-table1`. The scene is laid
-//! out once per kernel; each iteration allocates the ray records, traces, and
-//! releases the records.
+//! out once per kernel; each iteration lays out the rays (untimed), times
+//! the kernel alone, as `rtsim native` does, reads the answers back and
+//! releases the buffers (untimed).
 //!
 //! Run: `cargo bench -p drs-kernels --bench traversal` (reads the project's `data/`;
 //! `RTSIM_BENCH_SCENE` picks another stand-in than `crown`). Results, with the
 //! machine they ran on, are in `rt/benches/RESULTS.md`.
 
-use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use criterion::{black_box, criterion_group, criterion_main, Criterion, Throughput};
 use drs_kernels::methods::{Kernel, Run};
 use isa::{Avx2, Machine, Native};
 use scene::bvh::{Bvh2, Bvh4};
 use scene::scene::Scene;
 use scene::workload::{path_trace_tile, StreamKind, Tile};
+use std::time::{Duration, Instant};
 
 fn traversal(c: &mut Criterion) {
     let name = std::env::var("RTSIM_BENCH_SCENE").unwrap_or_else(|_| "crown".into());
@@ -44,12 +46,20 @@ fn traversal(c: &mut Criterion) {
             run.packet_tile = Some((tile.size, 16));
             let mut m = Native::<Avx2, 8>::new();
             let laid = run.lay_out(&mut m);
+            let mut scratch = run.scratch(&mut m, &laid);
             let mark = m.space().mark();
             g.bench_function(format!("{}/{label}", kernel.name()), |b| {
-                b.iter(|| {
-                    let out = run.trace(&mut m, &laid);
-                    m.space().release(mark);
-                    out
+                b.iter_custom(|iters| {
+                    let mut total = Duration::ZERO;
+                    for _ in 0..iters {
+                        let mut staged = run.stage(&mut m);
+                        let t = Instant::now();
+                        let tests = run.trace_staged(&mut m, &laid, &mut staged, &mut scratch);
+                        total += t.elapsed();
+                        black_box((staged.answers(), tests));
+                        m.space().release(mark);
+                    }
+                    total
                 });
             });
         }

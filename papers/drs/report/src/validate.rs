@@ -402,7 +402,7 @@ fn notes(a: &ValidateArgs, v: &Verdict, lanes: usize) -> Vec<String> {
     });
     vec![
         format!(
-            "native: median of {} timed runs per kernel after one checked run, one host thread, the kernels timed in turn round by round (a slow spell of the host falls on all of them); model: one core, its caches and predictor warmed by a functional pass over the same rays, then timed in full detail",
+            "native: median of {} timed runs per kernel after one checked run, one host thread, the kernels timed in turn round by round (a slow spell of the host falls on all of them), each its traversal alone (the rays laid out before and the answers read back after, untimed: host work the model does not record); model: one core, its caches and predictor warmed by a functional pass over the same rays, then timed in full detail",
             a.repeat
         ),
         format!(

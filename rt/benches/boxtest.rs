@@ -139,32 +139,100 @@ mod hand {
                 let (l, r) = (*nb.add(12), *nb.add(13));
                 let dl = _mm_cvtss_f32(tn);
                 let dr = _mm_cvtss_f32(_mm_permute_ps::<1>(tn));
-                let next = if BRANCH_FREE {
-                    // The farther child is stored every step and kept (sp
-                    // advanced) only when both are hit.
-                    let (near, far, d) = if dr < dl { (r, l, dl) } else { (l, r, dr) };
-                    *stack.get_unchecked_mut(2 * sp) = far;
-                    *stack.get_unchecked_mut(2 * sp + 1) = d.to_bits();
-                    sp += usize::from(bits == 3);
-                    let one = if bits == 1 { l } else { r };
-                    if bits == 3 {
-                        near
-                    } else {
-                        one
-                    }
-                } else if bits == 3 {
-                    // The kernel's (and Embree's) branches: one or both
-                    // children, then which is nearer.
-                    let (near, far, d) = if dr < dl { (r, l, dl) } else { (l, r, dr) };
-                    *stack.get_unchecked_mut(2 * sp) = far;
-                    *stack.get_unchecked_mut(2 * sp + 1) = d.to_bits();
-                    sp += 1;
-                    near
-                } else if bits == 1 {
-                    l
-                } else {
-                    r
-                };
+                let next = next_child::<BRANCH_FREE>(bits, (l, r), (dl, dr), stack, &mut sp);
+                *out.get_unchecked_mut(o) = next;
+            }
+            rb += nn;
+        }
+        sp
+    }
+
+    /// The next node of a BVH2 step whose children `bits` hit (1 left, 2
+    /// right, 3 both), the farther pushed with its entry distance when both
+    /// are. `BRANCH_FREE`: selects instead of the kernel's branches, the
+    /// entry past the last push holding a candidate never pushed.
+    ///
+    /// # Safety
+    /// `stack` has room for the push at `sp`.
+    #[inline(always)]
+    unsafe fn next_child<const BRANCH_FREE: bool>(
+        bits: i32,
+        (l, r): (u32, u32),
+        (dl, dr): (f32, f32),
+        stack: &mut [u32],
+        sp: &mut usize,
+    ) -> u32 {
+        if BRANCH_FREE {
+            // The farther child is stored every step and kept (sp
+            // advanced) only when both are hit.
+            let (near, far, d) = if dr < dl { (r, l, dl) } else { (l, r, dr) };
+            *stack.get_unchecked_mut(2 * *sp) = far;
+            *stack.get_unchecked_mut(2 * *sp + 1) = d.to_bits();
+            *sp += usize::from(bits == 3);
+            let one = if bits == 1 { l } else { r };
+            if bits == 3 {
+                near
+            } else {
+                one
+            }
+        } else if bits == 3 {
+            // The kernel's (and Embree's) branches: one or both
+            // children, then which is nearer.
+            let (near, far, d) = if dr < dl { (r, l, dl) } else { (l, r, dr) };
+            *stack.get_unchecked_mut(2 * *sp) = far;
+            *stack.get_unchecked_mut(2 * *sp + 1) = d.to_bits();
+            *sp += 1;
+            near
+        } else if bits == 1 {
+            l
+        } else {
+            r
+        }
+    }
+
+    /// [`bvh2_nodes_avx2`] with the kernel's branches at the kernel's width
+    /// for the avx2 flavour: every vector op on 256 bits, the node's 16
+    /// bytes repeated in both halves (`vbroadcastf128`, as the kernel's
+    /// `load_repeat`), 4 of the 8 lanes of use. Beside the 128-bit version
+    /// it measures what the width alone costs on this host (on Zen 1 a
+    /// 256-bit op is two 128-bit macro-ops).
+    ///
+    /// # Safety
+    /// As [`bvh2_nodes_avx2`].
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn bvh2_nodes_avx2_ymm(
+        nodes: &[u32],
+        rays: &[f32],
+        out: &mut [u32],
+        stack: &mut [u32],
+    ) -> usize {
+        let nn = nodes.len() / 16;
+        let (mut rb, mut sp) = (0, 0);
+        for ray in rays.chunks_exact(8) {
+            let b = |k: usize| _mm256_set1_ps(*ray.get_unchecked(k));
+            let (idir, oid) = ([b(0), b(1), b(2)], [b(4), b(5), b(6)]);
+            let (tnear, tfar) = (b(3), b(7));
+            for j in 0..nn {
+                let nb = nodes.as_ptr().add(16 * j);
+                let (mut tn, mut tf) = (tnear, tfar);
+                for a in 0..3 {
+                    let p = _mm256_broadcast_ps(&*(nb.add(4 * a) as *const __m128));
+                    let t = _mm256_fmsub_ps(p, idir[a], oid[a]);
+                    let sw = _mm256_permute_ps::<0b01_00_11_10>(t);
+                    tn = _mm256_max_ps(tn, _mm256_min_ps(t, sw));
+                    tf = _mm256_min_ps(tf, _mm256_max_ps(t, sw));
+                }
+                let bits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, tf)) & 3;
+                let o = rb + j;
+                if bits == 0 {
+                    *out.get_unchecked_mut(o) = u32::MAX;
+                    break;
+                }
+                let (l, r) = (*nb.add(12), *nb.add(13));
+                let lo = _mm256_castps256_ps128(tn);
+                let dl = _mm_cvtss_f32(lo);
+                let dr = _mm_cvtss_f32(_mm_permute_ps::<1>(lo));
+                let next = next_child::<false>(bits, (l, r), (dl, dr), stack, &mut sp);
                 *out.get_unchecked_mut(o) = next;
             }
             rb += nn;
@@ -314,16 +382,17 @@ fn bvh2_nodes(c: &mut Criterion) {
     #[cfg(target_arch = "x86_64")]
     if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
         let (node_words, flat) = (w.node_words(), w.ray_floats());
-        for (name, branch_free) in [("hand-avx2", false), ("hand-avx2-branch-free", true)] {
+        for name in ["hand-avx2", "hand-avx2-branch-free", "hand-avx2-ymm"] {
             let mut hand_out = vec![0u32; steps];
             let mut hand_stack = vec![0u32; w.stack_words() + 2];
             let mut run = |n: &[u32], r: &[f32]| {
+                let (o, st) = (&mut hand_out, &mut hand_stack);
                 // SAFETY: features checked above; sizes match.
                 unsafe {
-                    if branch_free {
-                        hand::bvh2_nodes_avx2::<true>(n, r, &mut hand_out, &mut hand_stack)
-                    } else {
-                        hand::bvh2_nodes_avx2::<false>(n, r, &mut hand_out, &mut hand_stack)
+                    match name {
+                        "hand-avx2" => hand::bvh2_nodes_avx2::<false>(n, r, o, st),
+                        "hand-avx2-branch-free" => hand::bvh2_nodes_avx2::<true>(n, r, o, st),
+                        _ => hand::bvh2_nodes_avx2_ymm(n, r, o, st),
                     }
                 }
             };

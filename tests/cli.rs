@@ -473,10 +473,18 @@ fn native_times_every_kernel_on_the_same_rays_and_checks_them() {
     assert_eq!(of("single-bvh4", "time_vs_base"), Some(1.0));
     // The hand-written twin of single-bvh4 where the host runs AVX2 + FMA
     // (the default ISA on this build's hosts is avx2).
-    if let Some(bad) = of("hand-single-bvh4", "hit_mismatches") {
-        assert_eq!(bad, 0.0);
-        assert!(of("hand-single-bvh4", "time_vs_base").unwrap() > 0.0);
+    // Its node test in 4-lane registers, and in 8-lane ones (`-ymm`).
+    for twin in ["hand-single-bvh4", "hand-single-bvh4-ymm"] {
+        if let Some(bad) = of(twin, "hit_mismatches") {
+            assert_eq!(bad, 0.0);
+            assert!(of(twin, "time_vs_base").unwrap() > 0.0);
+        }
     }
+    assert_eq!(
+        of("hand-single-bvh4", "hit_mismatches").is_some(),
+        of("hand-single-bvh4-ymm", "hit_mismatches").is_some(),
+        "both twins or neither"
+    );
     let embree = of("embree-1m", "hit_mismatches");
     assert_eq!(embree.is_some(), cfg!(feature = "embree"));
     assert!(j["input"].as_str().unwrap().contains("host "));
@@ -580,13 +588,20 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
     assert_eq!(j["machine"], "zen3");
     let rows = j["rows"].as_array().unwrap();
     let count = |metric: &str| rows.iter().filter(|r| r["metric"] == metric).count();
-    // Single-bvh4's hand-written twin on both streams where the host runs
-    // AVX2 + FMA; Embree's three calls on both with the feature.
+    // Single-bvh4's hand-written twins (4- and 8-lane node tests) on both
+    // streams where the host runs AVX2 + FMA; Embree's three calls on both
+    // with the feature.
     let hand = rows
         .iter()
-        .filter(|r| r["method"] == "hand-single-bvh4")
+        .filter(|r| r["metric"] == "native_mray_per_s")
+        .filter(|r| {
+            r["method"]
+                .as_str()
+                .unwrap()
+                .starts_with("hand-single-bvh4")
+        })
         .count();
-    assert!(hand == 0 || hand == 2, "{hand}");
+    assert!(hand == 0 || hand == 4, "{hand}");
     assert_eq!(
         count("native_mray_per_s"),
         14 + hand + if cfg!(feature = "embree") { 6 } else { 0 }
@@ -601,6 +616,16 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
     };
     assert!((-1.0..=1.0).contains(&overall("kendall_tau")));
     assert!(overall("mean_abs_relative_error") >= 0.0);
+    // With the twin as the native base: every kernel's point, single-bvh4's
+    // included, and the overall figures.
+    assert_eq!(
+        count("relative_error_over_twin"),
+        if hand > 0 { 14 } else { 0 }
+    );
+    if hand > 0 {
+        assert!((-1.0..=1.0).contains(&overall("kendall_tau_over_twin")));
+        assert!(overall("mean_abs_relative_error_over_twin") >= 0.0);
+    }
     let e = err(&rtsim(&[
         "validate",
         "--machine",

@@ -78,15 +78,39 @@ pub fn available() -> bool {
     }
 }
 
+/// The registers the twin's node test holds a BVH4 node's 4 child boxes in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum NodeWidth {
+    /// 4-lane (SSE) registers: Embree 2.0's node test, as a person writes it.
+    Xmm,
+    /// 8-lane (AVX) registers, the 4 boxes in both halves: the width the
+    /// kernel's node test runs at on an 8-lane machine (on a CPU that splits
+    /// 256-bit ops in two, such as Zen 1, twice the micro-ops).
+    Ymm,
+}
+
+impl NodeWidth {
+    /// The twin's method name suffix (`hand-single-bvh4` and
+    /// `hand-single-bvh4-ymm`).
+    #[must_use]
+    pub fn suffix(self) -> &'static str {
+        match self {
+            NodeWidth::Xmm => "",
+            NodeWidth::Ymm => "-ymm",
+        }
+    }
+}
+
 /// Rays (`trav`, `isect`: the records of [`crate::layout::ray_records`])
 /// through `bvh` as [`crate::single::trace_bvh4`] traces them on an 8-lane
-/// native machine; `None` when the host lacks AVX2 or FMA.
+/// native machine, the node test at `width`; `None` when the host lacks
+/// AVX2 or FMA.
 #[must_use]
 pub fn single_bvh4(
     bvh: &Bvh4View,
-    trav: &[f32],
-    isect: &[f32],
+    (trav, isect): (&[f32], &[f32]),
     policy: HitPolicy,
+    width: NodeWidth,
 ) -> Option<Vec<HitRecord>> {
     assert_eq!(trav.len(), isect.len(), "ray records");
     assert_eq!(trav.len() % 8, 0, "8 words per ray record");
@@ -96,7 +120,12 @@ pub fn single_bvh4(
     #[cfg(target_arch = "x86_64")]
     {
         // SAFETY: the host has AVX2 and FMA (checked above).
-        Some(unsafe { avx2::trace(bvh, trav, isect, policy) })
+        Some(unsafe {
+            match width {
+                NodeWidth::Xmm => avx2::trace::<false>(bvh, trav, isect, policy),
+                NodeWidth::Ymm => avx2::trace::<true>(bvh, trav, isect, policy),
+            }
+        })
     }
     #[cfg(not(target_arch = "x86_64"))]
     None
@@ -113,13 +142,16 @@ mod avx2 {
     use scene::HitPolicy;
     use std::arch::x86_64::*;
 
-    /// One ray's registers: broadcasts for the 4-wide node test and the
-    /// 8-wide leaf test, its best hit so far.
+    /// One ray's registers: broadcasts for the 4-wide node test (and the
+    /// 8-wide one) and the 8-wide leaf test, its best hit so far.
     struct Ray {
         idir: [__m128; 3],
         oid: [__m128; 3],
         tnear: __m128,
         tfar4: __m128,
+        idir8: [__m256; 3],
+        oid8: [__m256; 3],
+        tnear8: __m256,
         org: [__m256; 3],
         dir: [__m256; 3],
         tfar8: __m256,
@@ -129,8 +161,9 @@ mod avx2 {
         hit: HitRecord,
     }
 
+    /// The rays in turn; `YMM`: the node test in 8-lane registers.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn trace(
+    pub(super) unsafe fn trace<const YMM: bool>(
         bvh: &Bvh4View,
         trav: &[f32],
         isect: &[f32],
@@ -141,7 +174,7 @@ mod avx2 {
             .zip(isect.chunks_exact(8))
             .map(|(t, i)| {
                 let mut ray = load(t, i);
-                walk(bvh, &mut ray, &mut stack, policy);
+                walk::<YMM>(bvh, &mut ray, &mut stack, policy);
                 ray.hit
             })
             .collect()
@@ -157,6 +190,9 @@ mod avx2 {
             oid: [b4(t[4]), b4(t[5]), b4(t[6])],
             tnear: b4(t[3]),
             tfar4: b4(t[7]),
+            idir8: [b8(t[0]), b8(t[1]), b8(t[2])],
+            oid8: [b8(t[4]), b8(t[5]), b8(t[6])],
+            tnear8: b8(t[3]),
             org: [b8(i[0]), b8(i[1]), b8(i[2])],
             dir: [b8(i[4]), b8(i[5]), b8(i[6])],
             tfar8: b8(t[7]),
@@ -172,7 +208,7 @@ mod avx2 {
 
     /// The ordered stack loop: pop, cull, descend to a leaf, test it.
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn walk(
+    unsafe fn walk<const YMM: bool>(
         bvh: &Bvh4View,
         ray: &mut Ray,
         stack: &mut [(u32, f32); STACK_ENTRIES],
@@ -190,7 +226,11 @@ mod avx2 {
             // (a NaN slab can pass one), then is skipped.
             while node & LEAF == 0 {
                 let base = node as usize * NODE_BYTES;
-                let (bits, tn) = node_test(bvh.nodes, base, ray);
+                let (bits, tn) = if YMM {
+                    node_test_ymm(bvh.nodes, base, ray)
+                } else {
+                    node_test(bvh.nodes, base, ray)
+                };
                 if bits == 0 {
                     node = EMPTY_SLOT;
                     break;
@@ -229,6 +269,32 @@ mod avx2 {
         let bits = _mm_movemask_ps(_mm_cmple_ps(tn, tf)) as u32;
         let mut d = [0f32; 4];
         _mm_storeu_ps(d.as_mut_ptr(), tn);
+        (bits, d)
+    }
+
+    /// [`node_test`] in 8-lane registers, each row broadcast to both
+    /// halves and the mask cut to 4 bits, as the kernel runs it on an
+    /// 8-lane machine.
+    #[inline(always)]
+    unsafe fn node_test_ymm(nodes: &[u8], base: usize, r: &Ray) -> (u32, [f32; 4]) {
+        let p = nodes.as_ptr().add(base);
+        let row = |off: usize| _mm256_broadcast_ps(&_mm_loadu_ps(p.add(off) as *const f32));
+        let slab = |a: usize| {
+            let lo = row(32 * a + r.near[a]);
+            let hi = row(32 * a + (16 ^ r.near[a]));
+            (
+                _mm256_fmsub_ps(lo, r.idir8[a], r.oid8[a]),
+                _mm256_fmsub_ps(hi, r.idir8[a], r.oid8[a]),
+            )
+        };
+        let (n0, f0) = slab(0);
+        let (n1, f1) = slab(1);
+        let (n2, f2) = slab(2);
+        let tn = _mm256_max_ps(_mm256_max_ps(n0, n1), _mm256_max_ps(n2, r.tnear8));
+        let tf = _mm256_min_ps(_mm256_min_ps(f0, f1), _mm256_min_ps(f2, r.tfar8));
+        let bits = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(tn, tf)) as u32 & 0xF;
+        let mut d = [0f32; 4];
+        _mm_storeu_ps(d.as_mut_ptr(), _mm256_castps256_ps128(tn));
         (bits, d)
     }
 

@@ -1,6 +1,7 @@
 //! Run a traversal kernel on any machine over a ray stream, and compare its
 //! closest hits with the f64 reference (used by the tests and `rtsim run`).
 
+use rt::hand::NodeWidth;
 use rt::layout::{hit_records, lay_out_bvh4, ray_records};
 use scene::agreement::{mismatches, shadow_mismatches};
 use scene::bvh::{Bvh2, Bvh4};
@@ -297,14 +298,15 @@ impl Run<'_> {
         ray_records(&r.org, &r.dir, &r.tmax)
     }
 
-    /// The hand-written twin of the run's kernel ([`rt::hand`]) over the
-    /// run's rays and `view` (the layout's BVH4): its answers as
-    /// [`Run::trace_in`] gives them (ray records built, hits read back), or
-    /// `None` when the kernel has no twin or the host lacks AVX2 and FMA.
+    /// The hand-written twin of the run's kernel ([`rt::hand`]), its node
+    /// test at `width`, over the run's rays and `view` (the layout's BVH4):
+    /// its answers as [`Run::trace_in`] gives them (ray records built, hits
+    /// read back), or `None` when the kernel has no twin or the host lacks
+    /// AVX2 and FMA.
     #[must_use]
-    pub fn trace_hand(&self, view: &rt::hand::Bvh4View) -> Option<Vec<Hit>> {
+    pub fn trace_hand(&self, view: &rt::hand::Bvh4View, width: NodeWidth) -> Option<Vec<Hit>> {
         let (trav, isect) = self.hand_records();
-        let recs = self.trace_hand_records(view, (&trav, &isect))?;
+        let recs = self.trace_hand_records(view, (&trav, &isect), width)?;
         Some(hand_answers(&recs))
     }
 
@@ -314,12 +316,13 @@ impl Run<'_> {
     pub fn trace_hand_records(
         &self,
         view: &rt::hand::Bvh4View,
-        (trav, isect): (&[f32], &[f32]),
+        records: (&[f32], &[f32]),
+        width: NodeWidth,
     ) -> Option<Vec<rt::hand::HitRecord>> {
         if self.kernel != Kernel::SingleBvh4 {
             return None;
         }
-        rt::hand::single_bvh4(view, trav, isect, self.rays.policy())
+        rt::hand::single_bvh4(view, records, self.rays.policy(), width)
     }
 
     /// The run's rays laid out on `m` for its kernel: the ray and hit

@@ -1,5 +1,6 @@
-//! The hand-written AVX2 twin of single-ray BVH4 (`rt::hand::single_bvh4`)
-//! answers every ray exactly as the kernel does natively: t, u, v and the
+//! The hand-written AVX2 twin of single-ray BVH4 (`rt::hand::single_bvh4`),
+//! its node test in 4-lane or in 8-lane registers, answers every ray
+//! exactly as the kernel does natively: t, u, v and the
 //! triangle, bit for bit, on primary, bounce and shadow streams, degenerate
 //! rays included.
 
@@ -7,16 +8,16 @@ mod common;
 
 use common::{fixture, Kernel, Run};
 use isa::{FlavourId, Machine, MemKind, Program};
-use rt::hand::{Bvh4View, HitRecord};
+use rt::hand::{Bvh4View, HitRecord, NodeWidth};
 use rt::layout::{hit_records, ray_records};
 use scene::workload::{path_trace_tile, RayStream, StreamKind, Tile};
 
-/// The kernel's hit records and the twin's (`None` on a host without
-/// AVX2), on one machine's layout of the run's tree.
+/// The kernel's hit records and the twin's at each node width (`None` on a
+/// host without AVX2), on one machine's layout of the run's tree.
 struct Both<'a>(Run<'a>);
 
 impl Program for Both<'_> {
-    type Out = (Vec<HitRecord>, Option<Vec<HitRecord>>);
+    type Out = (Vec<HitRecord>, [Option<Vec<HitRecord>>; 2]);
     fn run<M: Machine>(&self, m: &mut M) -> Self::Out {
         let laid = self.0.lay_out(m);
         let s = laid.bvh4.as_ref().expect("a BVH4 layout");
@@ -43,7 +44,8 @@ impl Program for Both<'_> {
             })
             .collect();
         let view = Bvh4View::new(s).expect("a valid layout");
-        (kernel, rt::hand::single_bvh4(&view, &tr, &is, policy))
+        let twin = |w| rt::hand::single_bvh4(&view, (&tr, &is), policy, w);
+        (kernel, [twin(NodeWidth::Xmm), twin(NodeWidth::Ymm)])
     }
 }
 
@@ -86,22 +88,25 @@ fn the_hand_written_single_bvh4_answers_every_ray_as_the_kernel() {
             .any(|s| matches!(s.kind, StreamKind::Shadow(_))));
         for st in streams {
             let run = Run::new(Kernel::SingleBvh4, scene, b2, b4, st.clone());
-            let (kernel, hand) = isa::run_native(&Both(run), FlavourId::Avx2);
-            let Some(hand) = hand else {
-                assert!(!rt::hand::available());
-                continue;
-            };
+            let (kernel, twins) = isa::run_native(&Both(run), FlavourId::Avx2);
             assert_eq!(kernel.len(), st.len());
-            for (i, (k, h)) in kernel.iter().zip(&hand).enumerate() {
-                let bits = |r: &HitRecord| (r.t.to_bits(), r.u.to_bits(), r.v.to_bits(), r.prim);
-                assert_eq!(
-                    bits(k),
-                    bits(h),
-                    "{name} {:?} ray {i}: {k:?} vs {h:?}",
-                    st.kind
-                );
+            for (w, hand) in ["xmm", "ymm"].into_iter().zip(twins) {
+                let Some(hand) = hand else {
+                    assert!(!rt::hand::available());
+                    continue;
+                };
+                for (i, (k, h)) in kernel.iter().zip(&hand).enumerate() {
+                    let bits =
+                        |r: &HitRecord| (r.t.to_bits(), r.u.to_bits(), r.v.to_bits(), r.prim);
+                    assert_eq!(
+                        bits(k),
+                        bits(h),
+                        "{name} {:?} {w} ray {i}: {k:?} vs {h:?}",
+                        st.kind
+                    );
+                }
+                compared += st.len();
             }
-            compared += st.len();
         }
     }
     assert!(compared > 0 || !rt::hand::available());

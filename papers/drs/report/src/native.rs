@@ -10,7 +10,7 @@ use isa::{FlavourId, Machine, Program};
 use repro::host::HostCpu;
 use repro::report::Format;
 use repro::{AppError, AppResult, Report, Row};
-use rt::hand::Bvh4View;
+use rt::hand::{Bvh4View, NodeWidth};
 use rt::layout::Bvh4Bufs;
 use scene::loaded::Loaded;
 use scene::workload::{RayStream, Tile};
@@ -46,7 +46,7 @@ pub struct NativeArgs {
 /// One method's native timings over a stream.
 #[derive(Clone, Debug)]
 pub struct Timing {
-    /// Kernel name, `hand-single-bvh4` (the twin), or `embree-1`, `embree-8`, `embree-1m`.
+    /// Kernel name, `hand-single-bvh4` or `hand-single-bvh4-ymm` (the twin), or `embree-1`, `embree-8`, `embree-1m`.
     pub method: String,
     /// Seconds of each timed run, sorted.
     pub seconds: Vec<f64>,
@@ -118,16 +118,17 @@ impl Interleaved<'_> {
             .collect()
     }
 
-    /// The runs whose kernel has a hand-written twin this host runs: each
-    /// run's index and its BVH4 layout (a copy sharing the bytes, which the
-    /// twin reads).
-    fn twins(&self, laid: &[(Laid, Scratch)]) -> Vec<(usize, Bvh4Bufs)> {
+    /// The twins this host runs: per run whose kernel has a hand-written
+    /// twin, at each node width, the run's index, the width and its BVH4
+    /// layout (a copy sharing the bytes, which the twin reads).
+    fn twins(&self, laid: &[(Laid, Scratch)]) -> Vec<(Twin, Bvh4Bufs)> {
         if !self.hand || !rt::hand::available() {
             return Vec::new();
         }
         (self.runs.iter().zip(laid).enumerate())
             .filter(|(_, (r, _))| r.kernel == Kernel::SingleBvh4)
             .filter_map(|(i, (_, (l, _)))| Some((i, l.bvh4.clone()?)))
+            .flat_map(|(i, b)| [NodeWidth::Xmm, NodeWidth::Ymm].map(|w| ((i, w), b.clone())))
             .collect()
     }
 }
@@ -135,9 +136,12 @@ impl Interleaved<'_> {
 /// Answers of a method's checked run and the seconds of its timed runs.
 type Timed = (Vec<Hit>, Vec<f64>);
 
-/// Per kernel its [`Timed`]; per twin its run's index and [`Timed`]; per
-/// peer its timed seconds.
-type Rounds = (Vec<Timed>, Vec<(usize, Timed)>, Vec<Vec<f64>>);
+/// A hand-written twin: its kernel's run (an index) and its node width.
+type Twin = (usize, NodeWidth);
+
+/// Per kernel its [`Timed`]; per twin its [`Twin`] and [`Timed`]; per peer
+/// its timed seconds.
+type Rounds = (Vec<Timed>, Vec<(Twin, Timed)>, Vec<Vec<f64>>);
 
 impl Program for Interleaved<'_> {
     type Out = Rounds;
@@ -152,16 +156,17 @@ impl Program for Interleaved<'_> {
             })
             .collect();
         let twin_bufs = self.twins(&laid);
-        let views: Vec<(usize, Bvh4View)> = (twin_bufs.iter())
-            .map(|(i, b)| (*i, Bvh4View::new(b).expect("a BVH4 as rt lays it out")))
+        let views: Vec<(Twin, Bvh4View)> = (twin_bufs.iter())
+            .map(|(t, b)| (*t, Bvh4View::new(b).expect("a BVH4 as rt lays it out")))
             .collect();
-        let hand_trace =
-            |i: usize, v: &Bvh4View| self.runs[i].trace_hand(v).expect("a kernel with a twin");
-        let mut hand: Vec<(usize, Timed)> = (views.iter())
-            .map(|(i, v)| (*i, (hand_trace(*i, v), Vec::new())))
+        let hand_trace = |(i, w): Twin, v: &Bvh4View| {
+            self.runs[i].trace_hand(v, w).expect("a kernel with a twin")
+        };
+        let mut hand: Vec<(Twin, Timed)> = (views.iter())
+            .map(|(t, v)| (*t, (hand_trace(*t, v), Vec::new())))
             .collect();
         let records: Vec<(Vec<f32>, Vec<f32>)> = (views.iter())
-            .map(|(i, _)| self.runs[*i].hand_records())
+            .map(|((i, _), _)| self.runs[*i].hand_records())
             .collect();
         let mut theirs = vec![Vec::new(); self.peers.len()];
         for _ in 0..self.repeat {
@@ -175,11 +180,11 @@ impl Program for Interleaved<'_> {
                 std::hint::black_box((staged.answers(), tests));
                 m.space().release(mark);
             }
-            for (((i, v), (_, (_, secs))), (trav, isect)) in
+            for ((((i, w), v), (_, (_, secs))), (trav, isect)) in
                 views.iter().zip(&mut hand).zip(&records)
             {
                 let t = Instant::now();
-                let recs = self.runs[*i].trace_hand_records(v, (trav, isect));
+                let recs = self.runs[*i].trace_hand_records(v, (trav, isect), *w);
                 secs.push(t.elapsed().as_secs_f64());
                 std::hint::black_box(recs);
             }
@@ -237,8 +242,8 @@ pub fn time_methods(
             Timing::of(name, secs, run.mismatches(name, &refi, &first))
         })
         .collect();
-    let twins = hand.into_iter().map(|(i, (first, secs))| {
-        let name = format!("hand-{}", runs[i].kernel.name());
+    let twins = hand.into_iter().map(|((i, w), (first, secs))| {
+        let name = format!("hand-{}{}", runs[i].kernel.name(), w.suffix());
         let bad = runs[i].mismatches(&name, &refi, &first);
         Timing::of(&name, secs, bad)
     });
@@ -462,8 +467,10 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
              include filling its ray structs; the kernels run on the \
              native backend (the {} semantics; vector ops as {}); hand-single-bvh4 (avx2 \
              only, on a host with AVX2 and FMA) is single-bvh4's hand-written std::arch twin \
-             (rt::hand: same algorithm, layout and answers, bit for bit), timed after the kernels \
-             and before Embree; Embree \
+             (rt::hand: same algorithm, layout and answers, bit for bit, its node test in 4-lane \
+             SSE registers as Embree 2.0's), hand-single-bvh4-ymm the same with the node test in \
+             8-lane registers as the kernel runs it on an 8-lane machine, both timed after the \
+             kernels and before Embree; Embree \
              rows (built with --features embree) build the scene robust at the default quality, \
              untimed (Embree device config: threads=1{}), and trace primary rays with the \
              coherent hint",

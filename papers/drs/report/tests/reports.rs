@@ -1,6 +1,6 @@
 //! The DRS paper's reports computed through the library on small samples:
 //! every cell computed, hits checked, the paper's figures beside ours.
-//! (`tests/cli.rs` at the workspace root reaches each report through the CLI.)
+//! (`tests/app/cli.rs` at the workspace root reaches each report through the CLI.)
 
 use repro::Given;
 

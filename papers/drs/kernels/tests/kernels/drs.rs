@@ -2,9 +2,7 @@
 //! (agreement rule: `common::mismatches`) on a 4096-ray primary stream
 //! (16 x 16 pixels x 16 samples, the DRS stream) and on path-tracing bounce streams.
 
-mod common;
-
-use common::{fixture, mismatches, Kernel, Run};
+use crate::common::{fixture, mismatches, Kernel, Run};
 use isa::FlavourId;
 use scene::bvh::{BuildConfig, Bvh2};
 use scene::scene::Scene;

@@ -1,8 +1,7 @@
 //! End-to-end tests of the timing model through the app: calibration within
 //! 3% on every shipped machine, loop replay, determinism, config errors.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::process::Output;
 

@@ -1,9 +1,7 @@
 //! The single-ray BVH2 and BVH4 kernels return the reference's hits on every flavour,
 //! traced and native (agreement rule: `common::mismatches`).
 
-mod common;
-
-use common::{fixture, mismatches, Kernel, Run};
+use crate::common::{fixture, mismatches, Kernel, Run};
 use isa::FlavourId;
 use scene::reference::Ray;
 use scene::workload::{primary_tile, RayStream};

@@ -1,10 +1,10 @@
 //! Helpers shared by the app's end-to-end tests: run the binary, scratch
 //! files, and the checks for success and for a clean error exit.
 
-// Each test binary uses a different subset of these.
+// Each test module uses a different subset of these.
 #![allow(dead_code)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 /// Run `rtsim` with `args`.
@@ -15,11 +15,16 @@ pub fn rtsim(args: &[&str]) -> Output {
         .expect("rtsim runs")
 }
 
-/// A scratch path, in a folder of this test binary and process.
+/// A scratch path, in a folder of the calling test file and this process
+/// (the test files share one binary, so their names may repeat).
+#[track_caller]
 pub fn tmp(name: &str) -> PathBuf {
+    let file = std::panic::Location::caller().file();
+    let stem = Path::new(file).file_stem().and_then(|s| s.to_str());
     let d = std::env::temp_dir().join(format!(
-        "rtsim-{}-{}",
+        "rtsim-{}-{}-{}",
         env!("CARGO_CRATE_NAME"),
+        stem.unwrap_or("test"),
         std::process::id()
     ));
     std::fs::create_dir_all(&d).unwrap();

@@ -2,9 +2,7 @@
 //! reference does (`Run::mismatches` -> `shadow_mismatches`), traced and
 //! native, on the shadow streams of the path-tracing loop.
 
-mod common;
-
-use common::fixture;
+use crate::common::fixture;
 use drs_kernels::methods::{Kernel, Run};
 use isa::FlavourId;
 use scene::workload::{path_trace_tile, StreamKind, Tile};

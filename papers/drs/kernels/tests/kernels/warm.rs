@@ -3,9 +3,7 @@
 //! every DRS method on every flavour that runs it (the flavours' expansions
 //! included: SSE4 has no gather, scatter or masked store).
 
-mod common;
-
-use common::{fixture, Kernel, Run};
+use crate::common::{fixture, Kernel, Run};
 use isa::{run_units, Detail, FlavourId, Placed};
 use scene::workload::{path_trace_tile, RayStream, StreamKind, Tile};
 

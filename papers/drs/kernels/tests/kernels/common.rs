@@ -1,7 +1,7 @@
 //! The kernel tests' shared fixture: a scene stand-in loaded with the DRS
 //! kernels' BVHs, and the library's methods and agreement rule.
 
-// Each test binary uses a different subset of these.
+// Each test module uses a different subset of these.
 #![allow(dead_code)]
 
 #[allow(unused_imports)]

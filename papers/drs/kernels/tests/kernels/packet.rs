@@ -2,9 +2,7 @@
 //! hits (agreement rule: `common::mismatches`) on every flavour, traced and
 //! native, on a 4096-ray primary stream and on path-tracing bounce streams.
 
-mod common;
-
-use common::{fixture, mismatches, Kernel, Run};
+use crate::common::{fixture, mismatches, Kernel, Run};
 use isa::FlavourId;
 use scene::bvh::{BuildConfig, Bvh2};
 use scene::scene::Scene;

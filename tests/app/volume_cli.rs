@@ -2,8 +2,7 @@
 //! bad volume input (wrong size, unknown type, NaN, empty transfer
 //! function, nonsense options) as named errors with exit 2 and no PNG.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 fn write(name: &str, bytes: &[u8]) -> String {
     let p = tmp(name);

@@ -1,8 +1,7 @@
 //! End-to-end tests of scenes: every shipped scene loads and its BVHs
 //! validate, renders are real PNGs, malformed meshes give one-line errors.
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::path::PathBuf;
 use std::process::Output;

@@ -1,8 +1,7 @@
 //! End-to-end tests of the `rtsim` app: the acceptance commands, bad
 //! input, and golden op streams (one op per line; `RTSIM_BLESS=1` rewrites them).
 
-mod common;
-use common::*;
+use crate::common::*;
 
 use std::path::Path;
 

@@ -4,9 +4,7 @@
 //! triangle, bit for bit, on primary, bounce and shadow streams, degenerate
 //! rays included.
 
-mod common;
-
-use common::{fixture, Kernel, Run};
+use crate::common::{fixture, Kernel, Run};
 use isa::{FlavourId, Machine, MemKind, Program};
 use rt::hand::{Bvh4View, HitRecord, NodeWidth};
 use rt::layout::{hit_records, ray_records};

@@ -69,8 +69,8 @@ fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> (Vec<u8>, usize) 
     // Zeroed first, then each word into its 4 bytes: a loop the compiler
     // vectorises (pushing 4 bytes at a time checks the capacity per word).
     let mut bytes = storage(4 * n);
-    for (c, w) in bytes.chunks_exact_mut(4).zip(words) {
-        c.copy_from_slice(&w);
+    for (c, w) in bytes.as_chunks_mut::<4>().0.iter_mut().zip(words) {
+        *c = w;
     }
     (bytes, 4 * n)
 }

@@ -80,16 +80,18 @@ fn blocks(mesh: &Mesh, b2: &Bvh2, leaves: &[[u32; 2]], multi: bool) -> Vec<u8> {
             })
         })
         .collect();
-    let mut bytes = vec![0u8; chunks.len() * BLOCK_BYTES];
-    bytes
-        .chunks_exact_mut(BLOCK_BYTES)
-        .zip(&chunks)
-        .for_each(|(out, &(first, count))| {
-            let w = block(mesh, b2, first, count);
-            for (o, x) in out.chunks_exact_mut(4).zip(w) {
-                o.copy_from_slice(&x.to_le_bytes());
-            }
-        });
+    let len = chunks.len() * BLOCK_BYTES;
+    // Room for the buffer's padding, so placing the bytes in a machine's
+    // memory pads them in place ([`isa::AddrSpace::alloc_bytes`]) instead
+    // of copying most of a gigabyte into a fresh allocation.
+    let mut bytes = vec![0u8; len + isa::PAD];
+    bytes.truncate(len);
+    let (words, _) = bytes.as_chunks_mut::<4>();
+    for (out, &(first, count)) in words.chunks_exact_mut(BLOCK_BYTES / 4).zip(&chunks) {
+        for (o, x) in out.iter_mut().zip(block(mesh, b2, first, count)) {
+            *o = x.to_le_bytes();
+        }
+    }
     bytes
 }
 

@@ -162,8 +162,21 @@ pub fn tri_bounds(mesh: &Mesh) -> Vec<Aabb> {
 }
 
 impl Bvh2 {
-    /// Build with binned SAH.
+    /// Build with binned SAH. The top [`PAR_LEVELS`] levels of large nodes
+    /// build their two subtrees on two threads; the tree is the same node
+    /// for node as one thread's (same numbering, same primitive order), on
+    /// any number of cores.
     pub fn build(mesh: &Mesh, cfg: &BuildConfig) -> Result<Bvh2, String> {
+        Self::build_par(mesh, cfg, (PAR_LEVELS, PAR_MIN_PRIMS))
+    }
+
+    /// [`Bvh2::build`] with subtrees split off to threads down to `levels`
+    /// levels, for nodes of at least `min_prims` triangles.
+    fn build_par(
+        mesh: &Mesh,
+        cfg: &BuildConfig,
+        (levels, min_prims): (usize, usize),
+    ) -> Result<Bvh2, String> {
         if mesh.is_empty() {
             return Err("empty scene: no triangles to build a BVH over".into());
         }
@@ -171,69 +184,13 @@ impl Bvh2 {
         let boxes = tri_bounds(mesh);
         let centres: Vec<[f32; 3]> = boxes.iter().map(Aabb::centre).collect();
         let mut prims: Vec<u32> = (0..mesh.len() as u32).collect();
-        let mut nodes = vec![Node::Leaf {
-            bounds: Aabb::EMPTY,
-            first: 0,
-            count: 0,
-        }];
-        // (node index, start, end, depth)
-        let mut work = vec![(0usize, 0usize, prims.len(), 0usize)];
-        while let Some((ni, s, e, depth)) = work.pop() {
-            let bounds = prims[s..e]
-                .iter()
-                .fold(Aabb::EMPTY, |b, &p| b.union(&boxes[p as usize]));
-            let n = e - s;
-            let split = if depth + 1 >= MAX_DEPTH {
-                None
-            } else {
-                sah_split(&prims[s..e], &boxes, &centres, &bounds, cfg)
-            };
-            let leaf_cost = n as f32;
-            // A leaf when small enough and no split is cheaper; a node that is
-            // too big but cannot be split by SAH (identical centroids) is split
-            // in half so leaves stay within max_leaf.
-            let make_leaf = n <= 1
-                || depth + 1 >= MAX_DEPTH
-                || (n <= cfg.max_leaf && split.is_none_or(|(_, _, cost)| leaf_cost <= cost));
-            if make_leaf {
-                nodes[ni] = Node::Leaf {
-                    bounds,
-                    first: s as u32,
-                    count: n as u32,
-                };
-                continue;
-            }
-            let (axis, pos, _) = split.unwrap_or((0, f32::NAN, 0.0));
-            // Partition by centroid bin.
-            let mut mid = s;
-            for i in s..e {
-                if centres[prims[i] as usize][axis] < pos {
-                    prims.swap(i, mid);
-                    mid += 1;
-                }
-            }
-            if mid == s || mid == e {
-                mid = s + n / 2; // all centroids in one bin: split the list in half
-            }
-            let l = nodes.len();
-            nodes.push(Node::Leaf {
-                bounds: Aabb::EMPTY,
-                first: 0,
-                count: 0,
-            });
-            nodes.push(Node::Leaf {
-                bounds: Aabb::EMPTY,
-                first: 0,
-                count: 0,
-            });
-            nodes[ni] = Node::Inner {
-                bounds,
-                left: l as u32,
-                right: l as u32 + 1,
-            };
-            work.push((l + 1, mid, e, depth + 1));
-            work.push((l, s, mid, depth + 1));
-        }
+        let ctx = BuildCtx {
+            boxes: &boxes,
+            centres: &centres,
+            cfg,
+            min_prims,
+        };
+        let nodes = subtree(&ctx, &mut prims, (0, 0), levels);
         Ok(Bvh2 {
             nodes,
             prims,
@@ -329,6 +286,161 @@ impl Bvh2 {
         }
         Ok(())
     }
+}
+
+/// Levels of the build whose large nodes split their subtrees onto two
+/// threads (up to 2^levels at once; more than a 2-core machine needs, so
+/// uneven SAH splits still keep both cores busy).
+const PAR_LEVELS: usize = 4;
+
+/// Smallest node whose subtrees are built on two threads.
+const PAR_MIN_PRIMS: usize = 1 << 16;
+
+/// What every step of one build reads.
+struct BuildCtx<'a> {
+    boxes: &'a [Aabb],
+    centres: &'a [[f32; 3]],
+    cfg: &'a BuildConfig,
+    min_prims: usize,
+}
+
+/// One node's outcome: a leaf, or an inner node whose primitives were
+/// partitioned at `mid` (left part first).
+enum Step {
+    Leaf(Aabb),
+    Split(Aabb, usize),
+}
+
+/// Decide the node over `prims` at `depth`, partitioning them if it splits.
+fn step(ctx: &BuildCtx, prims: &mut [u32], depth: usize) -> Step {
+    let bounds = prims
+        .iter()
+        .fold(Aabb::EMPTY, |b, &p| b.union(&ctx.boxes[p as usize]));
+    let n = prims.len();
+    let split = if depth + 1 >= MAX_DEPTH {
+        None
+    } else {
+        sah_split(prims, ctx.boxes, ctx.centres, &bounds, ctx.cfg)
+    };
+    let leaf_cost = n as f32;
+    // A leaf when small enough and no split is cheaper; a node that is
+    // too big but cannot be split by SAH (identical centroids) is split
+    // in half so leaves stay within max_leaf.
+    let make_leaf = n <= 1
+        || depth + 1 >= MAX_DEPTH
+        || (n <= ctx.cfg.max_leaf && split.is_none_or(|(_, _, cost)| leaf_cost <= cost));
+    if make_leaf {
+        return Step::Leaf(bounds);
+    }
+    let (axis, pos, _) = split.unwrap_or((0, f32::NAN, 0.0));
+    // Partition by centroid bin.
+    let mut mid = 0;
+    for i in 0..n {
+        if ctx.centres[prims[i] as usize][axis] < pos {
+            prims.swap(i, mid);
+            mid += 1;
+        }
+    }
+    if mid == 0 || mid == n {
+        mid = n / 2; // all centroids in one bin: split the list in half
+    }
+    Step::Split(bounds, mid)
+}
+
+/// The subtree over `prims` (the whole list's from index `offset`) at
+/// `depth`, its root at index 0: built by [`sequential`], or, `levels`
+/// above the bottom and large enough, its two subtrees on two threads and
+/// joined in [`sequential`]'s numbering.
+fn subtree(
+    ctx: &BuildCtx,
+    prims: &mut [u32],
+    (offset, depth): (usize, usize),
+    levels: usize,
+) -> Vec<Node> {
+    if levels == 0 || prims.len() < ctx.min_prims {
+        return sequential(ctx, prims, (offset, depth));
+    }
+    match step(ctx, prims, depth) {
+        Step::Leaf(bounds) => vec![leaf(bounds, offset, prims.len())],
+        Step::Split(bounds, mid) => {
+            let (lp, rp) = prims.split_at_mut(mid);
+            let (l, r) = std::thread::scope(|s| {
+                let right = s.spawn(|| subtree(ctx, rp, (offset + mid, depth + 1), levels - 1));
+                let l = subtree(ctx, lp, (offset, depth + 1), levels - 1);
+                let r = right
+                    .join()
+                    .unwrap_or_else(|e| std::panic::resume_unwind(e));
+                (l, r)
+            });
+            join_subtrees(bounds, l, r)
+        }
+    }
+}
+
+/// A leaf over `count` primitives from index `first`.
+fn leaf(bounds: Aabb, first: usize, count: usize) -> Node {
+    Node::Leaf {
+        bounds,
+        first: first as u32,
+        count: count as u32,
+    }
+}
+
+/// The subtree over `prims` on this thread, depth first (left child first),
+/// each node's two children numbered when it splits.
+fn sequential(ctx: &BuildCtx, prims: &mut [u32], (offset, depth0): (usize, usize)) -> Vec<Node> {
+    let mut nodes = vec![leaf(Aabb::EMPTY, 0, 0)];
+    // (node index, start, end, depth)
+    let mut work = vec![(0usize, 0usize, prims.len(), depth0)];
+    while let Some((ni, s, e, depth)) = work.pop() {
+        match step(ctx, &mut prims[s..e], depth) {
+            Step::Leaf(bounds) => nodes[ni] = leaf(bounds, offset + s, e - s),
+            Step::Split(bounds, m) => {
+                let l = nodes.len();
+                nodes.extend([leaf(Aabb::EMPTY, 0, 0); 2]);
+                nodes[ni] = Node::Inner {
+                    bounds,
+                    left: l as u32,
+                    right: l as u32 + 1,
+                };
+                work.push((l + 1, s + m, e, depth + 1));
+                work.push((l, s, s + m, depth + 1));
+            }
+        }
+    }
+    nodes
+}
+
+/// An inner node over subtrees `l` and `r` (each rooted at its index 0),
+/// numbered as [`sequential`] numbers them: the root, its two children,
+/// then the left child's descendants, then the right child's.
+fn join_subtrees(bounds: Aabb, l: Vec<Node>, r: Vec<Node>) -> Vec<Node> {
+    let nl = l.len();
+    let renumber = |node: Node, at: &dyn Fn(u32) -> u32| match node {
+        Node::Inner {
+            bounds,
+            left,
+            right,
+        } => Node::Inner {
+            bounds,
+            left: at(left),
+            right: at(right),
+        },
+        leaf => leaf,
+    };
+    let in_l = |k: u32| if k == 0 { 1 } else { k + 2 };
+    let in_r = |k: u32| if k == 0 { 2 } else { nl as u32 + 1 + k };
+    let mut out = Vec::with_capacity(1 + nl + r.len());
+    out.push(Node::Inner {
+        bounds,
+        left: 1,
+        right: 2,
+    });
+    out.push(renumber(l[0], &in_l));
+    out.push(renumber(r[0], &in_r));
+    out.extend(l[1..].iter().map(|&n| renumber(n, &in_l)));
+    out.extend(r[1..].iter().map(|&n| renumber(n, &in_r)));
+    out
 }
 
 /// Best binned-SAH split of `prims`: (axis, position, cost relative to a
@@ -698,6 +810,30 @@ mod tests {
                 .push([3 * i as u32, 3 * i as u32 + 1, 3 * i as u32 + 2]);
         }
         m
+    }
+
+    #[test]
+    fn subtrees_on_threads_give_the_one_thread_tree_node_for_node() {
+        // Degenerate cases too: one triangle, identical centroids (split in
+        // half), and leaves too deep for MAX_DEPTH never reached here.
+        let mut same = soup(300, 5);
+        for p in &mut same.positions {
+            *p = [1.0, 2.0, 3.0];
+        }
+        for (m, cfg) in [
+            (soup(1, 9), BuildConfig::default()),
+            (soup(5000, 11), BuildConfig::default()),
+            (soup(5000, 11), BuildConfig::LARGE_LEAVES),
+            (same, BuildConfig::default()),
+        ] {
+            let one = Bvh2::build_par(&m, &cfg, (0, 0)).unwrap();
+            for split in [(1, 2), (3, 64), (6, 2)] {
+                let par = Bvh2::build_par(&m, &cfg, split).unwrap();
+                assert_eq!(par.nodes, one.nodes, "{split:?}");
+                assert_eq!(par.prims, one.prims, "{split:?}");
+                par.validate(&m).unwrap();
+            }
+        }
     }
 
     #[test]

@@ -7,7 +7,9 @@
 //! Where: `$RTSIM_CACHE` if set (`off` disables the cache), else
 //! `rtsim-cache` in the system's temporary directory. Files are written to
 //! a temporary name and renamed, so concurrent runs never read half a file;
-//! a file that does not decode is rebuilt and replaced.
+//! a file that does not decode is rebuilt and replaced. Within one
+//! process a file is made once: a second caller asking for it while the
+//! first builds it waits and reads it ([`file_lock`]).
 
 use crate::bvh::{Aabb, BuildConfig, Bvh2, Node};
 use crate::mesh::Mesh;
@@ -51,6 +53,10 @@ pub fn build(mesh: &Mesh, cfg: &BuildConfig) -> Result<(Bvh2, Source), String> {
 pub fn build_in(d: &Path, mesh: &Mesh, cfg: &BuildConfig) -> Result<(Bvh2, Source), String> {
     let start = Instant::now();
     let path = d.join(format!("bvh2-{}.bin", key(mesh, cfg)));
+    let lock = file_lock(&path);
+    let _made_once = lock
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     if let Some(mut b) = std::fs::read(&path).ok().and_then(|v| decode(&v)) {
         b.build_seconds = start.elapsed().as_secs_f64();
         return Ok((b, Source::Cache));
@@ -58,6 +64,21 @@ pub fn build_in(d: &Path, mesh: &Mesh, cfg: &BuildConfig) -> Result<(Bvh2, Sourc
     let b = Bvh2::build(mesh, cfg)?;
     store(d, &path, &encode(&b));
     Ok((b, Source::Built))
+}
+
+/// The lock of cache file `path` in this process: held from looking the
+/// file up to storing it, so threads wanting the same tree or mesh at once
+/// (reports run side by side, tests in one binary) build it once, not once
+/// each (a paper-size scene's tree is most of a minute of one core).
+pub(crate) fn file_lock(path: &Path) -> std::sync::Arc<std::sync::Mutex<()>> {
+    use std::collections::HashMap;
+    use std::sync::{Arc, Mutex, OnceLock, PoisonError};
+    static LOCKS: OnceLock<Mutex<HashMap<PathBuf, Arc<Mutex<()>>>>> = OnceLock::new();
+    let mut locks = LOCKS
+        .get_or_init(Mutex::default)
+        .lock()
+        .unwrap_or_else(PoisonError::into_inner);
+    Arc::clone(locks.entry(path.to_path_buf()).or_default())
 }
 
 /// Write `bytes` to `path` in cache directory `d` by a temporary name and a
@@ -208,6 +229,27 @@ mod tests {
         }
         assert_eq!(build_in(&d, &mesh, &cfg).unwrap().1, Source::Built);
         assert_eq!(build_in(&d, &mesh, &cfg).unwrap().1, Source::Cache);
+        std::fs::remove_dir_all(&d).unwrap();
+    }
+
+    #[test]
+    fn threads_wanting_the_same_tree_at_once_build_it_once() {
+        let d = std::env::temp_dir().join(format!("rtsim-cache-once-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        let (mesh, cfg) = (grid(20_000), BuildConfig::default());
+        let mut got: Vec<(Source, Bvh2)> = std::thread::scope(|s| {
+            let hs: Vec<_> = (0..3)
+                .map(|_| s.spawn(|| build_in(&d, &mesh, &cfg).unwrap()))
+                .collect();
+            hs.into_iter()
+                .map(|h| h.join().unwrap())
+                .map(|(b, s)| (s, b))
+                .collect()
+        });
+        got.sort_by_key(|(s, _)| *s != Source::Built);
+        let sources: Vec<Source> = got.iter().map(|g| g.0).collect();
+        assert_eq!(sources, [Source::Built, Source::Cache, Source::Cache]);
+        assert!(got.iter().all(|g| g.1.nodes == got[0].1.nodes));
         std::fs::remove_dir_all(&d).unwrap();
     }
 

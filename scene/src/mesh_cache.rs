@@ -40,6 +40,10 @@ pub fn cached_in(
     build: impl FnOnce() -> Result<Tagged, String>,
 ) -> Result<Tagged, String> {
     let path = d.join(format!("mesh-{}.bin", key(key_parts)));
+    let lock = crate::bvh_cache::file_lock(&path);
+    let _made_once = lock
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     let read = std::fs::read(&path).ok().and_then(|v| decode(&v));
     if let Some(t) = read.filter(|t| t.1.iter().all(|&x| x < ntags)) {
         return Ok(t);

@@ -1,7 +1,8 @@
 //! The host's SIMD instructions for the native backend's vector ops: each
 //! op on `N` lanes as `std::arch` intrinsics where the binary is built with
-//! the instruction set — AVX2 (+ FMA for the fused forms) on 8-lane chunks
-//! (16 and 32 lanes are two or four chunks), SSE4.1 on 4 lanes — and `None`
+//! the instruction set — AVX-512 (F + DQ) on 16-lane chunks (16 and 32
+//! lanes), else AVX2 (+ FMA for the fused forms) on 8-lane chunks (16 and 32
+//! lanes are two or four chunks), SSE4.1 on 4 lanes — and `None`
 //! elsewhere, where the caller runs the portable lane loop of [`crate::lanes`].
 //!
 //! Every function computes exactly what the lane loop computes (the
@@ -29,6 +30,19 @@ use crate::machine::Logic;
 /// that divides `$n` lanes, or give `None`.
 macro_rules! simd {
     ($n:expr, |$w:ident| $body:expr) => {{
+        #[cfg(all(
+            target_arch = "x86_64",
+            target_feature = "avx512f",
+            target_feature = "avx512dq"
+        ))]
+        if $n.is_multiple_of(16) {
+            #[allow(unused_imports)]
+            use self::avx512 as $w;
+            // SAFETY: the binary is built with AVX-512F and DQ (the cfg
+            // above); every access is within the lane arrays.
+            #[allow(unused_unsafe)]
+            return Some(unsafe { $body });
+        }
         #[cfg(all(target_arch = "x86_64", target_feature = "avx2"))]
         if $n.is_multiple_of(8) {
             #[allow(unused_imports)]
@@ -56,13 +70,25 @@ macro_rules! simd {
 pub fn intrinsics_for(n: usize) -> bool {
     let avx2 = cfg!(all(target_arch = "x86_64", target_feature = "avx2"));
     let sse41 = cfg!(all(target_arch = "x86_64", target_feature = "sse4.1"));
-    (avx2 && n.is_multiple_of(8)) || (sse41 && n == 4)
+    (avx512() && n.is_multiple_of(16)) || (avx2 && n.is_multiple_of(8)) || (sse41 && n == 4)
+}
+
+/// Whether this binary is built with AVX-512 F and DQ (16-lane chunks).
+const fn avx512() -> bool {
+    cfg!(all(
+        target_arch = "x86_64",
+        target_feature = "avx512f",
+        target_feature = "avx512dq"
+    ))
 }
 
 /// How this binary runs the vector ops of `n` lanes, for reports.
 #[must_use]
 pub fn describe(n: usize) -> &'static str {
     let fma = cfg!(target_feature = "fma");
+    if avx512() && n.is_multiple_of(16) {
+        return "std::arch AVX-512 intrinsics on 16-lane chunks";
+    }
     match (intrinsics_for(n), n.is_multiple_of(8), fma) {
         (true, true, true) => "std::arch AVX2 + FMA intrinsics on 8-lane chunks",
         (true, true, false) => {
@@ -808,6 +834,208 @@ mod sse41 {
     }
 }
 
+/// AVX-512 (F + DQ) on 16-lane chunks. Compares give a `k` mask register;
+/// the lane arrays hold masks as -1/0 lanes, so a compare's mask is spread
+/// to lanes (`vpmovm2d`) and a blend's lanes gathered into a `k` register
+/// (`vpmovd2m`, the sign bits, as `blendvps` reads them).
+#[cfg(all(
+    target_arch = "x86_64",
+    target_feature = "avx512f",
+    target_feature = "avx512dq"
+))]
+mod avx512 {
+    use super::*;
+    use std::arch::x86_64::*;
+
+    // The lane arrays are 32-byte aligned: unaligned loads and stores.
+    chunk_helpers!(
+        16,
+        __m512,
+        __m512i,
+        _mm512_loadu_ps,
+        _mm512_storeu_ps,
+        _mm512_loadu_si512,
+        _mm512_storeu_si512
+    );
+
+    #[inline(always)]
+    pub unsafe fn add(a: __m512, b: __m512) -> __m512 {
+        _mm512_add_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn sub(a: __m512, b: __m512) -> __m512 {
+        _mm512_sub_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn mul(a: __m512, b: __m512) -> __m512 {
+        _mm512_mul_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn div(a: __m512, b: __m512) -> __m512 {
+        _mm512_div_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn min(a: __m512, b: __m512) -> __m512 {
+        _mm512_min_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn max(a: __m512, b: __m512) -> __m512 {
+        _mm512_max_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn sqrt(a: __m512) -> __m512 {
+        _mm512_sqrt_ps(a)
+    }
+    #[inline(always)]
+    pub unsafe fn one() -> __m512 {
+        _mm512_set1_ps(1.0)
+    }
+    #[inline(always)]
+    pub unsafe fn splat_bits(x: i32) -> __m512 {
+        _mm512_castsi512_ps(_mm512_set1_epi32(x))
+    }
+    #[inline(always)]
+    pub unsafe fn and(a: __m512, b: __m512) -> __m512 {
+        _mm512_and_ps(a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn abs(a: __m512) -> __m512 {
+        _mm512_and_ps(a, splat_bits(i32::MAX))
+    }
+    #[inline(always)]
+    pub unsafe fn neg(a: __m512) -> __m512 {
+        _mm512_xor_ps(a, splat_bits(i32::MIN))
+    }
+    /// The fused form of `kind` (AVX-512F has it).
+    #[inline(always)]
+    pub unsafe fn fused(kind: Fma, a: __m512, b: __m512, c: __m512) -> __m512 {
+        match kind {
+            Fma::MAdd => _mm512_fmadd_ps(a, b, c),
+            Fma::MSub => _mm512_fmsub_ps(a, b, c),
+            Fma::NMAdd => _mm512_fnmadd_ps(a, b, c),
+            Fma::NMSub => _mm512_fnmsub_ps(a, b, c),
+        }
+    }
+    /// The sign bits of `m` as a mask register.
+    #[inline(always)]
+    unsafe fn signs(m: __m512i) -> __mmask16 {
+        _mm512_movepi32_mask(m)
+    }
+    /// -1 lanes where `k` is set, else 0.
+    #[inline(always)]
+    unsafe fn lanes(k: __mmask16) -> __m512i {
+        _mm512_movm_epi32(k)
+    }
+    /// Take `b` where the sign of `m` is set, else `a`.
+    #[inline(always)]
+    pub unsafe fn blend(a: __m512, b: __m512, m: __m512) -> __m512 {
+        _mm512_mask_blend_ps(signs(_mm512_castps_si512(m)), a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn iblend(a: __m512i, b: __m512i, m: __m512i) -> __m512i {
+        _mm512_mask_blend_epi32(signs(m), a, b)
+    }
+    #[inline(always)]
+    pub unsafe fn logic(op: Logic, a: __m512, b: __m512) -> __m512 {
+        match op {
+            Logic::And => _mm512_and_ps(a, b),
+            Logic::Or => _mm512_or_ps(a, b),
+            Logic::Xor => _mm512_xor_ps(a, b),
+            Logic::AndNot => _mm512_andnot_ps(a, b),
+        }
+    }
+    #[inline(always)]
+    pub unsafe fn cmp(p: Cmp, a: __m512, b: __m512) -> __m512 {
+        let k = match p {
+            Cmp::Lt => _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a, b),
+            Cmp::Le => _mm512_cmp_ps_mask::<_CMP_LE_OQ>(a, b),
+            Cmp::Gt => _mm512_cmp_ps_mask::<_CMP_GT_OQ>(a, b),
+            Cmp::Ge => _mm512_cmp_ps_mask::<_CMP_GE_OQ>(a, b),
+            Cmp::Eq => _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(a, b),
+            Cmp::Ne => _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(a, b),
+            Cmp::Ord => _mm512_cmp_ps_mask::<_CMP_ORD_Q>(a, b),
+            Cmp::Unord => _mm512_cmp_ps_mask::<_CMP_UNORD_Q>(a, b),
+        };
+        _mm512_castsi512_ps(lanes(k))
+    }
+    #[inline(always)]
+    pub unsafe fn cvtt(a: __m512) -> __m512i {
+        _mm512_cvttps_epi32(a)
+    }
+    #[inline(always)]
+    pub unsafe fn cvt(a: __m512) -> __m512i {
+        _mm512_cvtps_epi32(a)
+    }
+    #[inline(always)]
+    pub unsafe fn cvtdq(a: __m512i) -> __m512 {
+        _mm512_cvtepi32_ps(a)
+    }
+    #[inline(always)]
+    pub unsafe fn iop(op: IOp, a: __m512i, b: __m512i) -> __m512i {
+        match op {
+            IOp::Add => _mm512_add_epi32(a, b),
+            IOp::Sub => _mm512_sub_epi32(a, b),
+            IOp::Mul => _mm512_mullo_epi32(a, b),
+            IOp::And => _mm512_and_si512(a, b),
+            IOp::Or => _mm512_or_si512(a, b),
+            IOp::Xor => _mm512_xor_si512(a, b),
+            IOp::AndNot => _mm512_andnot_si512(a, b),
+            IOp::Min => _mm512_min_epi32(a, b),
+            IOp::Max => _mm512_max_epi32(a, b),
+        }
+    }
+    #[inline(always)]
+    pub unsafe fn ilogic(op: Logic, a: __m512i, b: __m512i) -> __m512i {
+        match op {
+            Logic::And => _mm512_and_si512(a, b),
+            Logic::Or => _mm512_or_si512(a, b),
+            Logic::Xor => _mm512_xor_si512(a, b),
+            Logic::AndNot => _mm512_andnot_si512(a, b),
+        }
+    }
+    #[inline(always)]
+    pub unsafe fn inot(a: __m512i) -> __m512i {
+        _mm512_xor_si512(a, _mm512_set1_epi32(-1))
+    }
+    /// -1 where the sign bit is set, else 0.
+    #[inline(always)]
+    pub unsafe fn canon(a: __m512i) -> __m512i {
+        _mm512_srai_epi32::<31>(a)
+    }
+    #[inline(always)]
+    pub unsafe fn shift(s: Shift, a: __m512i, n: u32) -> __m512i {
+        let count = _mm_cvtsi32_si128(n as i32);
+        match s {
+            Shift::Shl => _mm512_sll_epi32(a, count),
+            Shift::Shr => _mm512_srl_epi32(a, count),
+            Shift::Sar => _mm512_sra_epi32(a, count),
+        }
+    }
+    #[inline(always)]
+    pub unsafe fn icmp(p: Cmp, a: __m512i, b: __m512i) -> __m512i {
+        let k = match p {
+            Cmp::Lt => _mm512_cmplt_epi32_mask(a, b),
+            Cmp::Le => _mm512_cmple_epi32_mask(a, b),
+            Cmp::Gt => _mm512_cmpgt_epi32_mask(a, b),
+            Cmp::Ge => _mm512_cmpge_epi32_mask(a, b),
+            Cmp::Eq => _mm512_cmpeq_epi32_mask(a, b),
+            Cmp::Ne => _mm512_cmpneq_epi32_mask(a, b),
+            Cmp::Ord => 0xffff,
+            Cmp::Unord => 0,
+        };
+        lanes(k)
+    }
+    /// Bit i = sign of lane i, over every chunk.
+    #[inline(always)]
+    pub unsafe fn movemask<const N: usize>(k: &Vk<N>) -> u32 {
+        let mut bits = 0u32;
+        for c in 0..N / W {
+            bits |= u32::from(signs(ki(k, c))) << (W * c);
+        }
+        bits
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -998,12 +1226,14 @@ mod tests {
         let add = |n: usize| match n {
             2 => bin(BinOp::Add, Vf([1.0f32; 2]), Vf([2.0; 2])).is_some(),
             4 => bin(BinOp::Add, Vf([1.0f32; 4]), Vf([2.0; 4])).is_some(),
-            _ => bin(BinOp::Add, Vf([1.0f32; 8]), Vf([2.0; 8])).is_some(),
+            8 => bin(BinOp::Add, Vf([1.0f32; 8]), Vf([2.0; 8])).is_some(),
+            _ => bin(BinOp::Add, Vf([1.0f32; 16]), Vf([2.0; 16])).is_some(),
         };
         assert_eq!(add(8), avx2);
+        assert_eq!(add(16), avx2 || avx512());
         assert_eq!(add(4), sse);
         assert!(!add(2));
-        for n in [2, 4, 8] {
+        for n in [2, 4, 8, 16] {
             assert_eq!(intrinsics_for(n), add(n), "{n} lanes");
         }
     }

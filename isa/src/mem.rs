@@ -615,11 +615,15 @@ fn out_of_bounds(id: MemId, off: usize, n: usize, len: usize) -> ! {
     )
 }
 
-/// An effective address operand: `index * scale + disp` bytes into a buffer,
-/// like x86's `[base + index*scale + disp]`. The index is a machine scalar, so
-/// a load whose address comes from loaded data depends on that load.
+/// An effective address operand: `base + index * scale + disp` bytes into a
+/// buffer, like x86's `[reg + index*scale + disp]` (the buffer's own address
+/// is a loop-invariant register, not recorded). Base and index are machine
+/// scalars, so a load whose address comes from loaded or computed data
+/// depends on the ops that made it.
 #[derive(Clone, Copy, Debug)]
 pub struct At<S> {
+    /// Optional base value, added unscaled (a second address register).
+    pub base: Option<S>,
     /// Optional index value.
     pub index: Option<S>,
     /// Index scale: 1, 2, 4 or 8 (x86 addressing modes; free).
@@ -633,6 +637,7 @@ impl<S> At<S> {
     #[inline(always)]
     pub fn off(disp: usize) -> Self {
         At {
+            base: None,
             index: None,
             scale: 1,
             disp,
@@ -643,6 +648,20 @@ impl<S> At<S> {
     pub fn idx(index: S, scale: u8, disp: usize) -> Self {
         debug_assert!(matches!(scale, 1 | 2 | 4 | 8), "scale {scale}");
         At {
+            base: None,
+            index: Some(index),
+            scale,
+            disp,
+        }
+    }
+    /// `base + index * scale + disp`: two address registers, as x86's
+    /// `[base + index*scale + disp]` (e.g. a node's address plus a child's
+    /// lane from a bit scan: the load depends on both).
+    #[inline(always)]
+    pub fn base_idx(base: S, index: S, scale: u8, disp: usize) -> Self {
+        debug_assert!(matches!(scale, 1 | 2 | 4 | 8), "scale {scale}");
+        At {
+            base: Some(base),
             index: Some(index),
             scale,
             disp,

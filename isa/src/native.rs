@@ -219,7 +219,13 @@ fn log_at(log: &mut Trace, class: OpClass, addr: Addr, mem: MemId, bytes: usize)
 /// Byte offset of an effective address.
 #[inline(always)]
 pub(crate) fn ea_off(index: Option<i64>, scale: u8, disp: usize) -> usize {
-    let off = index.map_or(0, |i| i * i64::from(scale)) + disp as i64;
+    base_ea_off(None, index, scale, disp)
+}
+
+/// Byte offset of an effective address with an optional base register.
+#[inline(always)]
+pub(crate) fn base_ea_off(base: Option<i64>, index: Option<i64>, scale: u8, disp: usize) -> usize {
+    let off = base.unwrap_or(0) + index.map_or(0, |i| i * i64::from(scale)) + disp as i64;
     if off < 0 {
         negative_address(off);
     }
@@ -237,7 +243,13 @@ fn negative_address(off: i64) -> ! {
 /// the buffer's [`Buf::hot_off`] clamps to its end).
 #[inline(always)]
 fn ea(at: At<NS>) -> usize {
-    hot_ea(at.index.map(|s| s.0), at.scale, at.disp)
+    match at.base {
+        None => hot_ea(at.index.map(|s| s.0), at.scale, at.disp),
+        Some(b) if cfg!(debug_assertions) => {
+            base_ea_off(Some(b.0), at.index.map(|s| s.0), at.scale, at.disp)
+        }
+        Some(b) => (b.0 as usize).wrapping_add(hot_ea(at.index.map(|s| s.0), at.scale, at.disp)),
+    }
 }
 
 /// [`ea`] of a lane's index.

@@ -36,7 +36,7 @@ use crate::lanes::{
 };
 use crate::machine::{Float, Int, Logic, Machine, SOp};
 use crate::mem::{AddrSpace, At, Buf};
-use crate::native::{arr, compress_lanes, ea_off, idx_arr, load_int, reduce_op};
+use crate::native::{arr, base_ea_off, compress_lanes, ea_off, idx_arr, load_int, reduce_op};
 use crate::trace::{Op, Trace, FLAG_TAKEN, MAX_SRCS};
 use crate::types::{Addr, LaneMask, MemId, Region, Site, ValId};
 use std::marker::PhantomData;
@@ -328,10 +328,17 @@ impl<FL: Flavour<N>, const N: usize> Traced<FL, N> {
     }
 
     #[inline]
-    fn ea(at: &At<TS>) -> (usize, ValId) {
+    /// An address's byte offset, its index's and its base's values.
+    fn ea(at: &At<TS>) -> (usize, ValId, ValId) {
         (
-            ea_off(at.index.map(|s| s.v), at.scale, at.disp),
+            base_ea_off(
+                at.base.map(|s| s.v),
+                at.index.map(|s| s.v),
+                at.scale,
+                at.disp,
+            ),
             at.index.map_or(ValId::NONE, |s| s.id),
+            at.base.map_or(ValId::NONE, |s| s.id),
         )
     }
 
@@ -915,26 +922,34 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
 
     #[inline]
     fn load(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         assert!(
             buf.addr(off).0.is_multiple_of(4 * N as u64),
             "misaligned {}-byte load at {}",
             4 * N,
             buf.addr(off)
         );
-        let id = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * N, true);
+        let id = self.mem(OpClass::VLoad, &[ix, bx], Self::FULL, buf, off, 4 * N, true);
         Self::tf(Vf(buf.f32s::<N>(off)), id)
     }
     #[inline]
     fn loadu(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
-        let (off, ix) = Self::ea(&at);
-        let id = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * N, true);
+        let (off, ix, bx) = Self::ea(&at);
+        let id = self.mem(OpClass::VLoad, &[ix, bx], Self::FULL, buf, off, 4 * N, true);
         Self::tf(Vf(buf.f32s::<N>(off)), id)
     }
     #[inline]
     fn load_bcast(&mut self, buf: &Buf, at: At<TS>) -> TF<N> {
-        let (off, ix) = Self::ea(&at);
-        let id = self.mem(OpClass::VLoadBcast, &[ix], Self::FULL, buf, off, 4, true);
+        let (off, ix, bx) = Self::ea(&at);
+        let id = self.mem(
+            OpClass::VLoadBcast,
+            &[ix, bx],
+            Self::FULL,
+            buf,
+            off,
+            4,
+            true,
+        );
         Self::tf(Vf([buf.f32_at(off); N]), id)
     }
     #[inline]
@@ -943,21 +958,29 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             return self.load_repeat(buf, at, n);
         }
         assert!(N.is_multiple_of(n), "repeat of {n} lanes in {N}");
-        let (off, ix) = Self::ea(&at);
-        let id = self.mem(OpClass::VLoadFold, &[ix], Self::FULL, buf, off, 4 * n, true);
+        let (off, ix, bx) = Self::ea(&at);
+        let id = self.mem(
+            OpClass::VLoadFold,
+            &[ix, bx],
+            Self::FULL,
+            buf,
+            off,
+            4 * n,
+            true,
+        );
         let v: [f32; N] = std::array::from_fn(|i| buf.f32_at(off + 4 * (i % n)));
         Self::tf(Vf(v), id)
     }
     #[inline]
     fn load_repeat(&mut self, buf: &Buf, at: At<TS>, n: usize) -> TF<N> {
         assert!(n > 0 && N.is_multiple_of(n), "repeat of {n} lanes in {N}");
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         let id = if n == N {
-            self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * n, true)
+            self.mem(OpClass::VLoad, &[ix, bx], Self::FULL, buf, off, 4 * n, true)
         } else if matches!(n, 1 | 4 | 8) {
             self.mem(
                 OpClass::VLoadBcast,
-                &[ix],
+                &[ix, bx],
                 Self::FULL,
                 buf,
                 off,
@@ -965,7 +988,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
                 true,
             )
         } else {
-            let l = self.mem(OpClass::VLoad, &[ix], Self::FULL, buf, off, 4 * n, true);
+            let l = self.mem(OpClass::VLoad, &[ix, bx], Self::FULL, buf, off, 4 * n, true);
             self.v(OpClass::VPerm, &[l])
         };
         let mut r = [0f32; N];
@@ -976,12 +999,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn load_masked(&mut self, k: TK<N>, src: TF<N>, buf: &Buf, at: At<TS>) -> TF<N> {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         let bits = k.v.bits();
         let id = if FL::MASK_REGS {
             self.mem(
                 OpClass::VLoadMasked,
-                &[ix, k.id, src.id],
+                &[ix, bx, k.id, src.id],
                 bits,
                 buf,
                 off,
@@ -1007,7 +1030,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn store(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         assert!(
             buf.addr(off).0.is_multiple_of(4 * N as u64),
             "misaligned {}-byte store at {}",
@@ -1016,7 +1039,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         );
         self.mem(
             OpClass::VStore,
-            &[ix, v.id],
+            &[ix, bx, v.id],
             Self::FULL,
             buf,
             off,
@@ -1027,10 +1050,10 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn storeu(&mut self, buf: &mut Buf, at: At<TS>, v: TF<N>) {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         self.mem(
             OpClass::VStore,
-            &[ix, v.id],
+            &[ix, bx, v.id],
             Self::FULL,
             buf,
             off,
@@ -1041,12 +1064,12 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn store_masked(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, v: TF<N>) {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         let bits = k.v.bits();
         if FL::MASKED_MEM {
             self.mem(
                 OpClass::VStoreMasked,
-                &[ix, k.id, v.id],
+                &[ix, bx, k.id, v.id],
                 bits,
                 buf,
                 off,
@@ -1078,7 +1101,8 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
         idx: TI<N>,
         scale: u8,
     ) -> TF<N> {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
+        assert!(!bx.is_some(), "a gather or scatter takes no base register");
         let bits = k.v.bits();
         let mut offs = [0usize; N];
         let mut n = 0;
@@ -1117,7 +1141,8 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn scatter(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, idx: TI<N>, scale: u8, v: TF<N>) {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
+        assert!(!bx.is_some(), "a gather or scatter takes no base register");
         let bits = k.v.bits();
         let mut offs = [0usize; N];
         let mut n = 0;
@@ -1158,13 +1183,13 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn compress_store(&mut self, k: TK<N>, buf: &mut Buf, at: At<TS>, v: TF<N>) -> TS {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         let bits = k.v.bits();
         let (packed, n) = compress_lanes(k.v, v.v);
         let id = if FL::COMPRESS {
             self.mem(
                 OpClass::VCompress,
-                &[ix, k.id, v.id],
+                &[ix, bx, k.id, v.id],
                 bits,
                 buf,
                 off,
@@ -1265,8 +1290,8 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn s_load(&mut self, buf: &Buf, at: At<TS>, width: u8, signed: bool) -> TS {
-        let (off, ix) = Self::ea(&at);
-        let id = self.mem(OpClass::Load, &[ix], 1, buf, off, width as usize, true);
+        let (off, ix, bx) = Self::ea(&at);
+        let id = self.mem(OpClass::Load, &[ix, bx], 1, buf, off, width as usize, true);
         TS {
             v: load_int(buf, off, width, signed),
             id,
@@ -1274,10 +1299,10 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn s_store(&mut self, buf: &mut Buf, at: At<TS>, width: u8, v: TS) {
-        let (off, ix) = Self::ea(&at);
+        let (off, ix, bx) = Self::ea(&at);
         self.mem(
             OpClass::Store,
-            &[ix, v.id],
+            &[ix, bx, v.id],
             1,
             buf,
             off,
@@ -1318,8 +1343,8 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn x_load(&mut self, buf: &Buf, at: At<TS>) -> TX {
-        let (off, ix) = Self::ea(&at);
-        let id = self.mem(OpClass::Load, &[ix], 1, buf, off, 4, true);
+        let (off, ix, bx) = Self::ea(&at);
+        let id = self.mem(OpClass::Load, &[ix, bx], 1, buf, off, 4, true);
         TX {
             v: buf.f32_at(off),
             id,
@@ -1327,8 +1352,8 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     }
     #[inline]
     fn x_store(&mut self, buf: &mut Buf, at: At<TS>, v: TX) {
-        let (off, ix) = Self::ea(&at);
-        self.mem(OpClass::Store, &[ix, v.id], 1, buf, off, 4, false);
+        let (off, ix, bx) = Self::ea(&at);
+        self.mem(OpClass::Store, &[ix, bx, v.id], 1, buf, off, 4, false);
         buf.set_f32(off, v.v);
     }
 

@@ -300,7 +300,9 @@ fn descend4<M: Machine>(
     loop {
         let lane = m.s_tzcnt(bits);
         let l = lane.get() as usize;
-        let child = m.s_load(&s.nodes, At::idx(base, 1, 96 + 4 * l), 4, false);
+        // The child ref at the bit scan's lane: its address depends on the
+        // scan, as Embree's `node->child(r)` does.
+        let child = m.s_load(&s.nodes, At::base_idx(base, lane, 4, 96), 4, false);
         let d = m.extract(tn_v, l);
         hit[n] = Some((child, d));
         n += 1;

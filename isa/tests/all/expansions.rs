@@ -384,6 +384,24 @@ fn dependencies_are_recorded() {
 }
 
 #[test]
+fn two_address_registers_are_both_sources() {
+    let mut m = isa::Traced::<Avx2, 8>::new("deps2");
+    let b = m.space().alloc_u32(MemKind::Nodes, "n", &[8; 64], 64);
+    let node = m.s_load(&b, At::off(0), 4, false);
+    let lane = m.s_tzcnt(node); // 3
+    let child = m.s_load(&b, At::base_idx(node, lane, 4, 96), 4, false);
+    let t = m.finish();
+    let ops = &t.ops;
+    assert_eq!(
+        ops[2].sources(),
+        &[ops[1].dst, ops[0].dst],
+        "index, then base"
+    );
+    assert_eq!(child.id, ops[2].dst);
+    assert_eq!(ops[2].addr.0, t.regions[1].base.0 + 8 + 4 * 3 + 96);
+}
+
+#[test]
 fn divide_without_a_divide_is_reciprocal_and_multiply() {
     assert_eq!(
         classes_of::<Lrb16, 16>(|m| {

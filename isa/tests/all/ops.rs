@@ -540,6 +540,11 @@ fn check_memory_ops<M: Machine>(m: &mut M) {
     }
     let ix = m.int(3);
     let b = m.load_bcast(&src, At::idx(ix, 4, 8)); // element 5
+    let base = m.int(8);
+    let b6 = m.load_bcast(&src, At::base_idx(base, ix, 4, 4)); // 8 + 12 + 4 bytes: element 6
+    let x6 = m.x_load(&src, At::base_idx(base, ix, 4, 4));
+    assert_eq!(m.lane(b6, n - 1), data[6]);
+    assert_eq!(x6.get(), data[6]);
     let r4 = m.load_repeat(&src, At::off(off(2)), 4.min(n));
     for i in 0..n {
         assert_eq!(m.lane(b, i), data[5]);

@@ -236,7 +236,7 @@ fn inner<M: Machine>(
     loop {
         let lane = m.s_tzcnt(bits);
         let l = lane.get() as usize;
-        let child = m.s_load(&tree.nodes, At::idx(nb, 1, 24 * w + 4 * l), 4, false);
+        let child = m.s_load(&tree.nodes, At::base_idx(nb, lane, 4, 24 * w), 4, false);
         kids.push((child, m.extract(tn, l)));
         let lm1 = m.s_addi(bits, -1);
         bits = m.s_and(bits, lm1);

@@ -390,8 +390,7 @@ fn push_children<M: Machine>(
     let mut kids: Vec<Kid<M>> = Vec::with_capacity(w);
     loop {
         let lane = m.s_tzcnt(bits);
-        let l = lane.get() as usize;
-        let child = m.s_load(&tree.nodes, At::idx(nb, 1, 24 * w + 4 * l), 4, false);
+        let child = m.s_load(&tree.nodes, At::base_idx(nb, lane, 4, 24 * w), 4, false);
         let cnt = m.s_load(&b.scratch, At::idx(lane, 4, 0), 4, false);
         let len = (order == Order::Ordered).then(|| m.x_load(&b.scratch, At::idx(lane, 4, 4 * w)));
         kids.push((child, lane, cnt, len));

@@ -85,6 +85,26 @@ pub struct CoreConfig {
     pub history_bits: u32,
     /// log2 of the predictor's table of 2-bit counters.
     pub predictor_bits: u32,
+    /// TAGE tagged tables over the gshare (which is then TAGE's base
+    /// predictor); none: gshare alone.
+    #[serde(default)]
+    pub tage: Option<Tage>,
+}
+
+/// The tagged tables of a TAGE predictor (Seznec and Michaud 2006).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Tage {
+    /// Tagged tables (1 to 16).
+    pub tables: u32,
+    /// log2 of each table's entries (4 to 16).
+    pub table_bits: u32,
+    /// Partial tag bits (4 to 15).
+    pub tag_bits: u32,
+    /// The shortest table's global history length in branches.
+    pub min_history: u32,
+    /// The longest table's (at most 2048); the others in a geometric series.
+    pub max_history: u32,
 }
 
 fn one() -> u32 {
@@ -493,6 +513,20 @@ impl MachineConfig {
                 "core.predictor_bits",
                 "history_bits at most 24, predictor_bits 1 to 24",
             );
+        }
+        if let Some(t) = &c.tage {
+            let ok = (1..=crate::predictor::MAX_TABLES as u32).contains(&t.tables)
+                && (4..=16).contains(&t.table_bits)
+                && (4..=15).contains(&t.tag_bits)
+                && t.min_history >= 1
+                && t.min_history < t.max_history
+                && t.max_history <= 2048;
+            if !ok {
+                return e(
+                    "core.tage",
+                    "tables 1 to 16, table_bits 4 to 16, tag_bits 4 to 15, 1 <= min_history < max_history <= 2048",
+                );
+            }
         }
         Ok(())
     }

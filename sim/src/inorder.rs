@@ -12,7 +12,7 @@
 use crate::config::MachineConfig;
 use crate::memory::Hierarchy;
 use crate::ooo::{class_table, ClassT, Values};
-use crate::predictor::Gshare;
+use crate::predictor::Predictor;
 use crate::stats::{Stall, Stats};
 use isa::{OpClass, Trace};
 
@@ -25,7 +25,7 @@ struct Thread<'a> {
     miss_until: u64,
     /// The level the miss it waits for went to.
     miss_why: Stall,
-    pred: Gshare,
+    pred: Predictor,
 }
 
 /// The core's shared state: class timings, pipes, miss slots.
@@ -50,9 +50,9 @@ pub fn run(
     count_from: usize,
 ) -> u64 {
     let c = &m.core;
-    let mut preds: Vec<Gshare> = traces
+    let mut preds: Vec<Predictor> = traces
         .iter()
-        .map(|_| Gshare::new(c.history_bits, c.predictor_bits))
+        .map(|_| Predictor::new(c.history_bits, c.predictor_bits, c.tage.as_ref()))
         .collect();
     run_from(m, traces, &mut preds, mem, s, (count_from, 0))
 }
@@ -62,7 +62,7 @@ pub fn run(
 pub fn run_from(
     m: &MachineConfig,
     traces: &[&Trace],
-    preds: &mut [Gshare],
+    preds: &mut [Predictor],
     mem: &mut Hierarchy,
     s: &mut Stats,
     (count_from, start): (usize, u64),
@@ -78,7 +78,7 @@ pub fn run_queue(
     m: &MachineConfig,
     first: &[&Trace],
     queue: &[&Trace],
-    preds: &mut [Gshare],
+    preds: &mut [Predictor],
     mem: &mut Hierarchy,
     s: &mut Stats,
     (count_from, start): (usize, u64),
@@ -106,7 +106,7 @@ pub fn run_queue(
             last_issue: None,
             miss_until: start,
             miss_why: Stall::MemoryL2,
-            pred: std::mem::replace(p, Gshare::new(1, 1)),
+            pred: std::mem::replace(p, Predictor::new(1, 1, None)),
         })
         .collect();
     let mut cycle = start;
@@ -150,7 +150,7 @@ pub fn run_queue(
 
 /// Functional warming of thread `pred`'s unit `t`: its accesses update the
 /// caches and prefetcher, its branches the thread's predictor; untimed.
-pub fn warm(t: &Trace, pred: &mut Gshare, mem: &mut Hierarchy, now: u64) {
+pub fn warm(t: &Trace, pred: &mut Predictor, mem: &mut Hierarchy, now: u64) {
     for op in &t.ops {
         mem.warm_op(0, t, op, now);
         if op.class == OpClass::Branch {

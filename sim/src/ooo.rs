@@ -36,7 +36,7 @@
 
 use crate::config::{MachineConfig, MAX_UOPS};
 use crate::memory::Hierarchy;
-use crate::predictor::Gshare;
+use crate::predictor::Predictor;
 use crate::stats::{Stall, Stats};
 use isa::{Op, OpClass, Trace, ValId};
 
@@ -445,7 +445,7 @@ pub struct OooCore {
     mshr: crate::memory::Mshrs,
     stores: Vec<StoreEntry>,
     store_seq: usize,
-    pred: Gshare,
+    pred: Predictor,
     /// Per load site: the load once issued before an older store to its
     /// bytes had its address, so it now waits for every older store's
     /// address (Intel's memory disambiguation predictor).
@@ -497,7 +497,7 @@ impl OooCore {
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
             stores: vec![StoreEntry::default(); c.store_buffer.max(1) as usize],
             store_seq: 0,
-            pred: Gshare::new(c.history_bits, c.predictor_bits),
+            pred: Predictor::new(c.history_bits, c.predictor_bits, c.tage.as_ref()),
             mdp: vec![false; MDP],
             granules: Box::new([0; GRANULES]),
             d: 0,

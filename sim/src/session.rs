@@ -8,7 +8,7 @@
 use crate::config::{CoreKind, MachineConfig};
 use crate::memory::Hierarchy;
 use crate::ooo::OooCore;
-use crate::predictor::Gshare;
+use crate::predictor::Predictor;
 use crate::stats::Stats;
 use crate::{inorder, stats};
 use isa::Trace;
@@ -62,7 +62,7 @@ pub struct Session {
     /// Out-of-order machines: one per core.
     ooo: Vec<OooCore>,
     /// In-order machines: one predictor per hardware thread.
-    preds: Vec<Gshare>,
+    preds: Vec<Predictor>,
     /// In-order machines: the core's clock.
     clock: u64,
 }
@@ -80,7 +80,13 @@ impl Session {
             CoreKind::InOrder => (
                 Vec::new(),
                 (0..m.core.threads)
-                    .map(|_| Gshare::new(m.core.history_bits, m.core.predictor_bits))
+                    .map(|_| {
+                        Predictor::new(
+                            m.core.history_bits,
+                            m.core.predictor_bits,
+                            m.core.tage.as_ref(),
+                        )
+                    })
                     .collect(),
                 1,
             ),
@@ -186,9 +192,9 @@ impl Session {
     /// turn; the cycles from the core's clock to the last op's end.
     fn timed_inorder(&mut self, units: &[(usize, &Trace)], rest: &[&Trace], s: &mut Stats) -> u64 {
         let traces: Vec<&Trace> = units.iter().map(|u| u.1).collect();
-        let mut preds: Vec<Gshare> = units
+        let mut preds: Vec<Predictor> = units
             .iter()
-            .map(|u| std::mem::replace(&mut self.preds[u.0], Gshare::new(1, 1)))
+            .map(|u| std::mem::replace(&mut self.preds[u.0], Predictor::new(1, 1, None)))
             .collect();
         let start = self.clock;
         let end = inorder::run_queue(

@@ -342,6 +342,26 @@ fn bad_configs_name_file_line_and_field() {
             && e.contains(&line_of("\"vadd\": (lat: 3")),
         "{e}"
     );
+    let e = bad_config(
+        "tage.ron",
+        "predictor_bits: 14,",
+        "predictor_bits: 14, tage: Some((tables: 4, table_bits: 10, tag_bits: 9, min_history: 90, max_history: 30)),",
+    );
+    assert!(
+        e.contains("tage.ron")
+            && e.contains("core.tage")
+            && e.contains("min_history < max_history"),
+        "{e}"
+    );
+    let e = bad_config(
+        "tagefield.ron",
+        "predictor_bits: 14,",
+        "predictor_bits: 14, tage: Some((tables: 4, table_bits: 10, tag_bits: 9, min_history: 4, max_histroy: 30)),",
+    );
+    assert!(
+        e.contains("tagefield.ron") && e.contains("max_histroy"),
+        "{e}"
+    );
     let e = bad_config("fetch.ron", "fetch_bytes: 16,", "fetch_bytes: 12,");
     assert!(
         e.contains("fetch.ron") && e.contains("core.legacy_decode.fetch_bytes"),

@@ -134,7 +134,9 @@ pub const MAX_UOPS: usize = 16;
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClassTiming {
-    /// Result latency in cycles (loads: added to nothing; their latency is the cache's).
+    /// Result latency in cycles (loads: the load-to-use latency of an L1 hit;
+    /// the cache model gives the L1 and deeper levels, and a class slower than
+    /// the L1, such as a Zen FP load, adds the difference).
     pub lat: u32,
     /// Unfused uops, each with the ports that can execute it.
     pub uops: Vec<Vec<u32>>,

@@ -294,7 +294,8 @@ impl Core {
         } else if op.class.is_load() {
             let (ready, level) = mem.load_span(0, (op.addr.0, op.bytes), op.mem, cycle, mshr);
             missed = Stall::memory(level, mem.levels());
-            done = ready;
+            // A class slower than the L1 (a vector load) adds its difference.
+            done = ready + ct.lat.saturating_sub(l1);
             if op.class.is_folded() {
                 // A memory operand is read in the pipeline stages before
                 // execute: an L1 hit adds nothing to the op that reads it.

@@ -76,6 +76,7 @@ const FUSED_CMP: ClassT = ClassT {
     store: false,
     per_lane: false,
     vector: false,
+    load_extra: 0,
 };
 
 /// A class's uops as port masks, inline (no pointer to chase per op).
@@ -138,6 +139,9 @@ pub(crate) struct ClassT {
     pub store: bool,
     pub per_lane: bool,
     pub vector: bool,
+    /// A load class's load-to-use latency beyond the L1's (a Zen FP load:
+    /// 8 against the integer 4), added to what the cache model returns.
+    pub load_extra: u64,
 }
 
 pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
@@ -169,6 +173,11 @@ fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
                 store: c.is_store(),
                 per_lane: c.is_per_lane_mem(),
                 vector: c.is_vector(),
+                load_extra: if c.is_load() && !c.is_per_lane_mem() {
+                    u64::from(lat.saturating_sub(m.caches[0].latency))
+                } else {
+                    0
+                },
             }
         })
         .collect()
@@ -857,7 +866,7 @@ impl OooCore {
                 if let Some(w) = Stall::memory(level, mem.levels()) {
                     *why = w;
                 }
-                done = ready;
+                done = ready + ct.load_extra;
             }
         } else if ct.store {
             mem.store_span(self.core, (op.addr.0, op.bytes), op.mem, first);

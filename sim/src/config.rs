@@ -31,9 +31,14 @@ pub struct CoreConfig {
     /// Reorder buffer entries (OoO).
     #[serde(default)]
     pub rob: u32,
-    /// Unified scheduler entries (OoO).
+    /// Unified scheduler entries (OoO); with `fp_scheduler`, the entries of
+    /// every uop not in it.
     #[serde(default)]
     pub scheduler: u32,
+    /// A second scheduler for the uops whose ports all lie in its `ports`
+    /// (AMD's floating-point scheduler; OoO). None: one scheduler.
+    #[serde(default)]
+    pub fp_scheduler: Option<FpScheduler>,
     /// Execution ports (OoO) or pipes (in-order: 0 = U, 1 = V).
     pub ports: u32,
     /// Store-to-load forwarding latency (OoO).
@@ -89,6 +94,17 @@ pub struct CoreConfig {
     /// predictor); none: gshare alone.
     #[serde(default)]
     pub tage: Option<Tage>,
+}
+
+/// A second scheduler: the uops that can issue only on `ports` wait in its
+/// `entries`, the others in the core's `scheduler`.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FpScheduler {
+    /// Its ports.
+    pub ports: Vec<u32>,
+    /// Its entries.
+    pub entries: u32,
 }
 
 /// The tagged tables of a TAGE predictor (Seznec and Michaud 2006).
@@ -485,6 +501,23 @@ impl MachineConfig {
                 "core.taken_branch_ports".into(),
                 format!("port {p} does not exist (core.ports = {})", c.ports),
             ));
+        }
+        if let Some(f) = &c.fp_scheduler {
+            if c.kind != CoreKind::OutOfOrder {
+                return e("core.fp_scheduler", "is modelled on out-of-order cores");
+            }
+            if let Some(p) = f.ports.iter().find(|&&p| p >= c.ports) {
+                return Err((
+                    "core.fp_scheduler.ports".into(),
+                    format!("port {p} does not exist (core.ports = {})", c.ports),
+                ));
+            }
+            if f.ports.is_empty() || f.entries == 0 || f.entries > c.rob {
+                return e(
+                    "core.fp_scheduler",
+                    "needs at least one port and 1 to rob entries",
+                );
+            }
         }
         if let Some(l) = c.legacy_decode {
             if !l.fetch_bytes.is_power_of_two() || l.fetch_bytes < 16 || l.fetch_bytes > 64 {

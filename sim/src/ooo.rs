@@ -77,6 +77,7 @@ const FUSED_CMP: ClassT = ClassT {
     per_lane: false,
     vector: false,
     load_extra: 0,
+    fp_uops: 0,
 };
 
 /// A class's uops as port masks, inline (no pointer to chase per op).
@@ -142,6 +143,9 @@ pub(crate) struct ClassT {
     /// A load class's load-to-use latency beyond the L1's (a Zen FP load:
     /// 8 against the integer 4), added to what the cache model returns.
     pub load_extra: u64,
+    /// Of its uops, those held in the second scheduler (every port of the
+    /// uop in `core.fp_scheduler.ports`); the rest in the first.
+    pub fp_uops: u8,
 }
 
 pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
@@ -178,9 +182,100 @@ fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
                 } else {
                     0
                 },
+                fp_uops: Uops::of(&t.uops)
+                    .iter()
+                    .filter(|&&u| in_fp_pool(u, fp_mask(m)))
+                    .count() as u8,
             }
         })
         .collect()
+}
+
+/// The ports of the second scheduler (`core.fp_scheduler`) as a mask; 0:
+/// one scheduler.
+pub(crate) fn fp_mask(m: &MachineConfig) -> u32 {
+    m.core
+        .fp_scheduler
+        .as_ref()
+        .map_or(0, |f| f.ports.iter().fold(0, |a, p| a | 1 << p))
+}
+
+/// Whether a uop that may issue on `mask` waits in the second scheduler.
+#[inline(always)]
+fn in_fp_pool(mask: u32, fp: u32) -> bool {
+    fp != 0 && mask != 0 && mask & !fp == 0
+}
+
+/// One scheduler's entries: uops held from dispatch until they issue,
+/// counted by their issue cycle in a ring of [`WINDOW`] cycles.
+pub(crate) struct Pool {
+    /// Entries.
+    size: usize,
+    /// Uops that issue in each cycle (mod [`WINDOW`]), for cycles after `cursor`.
+    count: Box<[u16; WINDOW as usize]>,
+    /// Uops held at cycle `cursor` (issuing later).
+    held: usize,
+    /// Every uop issuing at or before this cycle has left.
+    cursor: u64,
+}
+
+impl Pool {
+    fn new(size: usize) -> Pool {
+        Pool {
+            size,
+            count: vec![0u16; WINDOW as usize]
+                .into_boxed_slice()
+                .try_into()
+                .expect("WINDOW entries"),
+            held: 0,
+            cursor: 0,
+        }
+    }
+
+    /// Free the entries of uops issuing up to cycle `to`.
+    #[inline(always)]
+    fn free_until(&mut self, to: u64) {
+        if to <= self.cursor {
+            return;
+        }
+        if self.held == 0 || to - self.cursor >= WINDOW {
+            if self.held > 0 {
+                self.count.fill(0);
+                self.held = 0;
+            }
+            self.cursor = to;
+            return;
+        }
+        let mut c = self.cursor;
+        while c < to {
+            c += 1;
+            let k = slot(c);
+            self.held -= usize::from(self.count[k]);
+            self.count[k] = 0;
+        }
+        self.cursor = to;
+    }
+
+    /// The first cycle from `d` with `n` entries free, if later than `d`.
+    #[inline(always)]
+    fn room_for(&mut self, n: usize, d: u64) -> Option<u64> {
+        self.free_until(d);
+        let room = self.size.saturating_sub(n);
+        let mut later = None;
+        while self.held > room {
+            self.free_until(self.cursor + 1);
+            later = Some(self.cursor);
+        }
+        later
+    }
+
+    /// Hold an entry until cycle `c`.
+    #[inline(always)]
+    fn hold(&mut self, c: u64) {
+        debug_assert!(c > self.cursor && c - self.cursor < WINDOW);
+        self.count[(c & (WINDOW - 1)) as usize] += 1;
+        self.held += 1;
+    }
 }
 
 /// Per-cycle booking of future ports: a ring of [`WINDOW`] cycles, each a
@@ -430,7 +525,6 @@ pub struct OooCore {
     width: u32,
     retire_width: u32,
     rob: u64,
-    sched: usize,
     l1_latency: u64,
     sf_latency: u64,
     sf_fail: u64,
@@ -444,13 +538,10 @@ pub struct OooCore {
     /// back is found with a mask, and a place not yet written reads 0).
     rob_ring: Vec<u64>,
     rob_seq: u64,
-    /// Uops in the scheduler that issue in each cycle (mod [`WINDOW`]),
-    /// for cycles after `rs_cursor`.
-    rs_count: Box<[u16; WINDOW as usize]>,
-    /// Uops held in the scheduler at cycle `rs_cursor` (issuing later).
-    rs_held: usize,
-    /// Every uop issuing at or before this cycle has left the scheduler.
-    rs_cursor: u64,
+    /// The scheduler, and the second one where the config splits them
+    /// (`pools[1]`, for the uops of `fp_mask`'s ports).
+    pools: [Pool; 2],
+    fp_mask: u32,
     mshr: crate::memory::Mshrs,
     stores: Vec<StoreEntry>,
     store_seq: usize,
@@ -486,7 +577,6 @@ impl OooCore {
             width: c.width,
             retire_width: c.retire_width,
             rob: u64::from(c.rob),
-            sched: c.scheduler as usize,
             l1_latency: u64::from(m.caches[0].latency),
             sf_latency: u64::from(c.store_forward_latency),
             sf_fail: u64::from(c.store_forward_fail_penalty),
@@ -497,12 +587,11 @@ impl OooCore {
             values: Values::new(),
             rob_ring: vec![0; (c.rob as usize).next_power_of_two()],
             rob_seq: 0,
-            rs_count: vec![0u16; WINDOW as usize]
-                .into_boxed_slice()
-                .try_into()
-                .expect("WINDOW entries"),
-            rs_held: 0,
-            rs_cursor: 0,
+            pools: [
+                Pool::new(c.scheduler as usize),
+                Pool::new(c.fp_scheduler.as_ref().map_or(0, |f| f.entries as usize)),
+            ],
+            fp_mask: fp_mask(m),
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
             stores: vec![StoreEntry::default(); c.store_buffer.max(1) as usize],
             store_seq: 0,
@@ -666,33 +755,11 @@ impl OooCore {
         self.d = self.d.max(t);
         self.dcount = 0;
         self.cal.advance(t);
-        self.rs_free_until(t);
+        for p in &mut self.pools {
+            p.free_until(t);
+        }
         self.last_ret = self.last_ret.max(t);
         self.now = t;
-    }
-
-    /// Free the scheduler entries of uops issuing up to cycle `to`.
-    #[inline(always)]
-    fn rs_free_until(&mut self, to: u64) {
-        if to <= self.rs_cursor {
-            return;
-        }
-        if self.rs_held == 0 || to - self.rs_cursor >= WINDOW {
-            if self.rs_held > 0 {
-                self.rs_count.fill(0);
-                self.rs_held = 0;
-            }
-            self.rs_cursor = to;
-            return;
-        }
-        let mut c = self.rs_cursor;
-        while c < to {
-            c += 1;
-            let k = slot(c);
-            self.rs_held -= usize::from(self.rs_count[k]);
-            self.rs_count[k] = 0;
-        }
-        self.rs_cursor = to;
     }
 
     /// Dispatch: the cycle the op enters the window (after the width, a
@@ -731,15 +798,15 @@ impl OooCore {
             }
         }
         let nuops = ct.uops.len();
-        if nuops > 0 {
-            // Entries whose uops issued by cycle d are free; wait for the
-            // earliest-issuing others until `nuops` entries are free.
-            self.rs_free_until(d);
-            let room = self.sched.saturating_sub(nuops);
-            while self.rs_held > room {
-                self.rs_free_until(self.rs_cursor + 1);
-                d = self.rs_cursor;
-                why = Stall::Resources;
+        let fp = usize::from(ct.fp_uops);
+        // Entries whose uops issued by cycle d are free; wait for the
+        // earliest-issuing others until each scheduler has room.
+        for (pool, n) in [(0, nuops - fp), (1, fp)] {
+            if n > 0 {
+                if let Some(later) = self.pools[pool].room_for(n, d) {
+                    d = later;
+                    why = Stall::Resources;
+                }
             }
         }
         if d > self.d {
@@ -807,9 +874,8 @@ impl OooCore {
             }
             first = first.min(c);
             last = last.max(c);
-            debug_assert!(c > self.rs_cursor && c - self.rs_cursor < WINDOW);
-            self.rs_count[(c & (WINDOW - 1)) as usize] += 1;
-            self.rs_held += 1;
+            let pool = usize::from(in_fp_pool(mask, self.fp_mask));
+            self.pools[pool].hold(c);
         }
         if nuops == 0 {
             // Done at rename: ready when its sources are, plus its latency.

@@ -742,3 +742,23 @@ fn a_vector_load_takes_its_class_latency_over_the_l1s() {
     let m = hsw();
     assert_eq!(run(&m, "vload"), run(&m, "load"));
 }
+
+#[test]
+fn a_second_scheduler_holds_only_its_ports_uops() {
+    // Zen 4 with one FP scheduler entry: a vadd waiting on a divide holds it
+    // until it issues, so an independent chain of vadds waits too; a chain
+    // of integer ops, held in the other scheduler, does not.
+    let full = MachineConfig::load("zen4").unwrap();
+    let mut one = full.clone();
+    one.core.fp_scheduler.as_mut().unwrap().entries = 1;
+    let div = "%1 = vdiv\n%2 = vadd %1\n";
+    let vadds = format!("{div}%3 = vadd\n%4 = vadd %3\n%5 = vadd %4\n%6 = vadd %5\n");
+    let alus = format!("{div}%3 = alu\n%4 = alu %3\n%5 = alu %4\n%6 = alu %5\n");
+    // The divide issues in 1 (lat 11: done 12), its vadd in 12 (done 15).
+    assert_eq!(cycles(&full, &vadds), 15);
+    // One entry: the vadd holds it from 1 until it issues in 12; the chain
+    // dispatches then, issues in 13 and takes 4 x 3 cycles: done 25.
+    assert_eq!(cycles(&one, &vadds), 12 + 1 + 4 * 3);
+    assert_eq!(cycles(&full, &alus), 15);
+    assert_eq!(cycles(&one, &alus), 15);
+}

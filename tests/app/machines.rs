@@ -362,6 +362,15 @@ fn bad_configs_name_file_line_and_field() {
         e.contains("tagefield.ron") && e.contains("max_histroy"),
         "{e}"
     );
+    let e = bad_config(
+        "fpsched.ron",
+        "scheduler: 60,",
+        "scheduler: 60, fp_scheduler: Some((ports: [0, 1, 12], entries: 20)),",
+    );
+    assert!(
+        e.contains("fpsched.ron") && e.contains("core.fp_scheduler.ports") && e.contains("port 12"),
+        "{e}"
+    );
     let e = bad_config("fetch.ron", "fetch_bytes: 16,", "fetch_bytes: 12,");
     assert!(
         e.contains("fetch.ron") && e.contains("core.legacy_decode.fetch_bytes"),

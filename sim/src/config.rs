@@ -123,6 +123,9 @@ pub struct Tage {
     pub max_history: u32,
 }
 
+/// The most tagged tables a TAGE config may ask for.
+pub const MAX_TAGE_TABLES: usize = 16;
+
 fn one() -> u32 {
     1
 }
@@ -550,7 +553,7 @@ impl MachineConfig {
             );
         }
         if let Some(t) = &c.tage {
-            let ok = (1..=crate::predictor::MAX_TABLES as u32).contains(&t.tables)
+            let ok = (1..=MAX_TAGE_TABLES as u32).contains(&t.tables)
                 && (4..=16).contains(&t.table_bits)
                 && (4..=15).contains(&t.tag_bits)
                 && t.min_history >= 1

@@ -4,7 +4,7 @@
 //! global history, gshare as the base). They stand in for the undocumented
 //! predictors of the modelled machines; their sizes are config fields.
 
-use crate::config::Tage as TageConfig;
+use crate::config::{Tage as TageConfig, MAX_TAGE_TABLES as MAX_TABLES};
 
 /// Gshare.
 #[derive(Clone, Debug)]
@@ -122,9 +122,6 @@ pub struct Tage {
     /// Allocation choice (a deterministic xorshift).
     rng: u64,
 }
-
-/// The most tagged tables a config may ask for.
-pub const MAX_TABLES: usize = 16;
 
 /// Branches between two halvings of every entry's usefulness (Seznec and
 /// Michaud 2006 reset them periodically; 256 K branches as in their paper).

@@ -6,6 +6,10 @@
 //! this host (`rtsim calibrate --machine NAME` prints the model's). Thread
 //! CPU time, so the other core's load does not count; best of 5.
 //!
+//! On a host with AVX-512 F the same for 512-bit ops, with their latencies
+//! (dependent chains) and the mask register's round trip through a general
+//! register (`kmovw` both ways), for a config of this host running AVX-512.
+//!
 //! Run: `cargo bench -p isa --bench host_pipes` (x86-64 Linux with AVX2 and
 //! FMA; elsewhere it says so). Results, with the machine, are in
 //! `rt/benches/RESULTS.md`.
@@ -95,6 +99,26 @@ mod pipes {
         std::hint::black_box((a, b));
     }
 
+    /// Independent 256-bit loads from an L1-resident buffer, as `loads_zmm`.
+    #[target_feature(enable = "avx2")]
+    unsafe fn loads_ymm() {
+        let buf = [0.5f32; 128];
+        let p = buf.as_ptr();
+        for _ in 0..N / 8 {
+            asm!(
+                "vmovups {0}, [{p}]", "vmovups {1}, [{p} + 32]",
+                "vmovups {2}, [{p} + 64]", "vmovups {3}, [{p} + 96]",
+                "vmovups {4}, [{p} + 128]", "vmovups {5}, [{p} + 160]",
+                "vmovups {6}, [{p} + 192]", "vmovups {7}, [{p} + 224]",
+                out(ymm_reg) _, out(ymm_reg) _, out(ymm_reg) _, out(ymm_reg) _,
+                out(ymm_reg) _, out(ymm_reg) _, out(ymm_reg) _, out(ymm_reg) _,
+                p = in(reg) p,
+                options(nostack, readonly),
+            );
+        }
+        std::hint::black_box(&buf);
+    }
+
     fn max(x: __m256) -> __m256 {
         // SAFETY: called only from `eight`, compiled with AVX2.
         unsafe { _mm256_max_ps(x, _mm256_set1_ps(1.0)) }
@@ -109,6 +133,225 @@ mod pipes {
         unsafe { _mm256_add_ps(x, _mm256_set1_ps(1.0)) }
     }
 
+    /// Eight independent chains of a 512-bit `op`, kept in registers.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn eight_zmm(op: fn(__m512) -> __m512) {
+        let mut a = [_mm512_set1_ps(0.5); 8];
+        for _ in 0..N / 8 {
+            for x in &mut a {
+                *x = op(*x);
+            }
+            asm!("/* {} {} {} {} {} {} {} {} */",
+                inout(zmm_reg) a[0], inout(zmm_reg) a[1], inout(zmm_reg) a[2], inout(zmm_reg) a[3],
+                inout(zmm_reg) a[4], inout(zmm_reg) a[5], inout(zmm_reg) a[6], inout(zmm_reg) a[7]);
+        }
+        std::hint::black_box(a);
+    }
+
+    /// One chain of a 512-bit `op`.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn chain_zmm(op: fn(__m512) -> __m512) {
+        let mut a = _mm512_set1_ps(0.5);
+        for _ in 0..N {
+            a = op(a);
+            asm!("/* {} */", inout(zmm_reg) a);
+        }
+        std::hint::black_box(a);
+    }
+
+    /// One chain of a mask's round trip: `kmovw r32, k` then `kmovw k, r32`,
+    /// 100 per asm block (the compiler moves nothing in between).
+    #[target_feature(enable = "avx512f")]
+    unsafe fn kmov_chain() {
+        for _ in 0..N / 100 {
+            asm!(".rept 100", "kmovw k1, eax", "kmovw eax, k1", ".endr",
+                out("eax") _, out("k1") _, options(nostack, nomem));
+        }
+    }
+
+    /// One chain of `kandw`, 100 per asm block.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn kand_chain() {
+        for _ in 0..N / 100 {
+            asm!(".rept 100", "kandw k1, k1, k1", ".endr",
+                out("k1") _, options(nostack, nomem));
+        }
+    }
+
+    /// 512-bit stores to an L1-resident buffer, 8 per step.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn stores_zmm() {
+        let mut buf = [0.5f32; 256];
+        let p = buf.as_mut_ptr();
+        for _ in 0..N / 8 {
+            asm!(
+                "vmovups [{p}], zmm0", "vmovups [{p} + 64], zmm0",
+                "vmovups [{p} + 128], zmm0", "vmovups [{p} + 192], zmm0",
+                "vmovups [{p} + 256], zmm0", "vmovups [{p} + 320], zmm0",
+                "vmovups [{p} + 384], zmm0", "vmovups [{p} + 448], zmm0",
+                p = in(reg) p, out("zmm0") _, options(nostack),
+            );
+        }
+        std::hint::black_box(&buf);
+    }
+
+    /// Compressing stores (`vcompressps [mem]{k}, zmm`, half the lanes
+    /// active), 8 per step, and the same into a register (`vcompressps
+    /// zmm{k}{z}, zmm`) alone and then with a full store (form 0, 1, 2): DRS's
+    /// stream compaction.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn compress_zmm(form: u8) {
+        let mut buf = [0.5f32; 256];
+        let p = buf.as_mut_ptr();
+        let k: __mmask16 = 0x5a5a;
+        for _ in 0..N / 8 {
+            if form == 0 {
+                asm!(".rept 8", "vcompressps [{p}]{{{k}}}, zmm0", ".endr",
+                    p = in(reg) p, k = in(kreg) k, out("zmm0") _, options(nostack));
+            } else if form == 1 {
+                asm!("vcompressps zmm1{{{k}}}{{z}}, zmm0", "vcompressps zmm2{{{k}}}{{z}}, zmm0",
+                    "vcompressps zmm3{{{k}}}{{z}}, zmm0", "vcompressps zmm4{{{k}}}{{z}}, zmm0",
+                    "vcompressps zmm5{{{k}}}{{z}}, zmm0", "vcompressps zmm6{{{k}}}{{z}}, zmm0",
+                    "vcompressps zmm7{{{k}}}{{z}}, zmm0", "vcompressps zmm8{{{k}}}{{z}}, zmm0",
+                    k = in(kreg) k, out("zmm0") _, out("zmm1") _, out("zmm2") _, out("zmm3") _,
+                    out("zmm4") _, out("zmm5") _, out("zmm6") _, out("zmm7") _, out("zmm8") _,
+                    options(nostack, nomem));
+            } else {
+                asm!("vcompressps zmm1{{{k}}}{{z}}, zmm0", "vmovups [{p}], zmm1",
+                    "vcompressps zmm2{{{k}}}{{z}}, zmm0", "vmovups [{p} + 64], zmm2",
+                    "vcompressps zmm3{{{k}}}{{z}}, zmm0", "vmovups [{p} + 128], zmm3",
+                    "vcompressps zmm4{{{k}}}{{z}}, zmm0", "vmovups [{p} + 192], zmm4",
+                    "vcompressps zmm5{{{k}}}{{z}}, zmm0", "vmovups [{p} + 256], zmm5",
+                    "vcompressps zmm6{{{k}}}{{z}}, zmm0", "vmovups [{p} + 320], zmm6",
+                    "vcompressps zmm7{{{k}}}{{z}}, zmm0", "vmovups [{p} + 384], zmm7",
+                    "vcompressps zmm8{{{k}}}{{z}}, zmm0", "vmovups [{p} + 448], zmm8",
+                    p = in(reg) p, k = in(kreg) k, out("zmm0") _, out("zmm1") _, out("zmm2") _,
+                    out("zmm3") _, out("zmm4") _, out("zmm5") _, out("zmm6") _, out("zmm7") _,
+                    out("zmm8") _, options(nostack));
+            }
+        }
+        std::hint::black_box(&buf);
+    }
+
+    /// Independent `kandw` (six masks), 96 per asm block.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn kand_free() {
+        for _ in 0..N / 96 {
+            asm!(".rept 16", "kandw k1, k1, k1", "kandw k2, k2, k2", "kandw k3, k3, k3",
+                "kandw k4, k4, k4", "kandw k5, k5, k5", "kandw k6, k6, k6", ".endr",
+                out("k1") _, out("k2") _, out("k3") _, out("k4") _, out("k5") _, out("k6") _,
+                options(nostack, nomem));
+        }
+    }
+
+    /// Independent `vcmpps k, zmm, zmm` (six masks), 96 per asm block.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn cmp_free() {
+        for _ in 0..N / 96 {
+            asm!(".rept 16", "vcmpltps k1, zmm0, zmm1", "vcmpltps k2, zmm0, zmm1",
+                "vcmpltps k3, zmm0, zmm1", "vcmpltps k4, zmm0, zmm1",
+                "vcmpltps k5, zmm0, zmm1", "vcmpltps k6, zmm0, zmm1", ".endr",
+                out("k1") _, out("k2") _, out("k3") _, out("k4") _, out("k5") _, out("k6") _,
+                out("zmm0") _, out("zmm1") _, options(nostack, nomem));
+        }
+    }
+
+    /// One chain through a compare into a mask and a blend by it
+    /// (`vcmpps k, zmm, zmm` then `vblendmps zmm{k}`): the node test's step
+    /// from a compare to a masked select.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn cmp_blend_chain() {
+        let (mut a, b) = (_mm512_set1_ps(0.5), _mm512_set1_ps(1.0));
+        for _ in 0..N {
+            let k = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(a, b);
+            a = _mm512_mask_blend_ps(k, b, a);
+            asm!("/* {} */", inout(zmm_reg) a);
+        }
+        std::hint::black_box(a);
+    }
+
+    /// Independent 512-bit loads from an L1-resident buffer, 8 per step into
+    /// registers nothing reads (no FP op beside them).
+    #[target_feature(enable = "avx512f")]
+    unsafe fn loads_zmm() {
+        let buf = [0.5f32; 256];
+        let p = buf.as_ptr();
+        for _ in 0..N / 8 {
+            asm!(
+                "vmovups {0}, [{p}]", "vmovups {1}, [{p} + 64]",
+                "vmovups {2}, [{p} + 128]", "vmovups {3}, [{p} + 192]",
+                "vmovups {4}, [{p} + 256]", "vmovups {5}, [{p} + 320]",
+                "vmovups {6}, [{p} + 384]", "vmovups {7}, [{p} + 448]",
+                out(zmm_reg) _, out(zmm_reg) _, out(zmm_reg) _, out(zmm_reg) _,
+                out(zmm_reg) _, out(zmm_reg) _, out(zmm_reg) _, out(zmm_reg) _,
+                p = in(reg) p,
+                options(nostack, readonly),
+            );
+        }
+        std::hint::black_box(&buf);
+    }
+
+    fn max_zmm(x: __m512) -> __m512 {
+        // SAFETY: called only from the zmm loops, compiled with AVX-512 F.
+        unsafe { _mm512_max_ps(x, _mm512_set1_ps(1.0)) }
+    }
+    fn fma_zmm(x: __m512) -> __m512 {
+        // SAFETY: as `max_zmm`.
+        unsafe { _mm512_fmadd_ps(x, _mm512_set1_ps(0.999_999_9), _mm512_set1_ps(0.5)) }
+    }
+    fn add_zmm(x: __m512) -> __m512 {
+        // SAFETY: as `max_zmm`.
+        unsafe { _mm512_add_ps(x, _mm512_set1_ps(1.0)) }
+    }
+
+    /// The 512-bit rows, in cycles at the clock `ghz`.
+    fn zmm_rows(ghz: f64) {
+        // SAFETY (every call below): AVX-512 F checked by the caller.
+        let lat: [(&str, f64); 5] = [
+            ("vaddps zmm", ns_per_op(N, || unsafe { chain_zmm(add_zmm) })),
+            ("vfmadd zmm", ns_per_op(N, || unsafe { chain_zmm(fma_zmm) })),
+            (
+                "vcmpps k + vblendmps",
+                ns_per_op(N, || unsafe { cmp_blend_chain() }),
+            ),
+            (
+                "kmovw r,k + kmovw k,r",
+                ns_per_op(N, || unsafe { kmov_chain() }),
+            ),
+            ("kandw", ns_per_op(N, || unsafe { kand_chain() })),
+        ];
+        for (name, ns) in lat {
+            println!(
+                "{name:20} {:.3} cycles (latency, dependent chain)",
+                ns * ghz
+            );
+        }
+        let thr: [(&str, f64); 10] = [
+            (
+                "vcompressps m{k}",
+                ns_per_op(N, || unsafe { compress_zmm(0) }),
+            ),
+            ("vcompressps r", ns_per_op(N, || unsafe { compress_zmm(1) })),
+            (
+                "vcompressps r + st",
+                ns_per_op(N, || unsafe { compress_zmm(2) }),
+            ),
+            (
+                "vmovups zmm store",
+                ns_per_op(N, || unsafe { stores_zmm() }),
+            ),
+            ("kandw", ns_per_op(N, || unsafe { kand_free() })),
+            ("vcmpps k, zmm", ns_per_op(N, || unsafe { cmp_free() })),
+            ("vmovups zmm load", ns_per_op(N, || unsafe { loads_zmm() })),
+            ("vmaxps zmm", ns_per_op(N, || unsafe { eight_zmm(max_zmm) })),
+            ("vfmadd zmm", ns_per_op(N, || unsafe { eight_zmm(fma_zmm) })),
+            ("vaddps zmm", ns_per_op(N, || unsafe { eight_zmm(add_zmm) })),
+        ];
+        for (name, ns) in thr {
+            println!("{name:20} {:.3} cycles/op (independent)", ns * ghz);
+        }
+    }
+
     /// Prints the table.
     pub fn main() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
@@ -119,7 +362,8 @@ mod pipes {
         let chain = ns_per_op(N, || unsafe { add_chain() });
         let ghz = 3.0 / chain;
         println!("vaddps ymm chain: {chain:.4} ns/op => clock {ghz:.3} GHz (latency 3)");
-        let rows: [(&str, f64); 4] = [
+        let rows: [(&str, f64); 5] = [
+            ("vmovups ymm load", ns_per_op(N, || unsafe { loads_ymm() })),
             ("vmaxps ymm", ns_per_op(N, || unsafe { eight(max) })),
             ("vfmadd ymm", ns_per_op(N, || unsafe { eight(fma) })),
             ("vaddps ymm", ns_per_op(N, || unsafe { eight(add) })),
@@ -130,6 +374,11 @@ mod pipes {
         ];
         for (name, ns) in rows {
             println!("{name:20} {:.3} cycles/op (independent)", ns * ghz);
+        }
+        if is_x86_feature_detected!("avx512f") {
+            zmm_rows(ghz);
+        } else {
+            println!("(no AVX-512 F on this host: no 512-bit rows)");
         }
     }
 }

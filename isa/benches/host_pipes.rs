@@ -233,6 +233,40 @@ mod pipes {
         std::hint::black_box(&buf);
     }
 
+    /// Masked 512-bit loads (`vmovups zmm{k}{z}, m`), stores (`vmovups
+    /// m{k}, zmm`) and gathers (`vgatherdps zmm{k}`, 16 indices in one
+    /// 1 KB buffer), half the lanes active, 8 per step (form 0, 1, 2).
+    #[target_feature(enable = "avx512f")]
+    unsafe fn masked_zmm(form: u8) {
+        let mut buf = [0.5f32; 256];
+        let p = buf.as_mut_ptr();
+        let k: __mmask16 = 0x5a5a;
+        let idx = _mm512_setr_epi32(
+            0, 17, 34, 51, 68, 85, 102, 119, 136, 153, 170, 187, 204, 221, 238, 255,
+        );
+        for _ in 0..N / 8 {
+            match form {
+                0 => asm!(".rept 8", "vmovups zmm1{{{k}}}{{z}}, [{p}]", ".endr",
+                    p = in(reg) p, k = in(kreg) k, out("zmm1") _, options(nostack, readonly)),
+                1 => asm!(".rept 8", "vmovups [{p}]{{{k}}}, zmm0", ".endr",
+                    p = in(reg) p, k = in(kreg) k, out("zmm0") _, options(nostack)),
+                _ => asm!(
+                    "kmovw k1, {k:e}", "vgatherdps zmm1{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm2{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm3{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm4{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm5{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm6{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm7{{k1}}, [{p} + 4 * {i}]",
+                    "kmovw k1, {k:e}", "vgatherdps zmm8{{k1}}, [{p} + 4 * {i}]",
+                    p = in(reg) p, k = in(reg) u32::from(k), i = in(zmm_reg) idx, out("k1") _,
+                    out("zmm1") _, out("zmm2") _, out("zmm3") _, out("zmm4") _, out("zmm5") _,
+                    out("zmm6") _, out("zmm7") _, out("zmm8") _, options(nostack, readonly)),
+            }
+        }
+        std::hint::black_box(&buf);
+    }
+
     /// Independent `kandw` (six masks), 96 per asm block.
     #[target_feature(enable = "avx512f")]
     unsafe fn kand_free() {
@@ -326,7 +360,16 @@ mod pipes {
                 ns * ghz
             );
         }
-        let thr: [(&str, f64); 10] = [
+        let thr: [(&str, f64); 13] = [
+            (
+                "vmovups zmm{k} load",
+                ns_per_op(N, || unsafe { masked_zmm(0) }),
+            ),
+            (
+                "vmovups m{k} store",
+                ns_per_op(N, || unsafe { masked_zmm(1) }),
+            ),
+            ("vgatherdps zmm", ns_per_op(N, || unsafe { masked_zmm(2) })),
             (
                 "vcompressps m{k}",
                 ns_per_op(N, || unsafe { compress_zmm(0) }),

@@ -333,6 +333,14 @@ mod pipes {
         // SAFETY: as `max_zmm`.
         unsafe { _mm512_fmadd_ps(x, _mm512_set1_ps(0.999_999_9), _mm512_set1_ps(0.5)) }
     }
+    fn div_zmm(x: __m512) -> __m512 {
+        // SAFETY: as `max_zmm`.
+        unsafe { _mm512_div_ps(x, _mm512_set1_ps(1.000_000_1)) }
+    }
+    fn sqrt_zmm(x: __m512) -> __m512 {
+        // SAFETY: as `max_zmm`.
+        unsafe { _mm512_sqrt_ps(x) }
+    }
     fn add_zmm(x: __m512) -> __m512 {
         // SAFETY: as `max_zmm`.
         unsafe { _mm512_add_ps(x, _mm512_set1_ps(1.0)) }
@@ -341,7 +349,12 @@ mod pipes {
     /// The 512-bit rows, in cycles at the clock `ghz`.
     fn zmm_rows(ghz: f64) {
         // SAFETY (every call below): AVX-512 F checked by the caller.
-        let lat: [(&str, f64); 5] = [
+        let lat: [(&str, f64); 7] = [
+            ("vdivps zmm", ns_per_op(N, || unsafe { chain_zmm(div_zmm) })),
+            (
+                "vsqrtps zmm",
+                ns_per_op(N, || unsafe { chain_zmm(sqrt_zmm) }),
+            ),
             ("vaddps zmm", ns_per_op(N, || unsafe { chain_zmm(add_zmm) })),
             ("vfmadd zmm", ns_per_op(N, || unsafe { chain_zmm(fma_zmm) })),
             (
@@ -360,7 +373,12 @@ mod pipes {
                 ns * ghz
             );
         }
-        let thr: [(&str, f64); 13] = [
+        let thr: [(&str, f64); 15] = [
+            ("vdivps zmm", ns_per_op(N, || unsafe { eight_zmm(div_zmm) })),
+            (
+                "vsqrtps zmm",
+                ns_per_op(N, || unsafe { eight_zmm(sqrt_zmm) }),
+            ),
             (
                 "vmovups zmm{k} load",
                 ns_per_op(N, || unsafe { masked_zmm(0) }),

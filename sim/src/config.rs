@@ -169,7 +169,9 @@ pub struct ClassTiming {
     #[serde(default)]
     pub per_line: u32,
     /// Timing on operands of at most 16 bytes where it differs from the
-    /// full width (an xmm divide on a 256-bit machine); out-of-order cores.
+    /// full width (an xmm divide on a 256-bit machine; for a load or store,
+    /// an access of at most 16 bytes: a ymm load on a machine whose zmm
+    /// loads take a port two cycles); out-of-order cores.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub narrow: Option<Narrow>,
 }
@@ -320,6 +322,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("zen1", include_str!("../../configs/machines/zen1.ron")),
     ("zen3", include_str!("../../configs/machines/zen3.ron")),
     ("zen4", include_str!("../../configs/machines/zen4.ron")),
+    (
+        "zen4-avx512",
+        include_str!("../../configs/machines/zen4-avx512.ron"),
+    ),
     (
         "icelake-sp",
         include_str!("../../configs/machines/icelake-sp.ron"),
@@ -604,10 +610,10 @@ impl MachineConfig {
                 return Err((format!("{f}.occ"), "must be at least 1".into()));
             }
             if let Some(n) = t.narrow {
-                if c.kind != CoreKind::OutOfOrder || class.is_mem() {
+                if c.kind != CoreKind::OutOfOrder || class.is_per_lane_mem() {
                     return Err((
                         format!("{f}.narrow"),
-                        "narrow timings are modelled for non-memory classes on out-of-order cores"
+                        "narrow timings are modelled on out-of-order cores, for every class but gather and scatter"
                             .into(),
                     ));
                 }

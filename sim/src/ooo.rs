@@ -632,7 +632,8 @@ impl OooCore {
                 &FUSED_CMP
             } else if taken_branch {
                 &classes[TAKEN_BRANCH]
-            } else if op.bytes != 0 && op.bytes <= 16 && !op.class.is_mem() {
+            } else if op.bytes != 0 && op.bytes <= 16 && !op.class.is_per_lane_mem() {
+                // A gather's or scatter's bytes are per lane: never narrow.
                 &narrow[op.class as usize]
             } else {
                 &classes[op.class as usize]

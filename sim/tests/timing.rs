@@ -762,3 +762,29 @@ fn a_second_scheduler_holds_only_its_ports_uops() {
     assert_eq!(cycles(&full, &alus), 15);
     assert_eq!(cycles(&one, &alus), 15);
 }
+
+#[test]
+fn zen4_runs_a_512_bit_op_on_its_pipe_for_two_cycles() {
+    let m = MachineConfig::load("zen4-avx512").unwrap();
+    // Six independent loads of one line, their address known once `warm`'s
+    // load has brought it (L1 hits), on the two vector load ports: 64 bytes
+    // each take a port 2 cycles, so they issue in pairs at cycles t, t+2,
+    // t+4; of 16 bytes (the narrow timing), t, t+1, t+2.
+    let loads = |bytes: u32| {
+        warm(
+            &(1..=6)
+                .map(|k| format!("%{k} = vload %101 @d+0x0:{bytes}\n"))
+                .collect::<String>(),
+        )
+    };
+    assert_eq!(cycles(&m, &loads(64)) - cycles(&m, &loads(16)), 2);
+    // Four independent adds on the two add pipes (FP2, FP3): each zmm add
+    // two uops (its halves), so they issue over 4 cycles where zen4's ymm
+    // adds take 2; the latency (3) is the same.
+    let adds = (1..=4)
+        .map(|k| format!("%{k} = vadd\n"))
+        .collect::<String>();
+    let ymm = MachineConfig::load("zen4").unwrap();
+    assert_eq!(cycles(&m, &adds), cycles(&ymm, &adds) + 2);
+    assert_eq!(cycles(&m, "%1 = vadd\n%2 = vadd %1\n"), 1 + 3 + 3);
+}

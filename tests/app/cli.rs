@@ -628,7 +628,9 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
     let e = err(&rtsim(&[
         "validate",
         "--machine",
-        "larrabee",
+        "zen4",
+        "--set",
+        "isa=wide32",
         "--scene",
         "sphere",
     ]));
@@ -641,6 +643,34 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
         "sideways",
     ]));
     assert!(e.contains("sideways"), "{e}");
+}
+
+#[test]
+fn validate_runs_the_16_lane_flavour_on_its_model() {
+    let j = json(&rtsim(&[
+        "validate",
+        "--scene",
+        "sphere",
+        "--stream",
+        "primary",
+        "--tile",
+        "4",
+        "--spp",
+        "2",
+        "--repeat",
+        "1",
+        "--machine",
+        "zen4-avx512",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(j["isa"], "avx512");
+    let rows = j["rows"].as_array().unwrap();
+    // Every kernel natively and on the model; no hand-written twin (its
+    // node test is 4 or 8 lanes wide).
+    let model = rows.iter().filter(|r| r["metric"] == "model_mray_per_s");
+    assert_eq!(model.count(), 7);
+    assert!(!rows.iter().any(|r| r["metric"] == "relative_error_over_twin"));
 }
 
 #[test]

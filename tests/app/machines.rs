@@ -5,7 +5,7 @@ use crate::common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 12] = [
+const MACHINES: [&str; 13] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",
@@ -17,6 +17,7 @@ const MACHINES: [&str; 12] = [
     "zen1",
     "zen3",
     "zen4",
+    "zen4-avx512",
     "icelake-sp",
 ];
 

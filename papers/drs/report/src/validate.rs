@@ -98,9 +98,9 @@ fn model(a: &ValidateArgs, host: &HostCpu) -> AppResult<(MachineConfig, String)>
         sets: a.sets.clone(),
     }
     .load()?;
-    if m.flavour().lanes() != 8 && m.flavour().lanes() != 4 {
+    if !matches!(m.flavour().lanes(), 4 | 8 | 16) {
         return Err(AppError(format!(
-            "validate: machine {} runs {} ({} lanes); the traversal kernels need 4 or 8",
+            "validate: machine {} runs {} ({} lanes); every traversal kernel runs on 4, 8 or 16",
             m.name,
             m.isa,
             m.flavour().lanes()

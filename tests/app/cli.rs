@@ -670,7 +670,9 @@ fn validate_runs_the_16_lane_flavour_on_its_model() {
     // node test is 4 or 8 lanes wide).
     let model = rows.iter().filter(|r| r["metric"] == "model_mray_per_s");
     assert_eq!(model.count(), 7);
-    assert!(!rows.iter().any(|r| r["metric"] == "relative_error_over_twin"));
+    assert!(!rows
+        .iter()
+        .any(|r| r["metric"] == "relative_error_over_twin"));
 }
 
 #[test]

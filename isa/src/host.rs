@@ -15,7 +15,7 @@
 //! Chosen when building (`target_feature` cfgs), not at run time:
 //! `ARCHITECTURE.md` says why. Gathers, scatters, compresses, reductions and
 //! masked memory ops stay lane loops (their lanes go through the buffer's
-//! clamped offsets one by one).
+//! checked offsets one by one).
 
 // Without AVX2 the 8-lane bodies compile away and leave their operands unused.
 #![cfg_attr(

@@ -76,7 +76,7 @@ fn le_bytes(words: impl Iterator<Item = [u8; 4]>, n: usize) -> (Vec<u8>, usize) 
 }
 
 /// Bytes every buffer holds past its end: the widest single access (32
-/// lanes of 4 bytes), so an offset clamped to the end plus its access stays
+/// lanes of 4 bytes), so an access starting at or before the end stays
 /// inside the allocation ([`Buf::hot_off`]).
 pub const PAD: usize = 128;
 
@@ -384,7 +384,7 @@ impl Buf {
         let mut r = [0u8; B];
         // SAFETY: `at` keeps `off + B` within the storage `ptr` points at
         // (inside the region when checked; within its PAD bytes past the
-        // end when clamped, B <= PAD then).
+        // end when only its start is, B <= PAD then).
         unsafe { std::ptr::copy_nonoverlapping(self.ptr.as_ptr().add(off), r.as_mut_ptr(), B) };
         r
     }
@@ -543,11 +543,11 @@ impl Buf {
     /// The offset a kernel's access of `n` bytes (at most [`PAD`]) at `off`
     /// uses on the native backend's hot path: checked in debug builds (an
     /// access outside the region panics naming it, as every other access
-    /// does); in release builds clamped to the buffer's end (a compare and a
-    /// conditional move, no branch: the bounds check hoisted to the buffer's
-    /// allocation, which holds [`PAD`] bytes past its end). Memory-safe either
-    /// way: a wrong offset in a release build reads or writes other bytes of
-    /// this buffer, never another's, and the run's hit check reports it.
+    /// does); in release builds only its start against the buffer's end (the
+    /// rest of the check hoisted to the buffer's allocation, which holds
+    /// [`PAD`] bytes past its end): one compare and a branch predicted not
+    /// taken, which the address does not wait for, where a clamp's
+    /// conditional move was on its chain. Memory-safe either way.
     #[inline(always)]
     #[must_use]
     pub fn hot_off(&self, off: usize, n: usize) -> usize {
@@ -556,7 +556,13 @@ impl Buf {
             self.check(off, n);
             off
         } else {
-            off.min(self.len)
+            // The allocation holds PAD bytes past the end: one compare
+            // against the end, a branch predicted not taken, off the
+            // address's dependency chain.
+            if off > self.len {
+                out_of_bounds(self.id, off, n, self.len);
+            }
+            off
         }
     }
     /// [`Buf::f32_at`] by [`Buf::hot_off`].

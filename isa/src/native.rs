@@ -240,7 +240,7 @@ fn negative_address(off: i64) -> ! {
 
 /// A native access's byte offset: [`ea_off`] in debug builds; in release
 /// builds the sum as it wraps (a negative offset becomes a huge one, which
-/// the buffer's [`Buf::hot_off`] clamps to its end).
+/// the buffer's [`Buf::hot_off`] stops at).
 #[inline(always)]
 fn ea(at: At<NS>) -> usize {
     match at.base {

@@ -145,8 +145,8 @@ pub struct RunCli {
     /// Machine to time it on (its ISA is the kernel's).
     #[command(flatten)]
     pub machine: MachineCli,
-    /// Record on this ISA instead and do not time it (e.g. avx512, which no
-    /// shipped machine runs).
+    /// Record on this ISA instead and do not time it (to time the 16-lane
+    /// AVX-512 flavour, give a machine that runs it: `--machine zen4-avx512`).
     #[arg(long, value_parser = parse_isa)]
     pub isa: Option<FlavourId>,
     /// Kernel, or traversal kernels separated by commas to set side by side

@@ -1,0 +1,263 @@
+//! One loop natively on this host and on the model of it, side by side: a
+//! synthetic single-ray traversal of the shape of single-ray BVH4's node
+//! step (6 plane loads folded into FMAs, min/max, a compare, its mask to a
+//! register, a bit scan, the child's load), 6 nodes a ray, every ray the
+//! same path (all L1 hits, every branch predictable). Each ray runs free,
+//! or serialised: its root made to depend on the previous ray's answer
+//! (`and reg, 0`, not a zero idiom), so the serialised time is the ray's
+//! dependent chain and serialised / free is how much the core overlaps
+//! successive rays. The model runs the same ops as a hand-written trace
+//! (`isa::trace_text`), warmed, on the machine given (default `zen4`).
+//!
+//! Run: `cargo bench -p sim --bench host_chain [-- MACHINE [GHZ]]` (the
+//! host half on x86-64 Linux with AVX2 and FMA; GHZ the host's clock for
+//! its cycles, by default measured with a dependent vaddps chain as
+//! `cargo bench -p isa --bench host_pipes` does). Results, with the
+//! machine, are in `rt/benches/RESULTS.md`.
+
+use sim::{MachineConfig, Session};
+
+/// Node tests per ray.
+const DEPTH: usize = 6;
+/// Rays in the model's trace.
+const MODEL_RAYS: usize = 2000;
+
+/// Appends `%n = op` and gives `n`.
+struct Ops {
+    lines: Vec<String>,
+    n: usize,
+}
+
+impl Ops {
+    fn v(&mut self, op: String) -> usize {
+        self.n += 1;
+        self.lines.push(format!("%{} = {op}", self.n));
+        self.n
+    }
+    fn branch(&mut self, on: usize, site: u32, taken: bool) {
+        let t = if taken { "taken" } else { "not-taken" };
+        self.lines.push(format!("branch %{on} site={site} {t}"));
+    }
+}
+
+/// One node test of the host loop at node `k` (address from `node`), with
+/// the ray's broadcasts `rv`: the child index's value.
+fn node_ops(o: &mut Ops, k: usize, node: usize, rv: &[usize]) -> usize {
+    let a = o.v(format!("alu %{node}"));
+    let c = o.v(format!("cmp %{a}"));
+    o.branch(c, 1, false);
+    let t: Vec<usize> = (0..6)
+        .map(|i| {
+            let ld = o.v(format!("vloadfold %{a} @n+0x{:x}:16", 128 * k + 16 * i));
+            o.v(format!("vfma %{ld} %{} %{}", rv[i / 2], rv[4 + i / 2]))
+        })
+        .collect();
+    let m1 = o.v(format!("vminmax %{} %{}", t[0], t[2]));
+    let m2 = o.v(format!("vminmax %{} %{}", t[4], rv[3]));
+    let tn = o.v(format!("vminmax %{m1} %{m2}"));
+    let f1 = o.v(format!("vminmax %{} %{}", t[1], t[3]));
+    let f2 = o.v(format!("vminmax %{} %{}", t[5], rv[7]));
+    let tf = o.v(format!("vminmax %{f1} %{f2}"));
+    let hit = o.v(format!("vcmp %{tn} %{tf}"));
+    let bits = o.v(format!("movmsk %{hit}"));
+    let c = o.v(format!("cmp %{bits}"));
+    o.branch(c, 2, false);
+    let tz = o.v(format!("bitcnt %{bits}"));
+    o.v(format!("load %{tz} %{a} @n+0x{:x}:4", 128 * k + 96))
+}
+
+/// The model's trace of `rays` rays, free or serialised.
+fn trace_text(rays: usize, serial: bool) -> String {
+    let mut o = Ops {
+        lines: vec![
+            ".trace 1".into(),
+            ".isa avx2".into(),
+            ".mem 0 nodes n 0x10000000 65536".into(),
+            ".mem 1 rays r 0x20000000 4096".into(),
+        ],
+        n: 0,
+    };
+    let mut prev: Option<usize> = None;
+    for _ in 0..rays {
+        let mut node = match prev {
+            Some(p) if serial => o.v(format!("alu %{p}")),
+            _ => o.v("alu".into()),
+        };
+        let rv: Vec<usize> = (0..8)
+            .map(|i| o.v(format!("vloadbcast @r+0x{:x}:4", 4 * i)))
+            .collect();
+        let mut acc: Option<usize> = None;
+        for k in 0..DEPTH {
+            let ch = node_ops(&mut o, k, node, &rv);
+            let sum = acc.map_or(format!("alu %{ch}"), |x| format!("alu %{ch} %{x}"));
+            acc = Some(o.v(sum));
+            let c = o.v(format!("cmp %{ch}"));
+            o.branch(c, 3, k == DEPTH - 1);
+            node = ch;
+        }
+        prev = acc;
+        let c = o.v("cmp".into());
+        o.branch(c, 4, true);
+    }
+    o.lines.join("\n")
+}
+
+/// The model's cycles a ray, free and serialised.
+fn model(m: &MachineConfig) -> (f64, f64) {
+    let run = |serial| {
+        let t = isa::trace_text::parse(&trace_text(MODEL_RAYS, serial)).expect("trace");
+        let mut s = Session::new(m);
+        s.warm(&[(0, &t)]).expect("warm");
+        let st = s.timed(&[(0, &t)]).expect("timed");
+        st.cycles as f64 / MODEL_RAYS as f64
+    };
+    (run(false), run(true))
+}
+
+#[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+mod host {
+    use super::DEPTH;
+    use std::arch::x86_64::*;
+    use std::time::Instant;
+
+    /// Rays per timing.
+    const RAYS: usize = 1 << 20;
+
+    /// A node: 6 rows of 4 planes (x lo, x hi, y lo, y hi, z lo, z hi)
+    /// and 4 child indices.
+    #[repr(C, align(64))]
+    #[derive(Clone, Copy)]
+    struct Node {
+        rows: [[f32; 4]; 6],
+        child: [u32; 4],
+        pad: [u32; 4],
+    }
+
+    /// Nodes 0..=DEPTH, each a box [-1, 1]^3 in all 4 slots whose children
+    /// are all the next node.
+    fn nodes() -> Vec<Node> {
+        (0..=DEPTH)
+            .map(|k| Node {
+                rows: [
+                    [-1.0; 4], [1.0; 4], [-1.0; 4], [1.0; 4], [-1.0; 4], [1.0; 4],
+                ],
+                child: [(k + 1) as u32; 4],
+                pad: [0; 4],
+            })
+            .collect()
+    }
+
+    /// One ray from node `start`: the sum of the children it visits.
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn walk(nodes: &[Node], ray: &[f32; 8], start: usize) -> u32 {
+        let b = |x: f32| _mm_set1_ps(x);
+        let idir = [b(ray[0]), b(ray[1]), b(ray[2])];
+        let oid = [b(ray[4]), b(ray[5]), b(ray[6])];
+        let (tnear, tfar) = (b(ray[3]), b(ray[7]));
+        let (mut node, mut acc) = (start, 0u32);
+        loop {
+            let n = &nodes[node];
+            let p = n.rows.as_ptr() as *const f32;
+            let t = |i: usize| _mm_fmsub_ps(_mm_loadu_ps(p.add(4 * i)), idir[i / 2], oid[i / 2]);
+            let tn = _mm_max_ps(_mm_max_ps(t(0), t(2)), _mm_max_ps(t(4), tnear));
+            let tf = _mm_min_ps(_mm_min_ps(t(1), t(3)), _mm_min_ps(t(5), tfar));
+            let bits = _mm_movemask_ps(_mm_cmple_ps(tn, tf)) as u32;
+            if bits == 0 {
+                break;
+            }
+            let c = n.child[bits.trailing_zeros() as usize] as usize;
+            acc = acc.wrapping_add(c as u32);
+            if c >= DEPTH {
+                break;
+            }
+            node = c;
+        }
+        acc
+    }
+
+    /// Nanoseconds a ray, best of 5: free or serialised.
+    pub fn ns_per_ray(serial: bool) -> f64 {
+        let nodes = nodes();
+        // From x = -5 along +x through every box.
+        let ray = [1.0f32, 1e30, 1e30, 0.0, -5.0, 0.1e30, 0.2e30, 1e30];
+        (0..5)
+            .map(|_| {
+                let t = Instant::now();
+                let mut prev = 0u32;
+                for _ in 0..RAYS {
+                    let start = if serial {
+                        let z: u32;
+                        // SAFETY: a register operation.
+                        unsafe { std::arch::asm!("and {0:e}, 0", inout(reg) prev => z) };
+                        z as usize
+                    } else {
+                        0
+                    };
+                    // SAFETY: AVX2 and FMA checked by the caller.
+                    prev = unsafe { walk(&nodes, std::hint::black_box(&ray), start) };
+                }
+                std::hint::black_box(prev);
+                t.elapsed().as_secs_f64()
+            })
+            .fold(f64::MAX, f64::min)
+            * 1e9
+            / RAYS as f64
+    }
+
+    /// A dependent vaddps chain's `n` adds.
+    #[target_feature(enable = "avx2")]
+    unsafe fn chain(n: usize) -> __m256 {
+        let (mut a, one) = (_mm256_set1_ps(0.5), _mm256_set1_ps(1.0));
+        for _ in 0..n {
+            a = _mm256_add_ps(a, one);
+            std::arch::asm!("/* {} */", inout(ymm_reg) a);
+        }
+        a
+    }
+
+    /// The clock from the chain (vaddps latency 3 on every AVX2 core the
+    /// configs model), in GHz.
+    pub fn clock_ghz() -> f64 {
+        let n = 50_000_000;
+        let best = (0..5)
+            .map(|_| {
+                let t = Instant::now();
+                // SAFETY: AVX2 checked by the caller.
+                std::hint::black_box(unsafe { chain(n) });
+                t.elapsed().as_secs_f64()
+            })
+            .fold(f64::MAX, f64::min);
+        3.0 * n as f64 / best / 1e9
+    }
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args()
+        .skip(1)
+        .filter(|a| a != "--bench")
+        .collect();
+    let name = args.first().map_or("zen4", String::as_str);
+    let m = match MachineConfig::load(name) {
+        Ok(m) => m,
+        Err(e) => {
+            eprintln!("host_chain: {e}");
+            std::process::exit(2);
+        }
+    };
+    let (free, serial) = model(&m);
+    println!(
+        "model {name}: {free:.1} cycles a ray free, {serial:.1} serialised (overlap {:.2}x)",
+        serial / free
+    );
+    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
+    if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+        let ghz = (args.get(1).and_then(|g| g.parse().ok())).unwrap_or_else(host::clock_ghz);
+        let (f, s) = (host::ns_per_ray(false) * ghz, host::ns_per_ray(true) * ghz);
+        println!(
+            "host at {ghz:.2} GHz: {f:.1} cycles a ray free, {s:.1} serialised (overlap {:.2}x)",
+            s / f
+        );
+        return;
+    }
+    println!("host: x86-64 Linux with AVX2 and FMA only");
+}

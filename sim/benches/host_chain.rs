@@ -41,8 +41,8 @@ impl Ops {
 }
 
 /// One node test of the host loop at node `k` (address from `node`), with
-/// the ray's broadcasts `rv`: the child index's value.
-fn node_ops(o: &mut Ops, k: usize, node: usize, rv: &[usize]) -> usize {
+/// the ray's broadcasts `rv`: the node's address and its hit mask.
+fn node_ops(o: &mut Ops, k: usize, node: usize, rv: &[usize]) -> (usize, usize) {
     let a = o.v(format!("alu %{node}"));
     let c = o.v(format!("cmp %{a}"));
     o.branch(c, 1, false);
@@ -62,38 +62,120 @@ fn node_ops(o: &mut Ops, k: usize, node: usize, rv: &[usize]) -> usize {
     let bits = o.v(format!("movmsk %{hit}"));
     let c = o.v(format!("cmp %{bits}"));
     o.branch(c, 2, false);
-    let tz = o.v(format!("bitcnt %{bits}"));
-    o.v(format!("load %{tz} %{a} @n+0x{:x}:4", 128 * k + 96))
+    (a, bits)
 }
 
-/// The model's trace of `rays` rays, free or serialised.
-fn trace_text(rays: usize, serial: bool) -> String {
+/// The child in the lowest set bit of `bits` at node `k` (address `a`),
+/// slot `slot` as the host finds it.
+fn child_ops(o: &mut Ops, k: usize, a: usize, bits: usize, slot: usize) -> usize {
+    let tz = o.v(format!("bitcnt %{bits}"));
+    o.v(format!(
+        "load %{tz} %{a} @n+0x{:x}:4",
+        128 * k + 96 + 4 * slot
+    ))
+}
+
+/// Which nodes a ray visits: a chain of [`DEPTH`] nodes, or a tree whose
+/// root hits two children, the first descended (nodes 1, 2, 3), the second
+/// pushed and popped after that subtree ends (nodes 4, 5): [`DEPTH`] node
+/// tests either way, the longest dependent path 4 nodes in the tree.
+#[derive(Clone, Copy, PartialEq)]
+enum Shape {
+    Chain,
+    Tree,
+}
+
+/// Per node of `shape`: its hit slots' children (the first descended, a
+/// second pushed); a child of [`DEPTH`] or more ends the descent.
+fn children(shape: Shape, k: usize) -> &'static [u32] {
+    match (shape, k) {
+        (Shape::Chain, 0) => &[1],
+        (Shape::Chain, 1) => &[2],
+        (Shape::Chain, 2) => &[3],
+        (Shape::Chain, 3) => &[4],
+        (Shape::Chain, 4) => &[5],
+        (Shape::Tree, 0) => &[1, 4],
+        (Shape::Tree, 1) => &[2],
+        (Shape::Tree, 2) => &[3],
+        (Shape::Tree, 4) => &[5],
+        _ => &[DEPTH as u32],
+    }
+}
+
+/// The sum of the first children a ray of `shape` visits (what the host
+/// loop returns), walked as the loop walks.
+fn first_children_sum(shape: Shape) -> u32 {
+    let (mut stack, mut sum) = (vec![0usize], 0);
+    while let Some(mut k) = stack.pop() {
+        loop {
+            let kids = children(shape, k);
+            if let Some(&second) = kids.get(1) {
+                stack.push(second as usize);
+            }
+            sum += kids[0];
+            if kids[0] as usize >= DEPTH {
+                break;
+            }
+            k = kids[0] as usize;
+        }
+    }
+    sum
+}
+
+/// The model's trace of `rays` rays of `shape`, free or serialised: the
+/// host loop's ops in its order (pop, descend, push the second child).
+fn trace_text(shape: Shape, rays: usize, serial: bool) -> String {
     let mut o = Ops {
         lines: vec![
             ".trace 1".into(),
             ".isa avx2".into(),
             ".mem 0 nodes n 0x10000000 65536".into(),
             ".mem 1 rays r 0x20000000 4096".into(),
+            ".mem 2 stack s 0x30000000 4096".into(),
         ],
         n: 0,
     };
     let mut prev: Option<usize> = None;
     for _ in 0..rays {
-        let mut node = match prev {
+        let root = match prev {
             Some(p) if serial => o.v(format!("alu %{p}")),
             _ => o.v("alu".into()),
         };
         let rv: Vec<usize> = (0..8)
             .map(|i| o.v(format!("vloadbcast @r+0x{:x}:4", 4 * i)))
             .collect();
+        o.lines.push(format!("store %{root} @s+0x0:4"));
+        // (node index, the value naming it) of the stack's entries.
+        let mut stack = vec![0usize];
         let mut acc: Option<usize> = None;
-        for k in 0..DEPTH {
-            let ch = node_ops(&mut o, k, node, &rv);
-            let sum = acc.map_or(format!("alu %{ch}"), |x| format!("alu %{ch} %{x}"));
-            acc = Some(o.v(sum));
-            let c = o.v(format!("cmp %{ch}"));
-            o.branch(c, 3, k == DEPTH - 1);
-            node = ch;
+        while let Some(k0) = stack.pop() {
+            let c = o.v("cmp".into());
+            o.branch(c, 6, true);
+            let mut node = o.v(format!("load @s+0x{:x}:4", 4 * stack.len()));
+            let mut k = k0;
+            loop {
+                let (a, bits) = node_ops(&mut o, k, node, &rv);
+                let kids = children(shape, k);
+                let first = child_ops(&mut o, k, a, bits, 0);
+                let rest = o.v(format!("alu %{bits}"));
+                let c = o.v(format!("cmp %{rest}"));
+                o.branch(c, 5, kids.len() > 1);
+                if kids.len() > 1 {
+                    let second = child_ops(&mut o, k, a, rest, 1);
+                    o.lines
+                        .push(format!("store %{second} @s+0x{:x}:4", 4 * stack.len()));
+                    stack.push(kids[1] as usize);
+                }
+                let sum = acc.map_or(format!("alu %{first}"), |x| format!("alu %{first} %{x}"));
+                acc = Some(o.v(sum));
+                let c = o.v(format!("cmp %{first}"));
+                let end = kids[0] as usize >= DEPTH;
+                o.branch(c, 3, end);
+                if end {
+                    break;
+                }
+                (node, k) = (first, kids[0] as usize);
+            }
         }
         prev = acc;
         let c = o.v("cmp".into());
@@ -102,10 +184,10 @@ fn trace_text(rays: usize, serial: bool) -> String {
     o.lines.join("\n")
 }
 
-/// The model's cycles a ray, free and serialised.
-fn model(m: &MachineConfig) -> (f64, f64) {
+/// The model's cycles a ray of `shape`, free and serialised.
+fn model(m: &MachineConfig, shape: Shape) -> (f64, f64) {
     let run = |serial| {
-        let t = isa::trace_text::parse(&trace_text(MODEL_RAYS, serial)).expect("trace");
+        let t = isa::trace_text::parse(&trace_text(shape, MODEL_RAYS, serial)).expect("trace");
         let mut s = Session::new(m);
         s.warm(&[(0, &t)]).expect("warm");
         let st = s.timed(&[(0, &t)]).expect("timed");
@@ -116,7 +198,7 @@ fn model(m: &MachineConfig) -> (f64, f64) {
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
 mod host {
-    use super::DEPTH;
+    use super::{Shape, DEPTH};
     use std::arch::x86_64::*;
     use std::time::Instant;
 
@@ -133,51 +215,83 @@ mod host {
         pad: [u32; 4],
     }
 
-    /// Nodes 0..=DEPTH, each a box [-1, 1]^3 in all 4 slots whose children
-    /// are all the next node.
-    fn nodes() -> Vec<Node> {
+    /// Nodes 0..=DEPTH of `shape`: per node, its hit slots a box [-1, 1]^3
+    /// holding the children [`super::children`] gives, the other slots a
+    /// box the ray misses (y in [100, 101]).
+    fn nodes(shape: Shape) -> Vec<Node> {
         (0..=DEPTH)
-            .map(|k| Node {
-                rows: [
-                    [-1.0; 4], [1.0; 4], [-1.0; 4], [1.0; 4], [-1.0; 4], [1.0; 4],
-                ],
-                child: [(k + 1) as u32; 4],
-                pad: [0; 4],
+            .map(|k| {
+                let kids = super::children(shape, k);
+                let (mut rows, mut child) = (
+                    [
+                        [-1.0f32; 4],
+                        [1.0; 4],
+                        [-1.0; 4],
+                        [1.0; 4],
+                        [-1.0; 4],
+                        [1.0; 4],
+                    ],
+                    [0u32; 4],
+                );
+                for s in 0..4 {
+                    match kids.get(s) {
+                        Some(&c) => child[s] = c,
+                        None => (rows[2][s], rows[3][s]) = (100.0, 101.0),
+                    }
+                }
+                Node {
+                    rows,
+                    child,
+                    pad: [0; 4],
+                }
             })
             .collect()
     }
 
-    /// One ray from node `start`: the sum of the children it visits.
+    /// One ray from node `start` as the single-ray kernel walks: pop, then
+    /// descend into the first hit child, pushing a second: the sum of the
+    /// first children it visits.
     #[target_feature(enable = "avx2,fma")]
     unsafe fn walk(nodes: &[Node], ray: &[f32; 8], start: usize) -> u32 {
         let b = |x: f32| _mm_set1_ps(x);
         let idir = [b(ray[0]), b(ray[1]), b(ray[2])];
         let oid = [b(ray[4]), b(ray[5]), b(ray[6])];
         let (tnear, tfar) = (b(ray[3]), b(ray[7]));
-        let (mut node, mut acc) = (start, 0u32);
-        loop {
-            let n = &nodes[node];
-            let p = n.rows.as_ptr() as *const f32;
-            let t = |i: usize| _mm_fmsub_ps(_mm_loadu_ps(p.add(4 * i)), idir[i / 2], oid[i / 2]);
-            let tn = _mm_max_ps(_mm_max_ps(t(0), t(2)), _mm_max_ps(t(4), tnear));
-            let tf = _mm_min_ps(_mm_min_ps(t(1), t(3)), _mm_min_ps(t(5), tfar));
-            let bits = _mm_movemask_ps(_mm_cmple_ps(tn, tf)) as u32;
-            if bits == 0 {
-                break;
+        let (mut stack, mut sp, mut acc) = ([0usize; 8], 1usize, 0u32);
+        stack[0] = start;
+        while sp > 0 {
+            sp -= 1;
+            let mut node = stack[sp];
+            loop {
+                let n = &nodes[node];
+                let p = n.rows.as_ptr() as *const f32;
+                let t =
+                    |i: usize| _mm_fmsub_ps(_mm_loadu_ps(p.add(4 * i)), idir[i / 2], oid[i / 2]);
+                let tn = _mm_max_ps(_mm_max_ps(t(0), t(2)), _mm_max_ps(t(4), tnear));
+                let tf = _mm_min_ps(_mm_min_ps(t(1), t(3)), _mm_min_ps(t(5), tfar));
+                let bits = _mm_movemask_ps(_mm_cmple_ps(tn, tf)) as u32;
+                if bits == 0 {
+                    break;
+                }
+                let first = n.child[bits.trailing_zeros() as usize] as usize;
+                let rest = bits & (bits - 1);
+                if rest != 0 {
+                    stack[sp] = n.child[rest.trailing_zeros() as usize] as usize;
+                    sp += 1;
+                }
+                acc = acc.wrapping_add(first as u32);
+                if first >= DEPTH {
+                    break;
+                }
+                node = first;
             }
-            let c = n.child[bits.trailing_zeros() as usize] as usize;
-            acc = acc.wrapping_add(c as u32);
-            if c >= DEPTH {
-                break;
-            }
-            node = c;
         }
         acc
     }
 
-    /// Nanoseconds a ray, best of 5: free or serialised.
-    pub fn ns_per_ray(serial: bool) -> f64 {
-        let nodes = nodes();
+    /// Nanoseconds a ray of `shape`, best of 5: free or serialised.
+    pub fn ns_per_ray(shape: Shape, serial: bool) -> f64 {
+        let nodes = nodes(shape);
         // From x = -5 along +x through every box.
         let ray = [1.0f32, 1e30, 1e30, 0.0, -5.0, 0.1e30, 0.2e30, 1e30];
         (0..5)
@@ -196,8 +310,13 @@ mod host {
                     // SAFETY: AVX2 and FMA checked by the caller.
                     prev = unsafe { walk(&nodes, std::hint::black_box(&ray), start) };
                 }
-                std::hint::black_box(prev);
-                t.elapsed().as_secs_f64()
+                let secs = t.elapsed().as_secs_f64();
+                assert_eq!(
+                    prev,
+                    super::first_children_sum(shape),
+                    "the host loop's path"
+                );
+                secs
             })
             .fold(f64::MAX, f64::min)
             * 1e9
@@ -244,19 +363,25 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let (free, serial) = model(&m);
-    println!(
-        "model {name}: {free:.1} cycles a ray free, {serial:.1} serialised (overlap {:.2}x)",
-        serial / free
-    );
+    let shapes = [(Shape::Chain, "chain"), (Shape::Tree, "tree")];
+    for (shape, what) in shapes {
+        let (free, serial) = model(&m, shape);
+        println!(
+            "{what}: model {name}: {free:.1} cycles a ray free, {serial:.1} serialised (overlap {:.2}x)",
+            serial / free
+        );
+    }
     #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
     if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
         let ghz = (args.get(1).and_then(|g| g.parse().ok())).unwrap_or_else(host::clock_ghz);
-        let (f, s) = (host::ns_per_ray(false) * ghz, host::ns_per_ray(true) * ghz);
-        println!(
-            "host at {ghz:.2} GHz: {f:.1} cycles a ray free, {s:.1} serialised (overlap {:.2}x)",
-            s / f
-        );
+        for (shape, what) in shapes {
+            let f = host::ns_per_ray(shape, false) * ghz;
+            let s = host::ns_per_ray(shape, true) * ghz;
+            println!(
+                "{what}: host at {ghz:.2} GHz: {f:.1} cycles a ray free, {s:.1} serialised (overlap {:.2}x)",
+                s / f
+            );
+        }
         return;
     }
     println!("host: x86-64 Linux with AVX2 and FMA only");

@@ -562,27 +562,21 @@ fn native_builds_embree_as_its_device_config_says() {
     );
 }
 
+/// `rtsim validate` on `machine` over sphere's `streams` of a 4-pixel tile
+/// at 2 spp, one timed run: its JSON.
+fn validate_sphere(machine: &str, streams: &[&str]) -> serde_json::Value {
+    let mut args = vec!["validate", "--scene", "sphere"];
+    for s in streams {
+        args.extend(["--stream", s]);
+    }
+    args.extend(["--tile", "4", "--spp", "2", "--repeat", "1"]);
+    args.extend(["--machine", machine, "--format", "json"]);
+    json(&rtsim(&args))
+}
+
 #[test]
 fn validate_sets_native_beside_the_model_and_ranks_them() {
-    let j = json(&rtsim(&[
-        "validate",
-        "--scene",
-        "sphere",
-        "--stream",
-        "primary",
-        "--stream",
-        "shadow",
-        "--tile",
-        "4",
-        "--spp",
-        "2",
-        "--repeat",
-        "1",
-        "--machine",
-        "zen3",
-        "--format",
-        "json",
-    ]));
+    let j = validate_sphere("zen3", &["primary", "shadow"]);
     assert_eq!(j["report"], "validate");
     assert_eq!(j["machine"], "zen3");
     let rows = j["rows"].as_array().unwrap();
@@ -647,23 +641,7 @@ fn validate_sets_native_beside_the_model_and_ranks_them() {
 
 #[test]
 fn validate_runs_the_16_lane_flavour_on_its_model() {
-    let j = json(&rtsim(&[
-        "validate",
-        "--scene",
-        "sphere",
-        "--stream",
-        "primary",
-        "--tile",
-        "4",
-        "--spp",
-        "2",
-        "--repeat",
-        "1",
-        "--machine",
-        "zen4-avx512",
-        "--format",
-        "json",
-    ]));
+    let j = validate_sphere("zen4-avx512", &["primary"]);
     assert_eq!(j["isa"], "avx512");
     let rows = j["rows"].as_array().unwrap();
     // Every kernel natively and on the model; no hand-written twin (its

@@ -6,6 +6,12 @@
 //! this host (`rtsim calibrate --machine NAME` prints the model's). Thread
 //! CPU time, so the other core's load does not count; best of 5.
 //!
+//! Then the latencies of the single-ray node step's pieces as dependent
+//! chains (vmaxps, FMA into max, a compare into its mask, a vector load into
+//! one, pointer chases by base + index and by a scaled index, tzcnt, movzx,
+//! and round trips between the FP and integer registers), each chain's sum
+//! where one piece cannot be closed on itself.
+//!
 //! On a host with AVX-512 F the same for 512-bit ops, with their latencies
 //! (dependent chains) and the mask register's round trip through a general
 //! register (`kmovw` both ways), for a config of this host running AVX-512.
@@ -413,6 +419,120 @@ mod pipes {
         }
     }
 
+    /// One chain of 100 `step`s per asm block over a zeroed 256-byte buffer
+    /// (`{b}` its address, `{r}` the chained register starting at 0, `{x}`
+    /// a scratch xmm), `N` steps in all.
+    macro_rules! chain {
+        ($name:ident, $($step:literal),+) => {
+            #[target_feature(enable = "avx2,fma")]
+            unsafe fn $name() {
+                let buf = [0u64; 32];
+                let mut r: u64 = 0;
+                for _ in 0..N / 100 {
+                    asm!("/* {r} {b} {x} */", ".rept 100", $($step),+, ".endr",
+                        r = inout(reg) r, b = in(reg) buf.as_ptr(), x = out(xmm_reg) _,
+                        options(nostack, readonly));
+                }
+                std::hint::black_box((r, &buf));
+            }
+        };
+    }
+    // A pointer chase through a zero offset: base + index.
+    chain!(load_base_index, "mov {r}, [{b} + {r}]");
+    // The child load's form: base + index * 4 + displacement, 32 bits.
+    chain!(load_scaled, "mov {r:e}, [{b} + {r} * 4 + 0x60]");
+    chain!(tzcnt_chain, "tzcnt {r}, {r}", "and {r}, 0");
+    chain!(movzx_chain, "movzx {r:e}, {r:l}");
+    // FP to integer and back: the mask move, and a plain move for the pair.
+    chain!(movmsk_trip, "vmovmskps {r:e}, {x}", "vmovd {x}, {r:e}");
+    chain!(movd_trip, "vmovd {r:e}, {x}", "vmovd {x}, {r:e}");
+    // A vector load at an integer-indexed address, back to the integer side.
+    chain!(vload_trip, "vmovups {x}, [{b} + {r}]", "vmovd {r:e}, {x}");
+    chain!(max_chain, "vmaxps {x}, {x}, {x}");
+    chain!(
+        fma_max_chain,
+        "vfmadd132ps {x}, {x}, {x}",
+        "vmaxps {x}, {x}, {x}"
+    );
+    // The node step's compare into its mask, and its load straight to one.
+    chain!(
+        cmp_trip,
+        "vcmpleps {x}, {x}, {x}",
+        "vmovmskps {r:e}, {x}",
+        "vmovd {x}, {r:e}"
+    );
+    chain!(
+        vload_msk,
+        "vmovups {x}, [{b} + {r}]",
+        "vmovmskps {r:e}, {x}",
+        "and {r}, 0"
+    );
+
+    /// The single-ray node step's integer and crossing pieces as latency
+    /// chains, in cycles at `ghz`.
+    fn step_rows(ghz: f64) {
+        // SAFETY (every call): AVX2 checked by the caller.
+        let rows: [(&str, f64, f64); 11] = [
+            ("vmaxps xmm", 1.0, ns_per_op(N, || unsafe { max_chain() })),
+            (
+                "vfmadd + vmaxps xmm",
+                1.0,
+                ns_per_op(N, || unsafe { fma_max_chain() }),
+            ),
+            (
+                "vcmpps + vmovmskps + vmovd",
+                1.0,
+                ns_per_op(N, || unsafe { cmp_trip() }),
+            ),
+            (
+                "vmovups + vmovmskps + and",
+                1.0,
+                ns_per_op(N, || unsafe { vload_msk() }),
+            ),
+            (
+                "mov r, [b + r]",
+                1.0,
+                ns_per_op(N, || unsafe { load_base_index() }),
+            ),
+            (
+                "mov r32, [b + r*4 + d]",
+                1.0,
+                ns_per_op(N, || unsafe { load_scaled() }),
+            ),
+            (
+                "tzcnt (+ and r, 0)",
+                1.0,
+                ns_per_op(N, || unsafe { tzcnt_chain() }),
+            ),
+            (
+                "movzx r32, r8",
+                1.0,
+                ns_per_op(N, || unsafe { movzx_chain() }),
+            ),
+            (
+                "vmovmskps + vmovd x,r",
+                1.0,
+                ns_per_op(N, || unsafe { movmsk_trip() }),
+            ),
+            (
+                "vmovd r,x + vmovd x,r",
+                1.0,
+                ns_per_op(N, || unsafe { movd_trip() }),
+            ),
+            (
+                "vmovups [b+r] + vmovd",
+                1.0,
+                ns_per_op(N, || unsafe { vload_trip() }),
+            ),
+        ];
+        for (name, per, ns) in rows {
+            println!(
+                "{name:24} {:.3} cycles (latency, dependent chain)",
+                ns * ghz / per
+            );
+        }
+    }
+
     /// Prints the table.
     pub fn main() {
         if !(is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma")) {
@@ -436,6 +556,7 @@ mod pipes {
         for (name, ns) in rows {
             println!("{name:20} {:.3} cycles/op (independent)", ns * ghz);
         }
+        step_rows(ghz);
         if is_x86_feature_detected!("avx512f") {
             zmm_rows(ghz);
         } else {

@@ -449,6 +449,23 @@ mod pipes {
     // A vector load at an integer-indexed address, back to the integer side.
     chain!(vload_trip, "vmovups {x}, [{b} + {r}]", "vmovd {r:e}, {x}");
     chain!(max_chain, "vmaxps {x}, {x}, {x}");
+    // The whole node step as `host_chain`'s loop compiles it, on zeros:
+    // address, plane load, FMA, two maxes, compare, mask, movzx, tzcnt
+    // (of a zero mask: 32, so `and` keeps the index 0), the child load.
+    chain!(
+        node_step,
+        "shl {r}, 7",
+        "vmovups {x}, [{b} + {r}]",
+        "vfmadd132ps {x}, {x}, {x}",
+        "vmaxps {x}, {x}, {x}",
+        "vmaxps {x}, {x}, {x}",
+        "vcmpleps {x}, {x}, {x}",
+        "vmovmskps {r:e}, {x}",
+        "movzx {r:e}, {r:l}",
+        "tzcnt {r:e}, {r:e}",
+        "and {r:e}, 0",
+        "mov {r:e}, [{b} + {r} * 4 + 0x60]"
+    );
     chain!(
         fma_max_chain,
         "vfmadd132ps {x}, {x}, {x}",
@@ -472,7 +489,12 @@ mod pipes {
     /// chains, in cycles at `ghz`.
     fn step_rows(ghz: f64) {
         // SAFETY (every call): AVX2 checked by the caller.
-        let rows: [(&str, f64, f64); 11] = [
+        let rows: [(&str, f64, f64); 12] = [
+            (
+                "node step (host_chain's)",
+                1.0,
+                ns_per_op(N, || unsafe { node_step() }),
+            ),
             ("vmaxps xmm", 1.0, ns_per_op(N, || unsafe { max_chain() })),
             (
                 "vfmadd + vmaxps xmm",

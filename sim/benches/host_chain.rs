@@ -8,6 +8,10 @@
 //! dependent chain and serialised / free is how much the core overlaps
 //! successive rays. The model runs the same ops as a hand-written trace
 //! (`isa::trace_text`), warmed, on the machine given (default `zen4`).
+//! Each shape runs again with 16 to 48 integer ops (`lea`) added a node,
+//! reading the node's index or a register off the chain: how overlap falls
+//! as a ray's instructions grow towards a compiled kernel's, on the host
+//! and on the model.
 //!
 //! Run: `cargo bench -p sim --bench host_chain [-- MACHINE [GHZ]]` (the
 //! host half on x86-64 Linux with AVX2 and FMA; GHZ the host's clock for
@@ -42,8 +46,14 @@ impl Ops {
 
 /// One node test of the host loop at node `k` (address from `node`), with
 /// the ray's broadcasts `rv`: the node's address and its hit mask.
-fn node_ops(o: &mut Ops, k: usize, node: usize, rv: &[usize]) -> (usize, usize) {
+fn node_ops(o: &mut Ops, k: usize, node: usize, rv: &[usize], fill: Fill) -> (usize, usize) {
     let a = o.v(format!("alu %{node}"));
+    for _ in 0..fill.per_node {
+        match fill.on_chain {
+            true => o.v(format!("alu %{node}")),
+            false => o.v("alu".into()),
+        };
+    }
     let c = o.v(format!("cmp %{a}"));
     o.branch(c, 1, false);
     let t: Vec<usize> = (0..6)
@@ -74,6 +84,22 @@ fn child_ops(o: &mut Ops, k: usize, a: usize, bits: usize, slot: usize) -> usize
         128 * k + 96 + 4 * slot
     ))
 }
+
+/// Integer ops added to every node test (one `lea` each on the host), as
+/// the instructions a compiled kernel runs beyond the node step's own
+/// (address arithmetic, bounds checks, bookkeeping): each reads the node's
+/// index (`on_chain`, so it waits for the node test before it) or a
+/// register off the chain.
+#[derive(Clone, Copy)]
+struct Fill {
+    per_node: usize,
+    on_chain: bool,
+}
+
+/// The fillers a run sweeps: none, then 8 to 48 a node on and off the
+/// chain (48 a node brings the loop to about the twin's 462 instructions a
+/// ray).
+const FILLS: [usize; 4] = [0, 16, 32, 48];
 
 /// Which nodes a ray visits: a chain of [`DEPTH`] nodes, or a tree whose
 /// root hits two children, the first descended (nodes 1, 2, 3), the second
@@ -124,7 +150,7 @@ fn first_children_sum(shape: Shape) -> u32 {
 
 /// The model's trace of `rays` rays of `shape`, free or serialised: the
 /// host loop's ops in its order (pop, descend, push the second child).
-fn trace_text(shape: Shape, rays: usize, serial: bool) -> String {
+fn trace_text(shape: Shape, rays: usize, serial: bool, fill: Fill) -> String {
     let mut o = Ops {
         lines: vec![
             ".trace 1".into(),
@@ -154,7 +180,7 @@ fn trace_text(shape: Shape, rays: usize, serial: bool) -> String {
             let mut node = o.v(format!("load @s+0x{:x}:4", 4 * stack.len()));
             let mut k = k0;
             loop {
-                let (a, bits) = node_ops(&mut o, k, node, &rv);
+                let (a, bits) = node_ops(&mut o, k, node, &rv, fill);
                 let kids = children(shape, k);
                 let first = child_ops(&mut o, k, a, bits, 0);
                 let rest = o.v(format!("alu %{bits}"));
@@ -184,21 +210,25 @@ fn trace_text(shape: Shape, rays: usize, serial: bool) -> String {
     o.lines.join("\n")
 }
 
-/// The model's cycles a ray of `shape`, free and serialised.
-fn model(m: &MachineConfig, shape: Shape) -> (f64, f64) {
+/// The model's ops and cycles a ray of `shape` with `fill`: ops, cycles
+/// free, cycles serialised.
+fn model(m: &MachineConfig, shape: Shape, fill: Fill) -> (f64, f64, f64) {
     let run = |serial| {
-        let t = isa::trace_text::parse(&trace_text(shape, MODEL_RAYS, serial)).expect("trace");
+        let text = trace_text(shape, MODEL_RAYS, serial, fill);
+        let t = isa::trace_text::parse(&text).expect("trace");
         let mut s = Session::new(m);
         s.warm(&[(0, &t)]).expect("warm");
         let st = s.timed(&[(0, &t)]).expect("timed");
-        st.cycles as f64 / MODEL_RAYS as f64
+        let per_ray = |x: u64| x as f64 / MODEL_RAYS as f64;
+        (per_ray(st.ops), per_ray(st.cycles))
     };
-    (run(false), run(true))
+    let ((ops, free), (_, serial)) = (run(false), run(true));
+    (ops, free, serial)
 }
 
 #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
 mod host {
-    use super::{Shape, DEPTH};
+    use super::{Fill, Shape, DEPTH};
     use std::arch::x86_64::*;
     use std::time::Instant;
 
@@ -251,8 +281,30 @@ mod host {
     /// One ray from node `start` as the single-ray kernel walks: pop, then
     /// descend into the first hit child, pushing a second: the sum of the
     /// first children it visits.
+    /// `K` fillers (`lea`) reading the node's index `node` (`ON`) or a
+    /// register off the chain.
+    #[inline(always)]
+    fn fill<const K: usize, const ON: bool>(node: usize) {
+        if K == 0 {
+            return;
+        }
+        let src = if ON { node } else { 0 };
+        // SAFETY: register operations only.
+        unsafe {
+            std::arch::asm!(
+                ".rept {k}", "lea {t}, [{n} + 1]", ".endr",
+                k = const K, t = out(reg) _, n = in(reg) src,
+                options(nomem, nostack, preserves_flags)
+            )
+        };
+    }
+
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn walk(nodes: &[Node], ray: &[f32; 8], start: usize) -> u32 {
+    unsafe fn walk<const K: usize, const ON: bool>(
+        nodes: &[Node],
+        ray: &[f32; 8],
+        start: usize,
+    ) -> u32 {
         let b = |x: f32| _mm_set1_ps(x);
         let idir = [b(ray[0]), b(ray[1]), b(ray[2])];
         let oid = [b(ray[4]), b(ray[5]), b(ray[6])];
@@ -264,6 +316,7 @@ mod host {
             let mut node = stack[sp];
             loop {
                 let n = &nodes[node];
+                fill::<K, ON>(node);
                 let p = n.rows.as_ptr() as *const f32;
                 let t =
                     |i: usize| _mm_fmsub_ps(_mm_loadu_ps(p.add(4 * i)), idir[i / 2], oid[i / 2]);
@@ -289,8 +342,23 @@ mod host {
         acc
     }
 
-    /// Nanoseconds a ray of `shape`, best of 5: free or serialised.
-    pub fn ns_per_ray(shape: Shape, serial: bool) -> f64 {
+    /// Nanoseconds a ray of `shape` with `fill`, free or serialised.
+    pub fn ns_per_ray(shape: Shape, serial: bool, fill: Fill) -> f64 {
+        match (fill.per_node, fill.on_chain) {
+            (0, _) => timed::<0, true>(shape, serial),
+            (16, true) => timed::<16, true>(shape, serial),
+            (32, true) => timed::<32, true>(shape, serial),
+            (48, true) => timed::<48, true>(shape, serial),
+            (16, false) => timed::<16, false>(shape, serial),
+            (32, false) => timed::<32, false>(shape, serial),
+            (48, false) => timed::<48, false>(shape, serial),
+            _ => unreachable!("a fill not in FILLS"),
+        }
+    }
+
+    /// Nanoseconds a ray of `shape` with `K` fillers a node, best of 5:
+    /// free or serialised.
+    fn timed<const K: usize, const ON: bool>(shape: Shape, serial: bool) -> f64 {
         let nodes = nodes(shape);
         // From x = -5 along +x through every box.
         let ray = [1.0f32, 1e30, 1e30, 0.0, -5.0, 0.1e30, 0.2e30, 1e30];
@@ -308,7 +376,7 @@ mod host {
                         0
                     };
                     // SAFETY: AVX2 and FMA checked by the caller.
-                    prev = unsafe { walk(&nodes, std::hint::black_box(&ray), start) };
+                    prev = unsafe { walk::<K, ON>(&nodes, std::hint::black_box(&ray), start) };
                 }
                 let secs = t.elapsed().as_secs_f64();
                 assert_eq!(
@@ -364,23 +432,47 @@ fn main() {
         }
     };
     let shapes = [(Shape::Chain, "chain"), (Shape::Tree, "tree")];
+    let fills: Vec<(Fill, String)> = FILLS
+        .iter()
+        .flat_map(|&per_node| {
+            let on = Fill {
+                per_node,
+                on_chain: true,
+            };
+            let off = Fill {
+                on_chain: false,
+                ..on
+            };
+            let name = |f: &str| format!("{per_node} fillers a node {f}");
+            match per_node {
+                0 => vec![(on, "no fillers".to_string())],
+                _ => vec![(on, name("on the chain")), (off, name("off it"))],
+            }
+        })
+        .collect();
     for (shape, what) in shapes {
-        let (free, serial) = model(&m, shape);
-        println!(
-            "{what}: model {name}: {free:.1} cycles a ray free, {serial:.1} serialised (overlap {:.2}x)",
-            serial / free
-        );
+        for (fill, how) in &fills {
+            let (ops, free, serial) = model(&m, shape, *fill);
+            println!(
+                "{what}, {how}: model {name}: {ops:.0} ops a ray, {free:.1} cycles a ray free, \
+                 {serial:.1} serialised (overlap {:.2}x)",
+                serial / free
+            );
+        }
     }
     #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
     if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
         let ghz = (args.get(1).and_then(|g| g.parse().ok())).unwrap_or_else(host::clock_ghz);
         for (shape, what) in shapes {
-            let f = host::ns_per_ray(shape, false) * ghz;
-            let s = host::ns_per_ray(shape, true) * ghz;
-            println!(
-                "{what}: host at {ghz:.2} GHz: {f:.1} cycles a ray free, {s:.1} serialised (overlap {:.2}x)",
-                s / f
-            );
+            for (fill, how) in &fills {
+                let f = host::ns_per_ray(shape, false, *fill) * ghz;
+                let s = host::ns_per_ray(shape, true, *fill) * ghz;
+                println!(
+                    "{what}, {how}: host at {ghz:.2} GHz: {f:.1} cycles a ray free, \
+                     {s:.1} serialised (overlap {:.2}x)",
+                    s / f
+                );
+            }
         }
         return;
     }

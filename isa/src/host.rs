@@ -280,7 +280,9 @@ pub fn mask_bits<const N: usize>(k: Vk<N>) -> Option<u32> {
 }
 
 /// Generates a width module: the same functions over `$v`/`$vi` vectors of
-/// `$w` lanes, so the ops above are written once.
+/// `$w` lanes, so the ops above are written once. Defined only where a
+/// width module is (every one needs SSE4.1 at least).
+#[cfg(all(target_arch = "x86_64", target_feature = "sse4.1"))]
 macro_rules! chunk_helpers {
     ($w:expr, $v:ty, $vi:ty, $ldf:ident, $stf:ident, $ldi:ident, $sti:ident) => {
         /// Lanes per chunk.

@@ -34,7 +34,7 @@ pub use class::OpClass;
 pub use flavour::{Avx2, Avx512, Flavour, FlavourId, Lrb16, Sse4, Wide32};
 pub use lanes::{BinOp, Cmp, Fma, IOp, Shift};
 pub use machine::{Float, Int, Logic, Machine, SOp};
-pub use mem::{AddrSpace, At, Buf, MemRegion, SpaceMark, PAD};
+pub use mem::{AddrSpace, At, Buf, MemRegion, OpenBuf, SpaceMark, PAD};
 pub use native::{LogKind, Native, NoLog, WarmLog};
 pub use program::{
     record, record_units, run_native, run_steps, run_units, Detail, Placed, Program, Step,

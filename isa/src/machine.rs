@@ -125,6 +125,8 @@ pub trait Machine {
     type S: Int;
     /// Scalar f32.
     type X: Float;
+    /// A buffer opened for a run of scalar stores ([`Machine::open`]).
+    type Open<'b>;
 
     // ---- memory, regions, annotations ----
 
@@ -317,6 +319,13 @@ pub trait Machine {
     fn s_load(&mut self, buf: &Buf, at: At<Self::S>, width: u8, signed: bool) -> Self::S;
     /// Store the low `width` bytes.
     fn s_store(&mut self, buf: &mut Buf, at: At<Self::S>, width: u8, v: Self::S);
+    /// `buf` opened for a run of [`Machine::s_store_open`]s, as a
+    /// hand-written loop keeps a buffer's pointer and end in registers (no
+    /// op: the traced backend records the stores alone).
+    fn open<'b>(&mut self, buf: &'b mut Buf) -> Self::Open<'b>;
+    /// [`Machine::s_store`] into an opened buffer: the same op, the same
+    /// bytes.
+    fn s_store_open(&mut self, buf: &mut Self::Open<'_>, at: At<Self::S>, width: u8, v: Self::S);
 
     // ---- scalar f32 (SSE scalar ops; timed as their vector class, one lane) ----
 

@@ -22,7 +22,7 @@ use crate::lanes::{
     Vf, Vi, Vk,
 };
 use crate::machine::{Float, Int, Logic, Machine, SOp};
-use crate::mem::{AddrSpace, At, Buf};
+use crate::mem::{AddrSpace, At, Buf, OpenBuf};
 use crate::trace::{Op, Trace, FLAG_TAKEN};
 use crate::types::{Addr, LaneMask, MemId, Region, Site};
 use std::marker::PhantomData;
@@ -373,6 +373,7 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     type K = Vk<N>;
     type S = NS;
     type X = NX;
+    type Open<'b> = OpenBuf<'b>;
 
     fn space(&mut self) -> &mut AddrSpace {
         &mut self.space
@@ -797,6 +798,18 @@ impl<FL: Flavour<N>, const N: usize, L: LogKind> Machine for Native<FL, N, L> {
     fn s_store(&mut self, buf: &mut Buf, at: At<NS>, width: u8, v: NS) {
         let off = ea(at);
         self.log_mem(OpClass::Store, buf, off, width as usize);
+        buf.hot_set_uint(off, width as usize, v.0 as u64);
+    }
+    #[inline(always)]
+    fn open<'b>(&mut self, buf: &'b mut Buf) -> OpenBuf<'b> {
+        buf.open()
+    }
+    #[inline(always)]
+    fn s_store_open(&mut self, buf: &mut OpenBuf<'_>, at: At<NS>, width: u8, v: NS) {
+        let off = ea(at);
+        if let Some(log) = self.log.get() {
+            log_at(log, OpClass::Store, buf.addr(off), buf.id(), width as usize);
+        }
         buf.hot_set_uint(off, width as usize, v.0 as u64);
     }
 

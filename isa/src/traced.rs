@@ -508,6 +508,7 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
     type K = TK<N>;
     type S = TS;
     type X = TX;
+    type Open<'b> = &'b mut Buf;
 
     #[inline]
     fn space(&mut self) -> &mut AddrSpace {
@@ -1310,6 +1311,15 @@ impl<FL: Flavour<N>, const N: usize> Machine for Traced<FL, N> {
             false,
         );
         buf.set_uint(off, width as usize, v.v as u64);
+    }
+
+    #[inline]
+    fn open<'b>(&mut self, buf: &'b mut Buf) -> &'b mut Buf {
+        buf
+    }
+    #[inline]
+    fn s_store_open(&mut self, buf: &mut &mut Buf, at: At<TS>, width: u8, v: TS) {
+        self.s_store(buf, at, width, v);
     }
 
     #[inline]

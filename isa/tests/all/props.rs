@@ -203,10 +203,15 @@ fn program<M: Machine>(m: &mut M, seed: u64, steps: usize) -> Vec<u64> {
             36 => {
                 let w = pick(&mut r, &[1u8, 2, 4, 8]);
                 let off = r.below(256 - 8) as usize;
-                if r.below(2) == 0 {
-                    ss.push(m.s_load(&buf, At::off(off), w, r.below(2) == 0));
-                } else {
-                    m.s_store(&mut buf, At::off(off), w, s1);
+                match r.below(3) {
+                    0 => ss.push(m.s_load(&buf, At::off(off), w, r.below(2) == 0)),
+                    1 => m.s_store(&mut buf, At::off(off), w, s1),
+                    _ => {
+                        // A run of stores through the buffer opened once.
+                        let mut open = m.open(&mut buf);
+                        m.s_store_open(&mut open, At::off(off), w, s1);
+                        m.s_store_open(&mut open, At::off(off / 2), w, s2);
+                    }
                 }
             }
             37 => xs.push(match r.below(3) {

@@ -223,7 +223,8 @@ fn blocks<M: Machine>(m: &mut M, trav: &Buf, idx: &[M::S], off: usize) -> M::F {
 }
 
 /// Append one ray index to every list (`L` of them, `list_bytes` apart)
-/// with a scalar store, advancing list k by bit 0 of `conds[k]`
+/// with a scalar store (through the lists opened once, as the paper's
+/// list pointers sit in registers), advancing list k by bit 0 of `conds[k]`
 /// (branch-free). `counted`: a real ray-node test (not the first
 /// iteration's empty append).
 #[inline(always)]
@@ -240,8 +241,9 @@ fn append_ray<M: Machine, const L: usize>(
         st.tests.core_loop += 1;
     }
     let one = m.int(1);
+    let mut lists = m.open(&mut st.lists);
     for k in 0..L {
-        m.s_store(&mut st.lists, At::idx(cnt[k], 2, k * list_bytes), 2, idx);
+        m.s_store_open(&mut lists, At::idx(cnt[k], 2, k * list_bytes), 2, idx);
         let inc = m.s_and(conds[k], one);
         cnt[k] = m.s_add(cnt[k], inc);
     }

@@ -421,6 +421,9 @@ fn valid_mask<M: Machine, const N: usize>(m: &mut M, s: &Bvh4Bufs, base: M::S) -
 /// The 9 list conditions of closest-hit rays from the hit mask, the entry
 /// distances and the hit bits: the c0-c1-c0-c2-c3-c2-c0-c1-c0 order of
 /// each ray's hit children, bit-parallel for all rays of the iteration.
+/// Inlined into the core loop's step: a call there spilled the loop's
+/// vector registers around it every iteration.
+#[inline(always)]
 fn closest_conds<M: Machine, const N: usize>(
     m: &mut M,
     (hit, tn, hbits): (M::K, M::F, M::S),

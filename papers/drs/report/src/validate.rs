@@ -473,7 +473,7 @@ fn notes(a: &ValidateArgs, v: &Verdict, lanes: usize) -> Vec<String> {
             verdict(err <= GOAL_ERROR)
         ),
         format!(
-            "the native backend runs vector ops as {} and each access's offset checked against its buffer's end, not the instructions the traced backend records (2.1-3.6 host instructions per recorded one in the kernels, 1.6 in single-bvh4's hand-written twin, on a Zen 1 host: rt/benches/RESULTS.md): native times follow the model's instruction counts with tau {:.3}{}",
+            "the native backend runs vector ops as {} and each access's offset checked against its buffer's end, not the instructions the traced backend records (2.0-3.4 host instructions per recorded op by kernel, 2.1 in single-bvh4's hand-written twin, on a Zen 4 host: rt/benches/RESULTS.md; the extra ones cost little in a kernel that waits on its dependent chain, single-bvh4 above all, and nearly in full in one bound by throughput): native times follow the model's instruction counts with tau {:.3}{}",
             isa::host::describe(lanes),
             v.tau_ins,
             if v.tau_ins > tau {

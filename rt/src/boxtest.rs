@@ -286,13 +286,15 @@ pub fn packet_nodes_stream<M: Machine>(
     let count = m.int(nnodes as i64);
     let (mut j, mut nb, mut ob) = (m.int(0), m.int(0), m.int(0));
     m.region(Region::CoreLoop);
+    // The masks' buffer opened once for the loop's stores.
+    let mut out = m.open(out);
     loop {
         for c in 0..4 {
             let plane =
                 |m: &mut M, r: usize| m.load_operand(nodes, At::idx(nb, 1, 16 * r + 4 * c), 1);
             let (_, hit) = slab_test(m, &pk, plane);
             let bits = m.movemask(hit);
-            m.s_store(out, At::idx(ob, 1, 4 * c), 4, bits);
+            m.s_store_open(&mut out, At::idx(ob, 1, 4 * c), 4, bits);
         }
         nb = m.s_addi(nb, NODE_BYTES as i64);
         ob = m.s_addi(ob, 16);

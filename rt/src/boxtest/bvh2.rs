@@ -121,6 +121,8 @@ pub fn bvh2_nodes_stream<M: Machine>(
     let (count, ray_count) = (m.int(nnodes as i64), m.int(nrays as i64));
     let (mut i, mut rb, mut sp) = (m.int(0), m.int(0), m.int(0));
     m.region(Region::CoreLoop);
+    // The answers' buffer opened once for the loop's stores.
+    let mut out = m.open(out);
     loop {
         let ro = m.s_shift(Shift::Shl, i, 5);
         let bc = |m: &mut M, k: usize| m.load_bcast(rays, At::idx(ro, 1, 4 * k));
@@ -133,10 +135,10 @@ pub fn bvh2_nodes_stream<M: Machine>(
             let Some(next) = step else {
                 // A miss ends the descent.
                 let miss = m.int(i64::from(MISS));
-                m.s_store(out, At::idx(ob, 1, 0), 4, miss);
+                m.s_store_open(&mut out, At::idx(ob, 1, 0), 4, miss);
                 break;
             };
-            m.s_store(out, At::idx(ob, 1, 0), 4, next);
+            m.s_store_open(&mut out, At::idx(ob, 1, 0), 4, next);
             ob = m.s_addi(ob, 4);
             nb = m.s_addi(nb, NODE2_BYTES as i64);
             j = m.s_addi(j, 1);

@@ -553,18 +553,8 @@ impl Buf {
     #[must_use]
     pub fn hot_off(&self, off: usize, n: usize) -> usize {
         debug_assert!(n <= PAD, "a hot access of {n} bytes");
-        if cfg!(debug_assertions) {
-            self.check(off, n);
-            off
-        } else {
-            // The allocation holds PAD bytes past the end: one compare
-            // against the end, a branch predicted not taken, off the
-            // address's dependency chain.
-            if off > self.len {
-                out_of_bounds(self.id, off, n, self.len);
-            }
-            off
-        }
+        hot_bound(self.id, off, n, self.len);
+        off
     }
     /// [`Buf::f32_at`] by [`Buf::hot_off`].
     #[inline(always)]
@@ -663,18 +653,29 @@ impl OpenBuf<'_> {
     /// `B` bytes at `off`, bounded as [`Buf::hot_off`] bounds them.
     #[inline(always)]
     fn write<const B: usize>(&mut self, b: [u8; B], off: usize) {
-        if cfg!(debug_assertions) {
-            if off.checked_add(B).is_none_or(|e| e > self.len) {
-                out_of_bounds(self.id, off, B, self.len);
-            }
-        } else if off > self.len {
-            out_of_bounds(self.id, off, B, self.len);
-        }
+        hot_bound(self.id, off, B, self.len);
         // SAFETY: `off` is at most the region's end and the allocation
         // holds PAD (>= 8) bytes past it (in debug builds the whole access
         // lies inside the region); `Buf::open` made the bytes this view's
         // alone and the `Buf` stays mutably borrowed while it lives.
         unsafe { std::ptr::copy_nonoverlapping(b.as_ptr(), self.ptr.as_ptr().add(off), B) };
+    }
+}
+
+/// The bound of a native access of `n` bytes at `off` in a region of `len`
+/// bytes (its allocation PAD bytes longer): the whole access inside the
+/// region in debug builds; in release builds its start at most the end,
+/// one compare and a branch predicted not taken, off the address's
+/// dependency chain. Past it, the panic naming the region.
+#[inline(always)]
+fn hot_bound(id: MemId, off: usize, n: usize, len: usize) {
+    let outside = if cfg!(debug_assertions) {
+        off.checked_add(n).is_none_or(|e| e > len)
+    } else {
+        off > len
+    };
+    if outside {
+        out_of_bounds(id, off, n, len);
     }
 }
 

@@ -861,14 +861,23 @@ mod tests {
 
     #[test]
     #[cfg(not(debug_assertions))]
-    fn hot_access_out_of_bounds_stays_within_the_buffer_in_release_builds() {
+    fn hot_access_from_the_end_reads_the_padding_in_release_builds() {
         let mut s = AddrSpace::new();
         let mut b = s.alloc(MemKind::Other, "b", 40, 64);
         b.set_u32(36, 7);
-        // Clamped to the end: offset 400 reads the padding after byte 40.
-        assert_eq!(b.hot_uint(400, 4), 0);
-        assert_eq!(b.hot_f32s::<32>(1 << 40), [0.0; 32]);
+        // A start at the end is in bounds: the access reads the padding.
+        assert_eq!(b.hot_uint(40, 4), 0);
+        assert_eq!(b.hot_f32s::<32>(40), [0.0; 32]);
         assert_eq!(b.hot_uint(36, 4), 7);
+    }
+
+    #[test]
+    #[cfg(not(debug_assertions))]
+    #[should_panic(expected = "outside region")]
+    fn hot_access_past_the_end_is_caught_in_release_builds() {
+        let mut s = AddrSpace::new();
+        let b = s.alloc(MemKind::Other, "b", 40, 64);
+        let _ = b.hot_uint(400, 4);
     }
 
     #[test]

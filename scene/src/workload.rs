@@ -11,7 +11,8 @@
 //!   Phong-lobe perturbation.
 //! - [`soft_shadow_frusta`]: the MFT inputs: per 4 x 4 pixel group, the 16
 //!   primary hit points and 16 light samples each, pixel k of the group using
-//!   interleaved Hammersley set k (every 16th point of a 256-point sequence).
+//!   interleaved set k of a 256-point Hammersley set ([`SampleSplit`]: by
+//!   default a 16-point net spanning the light, the paper's sets).
 //! - [`distribution_tile`]: distribution ray tracing as the MBVH ray-stream
 //!   paper: 16 paths per pixel through a thin lens (depth of field), soft
 //!   shadow rays to random points of the area light, one glossy reflection.
@@ -524,27 +525,71 @@ pub fn radical_inverse2(mut i: u32) -> f64 {
     f64::from(i) / 4_294_967_296.0
 }
 
-/// Interleaved Hammersley set `k` of 16 (k in 0..16): points `16 j + k`,
-/// j = 0..16, of the 256-point Hammersley set (`i / 256`, radical inverse of
-/// `i`): 16 points in one 1/16-high row of the light (the low 4 bits of `i`
-/// fix the top 4 bits of the radical inverse), one per 1/16 column. The 16
-/// sets partition the 256 points; a 4 x 4 pixel tile (pixel k takes set k)
-/// sees all 256 once its visibility is filtered over the tile.
-///
-/// Measured alternative (this session, `mft-quality --quick` and
-/// `mft-table1 --quick` on the T-Rex stand-in): sets that are each a
-/// (0,4,2)-net over the whole light (`16 h + (h xor k)`) give each pixel a
-/// good estimate on its own (45.8 dB unfiltered, 40.2 dB filtered, the
-/// filter only blurring) but frusta as wide as the light: 2.0x the
-/// soft-shadow cycles of these rows (482M vs 236M), where rows reach 39.8 dB
-/// filtered (30.8 dB unfiltered). The paper's pipeline relies on the filter
-/// to combine the 16 sets, as rows need.
+/// How the 256 Hammersley points on the light are split into the 16
+/// interleaved sets of a 4 x 4 pixel group (pixel k takes set k). Both
+/// partition the same 256 points, so a filtered 4 x 4 tile sees all of them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum SampleSplit {
+    /// The paper's sets (the default): set k is a 16-point (0,4,2)-net over
+    /// the whole light, points `16 h + (h xor k)` for h in 0..16: one point
+    /// in each 1/16 column and each 1/16 row, so each set spans the light
+    /// (its 2D bounds cover at least 15/16 of each edge). The paper bounds
+    /// each set's 2D box for its corner rays and calls that only "slightly
+    /// more beneficial" than the light's own corners, which holds for sets
+    /// that span the light; interleaved sampling (Keller and Heidrich 2001)
+    /// gives every pixel a well-spread estimate of its own.
+    #[default]
+    Nets,
+    /// A named variant: set k is points `16 j + k`, j in 0..16, all in one
+    /// 1/16-high strip of the light (the low 4 bits of the index fix the
+    /// top 4 bits of the radical inverse), one per 1/16 column: thin frusta,
+    /// each pixel's estimate a strip's, the filter combining the strips.
+    Strips,
+}
+
+impl SampleSplit {
+    /// Both splits, the default first.
+    pub const ALL: [SampleSplit; 2] = [SampleSplit::Nets, SampleSplit::Strips];
+
+    /// Its name in reports and options.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            SampleSplit::Nets => "nets",
+            SampleSplit::Strips => "strips",
+        }
+    }
+
+    /// Indices (into the 256-point Hammersley set) of set `k` (k in 0..16).
+    #[must_use]
+    pub fn indices(self, k: u32) -> [u32; 16] {
+        let k = k & 15;
+        std::array::from_fn(|j| {
+            let j = j as u32;
+            match self {
+                SampleSplit::Nets => 16 * j + (j ^ k),
+                SampleSplit::Strips => 16 * j + k,
+            }
+        })
+    }
+
+    /// Set `k` of the 256-point Hammersley set (`i / 256`, radical inverse
+    /// of `i`) as (u, v) on the light.
+    #[must_use]
+    pub fn set(self, k: u32) -> [[f64; 2]; 16] {
+        self.indices(k)
+            .map(|i| [f64::from(i) / 256.0, radical_inverse2(i)])
+    }
+}
+
+/// Interleaved Hammersley set `k` of 16 as the strip split gives it
+/// ([`SampleSplit::Strips`]). Measured (an earlier session,
+/// `mft-quality --quick` on the T-Rex stand-in): nets give each pixel a good
+/// estimate on its own (45.8 dB unfiltered, 40.2 dB filtered), strips 30.8
+/// dB unfiltered and 39.8 dB filtered.
 #[must_use]
 pub fn hammersley_set(k: u32) -> [[f64; 2]; 16] {
-    std::array::from_fn(|j| {
-        let i = 16 * j as u32 + (k & 15);
-        [f64::from(i) / 256.0, radical_inverse2(i)]
-    })
+    SampleSplit::Strips.set(k)
 }
 
 /// MFT soft-shadow inputs of one 4 x 4 pixel group.
@@ -554,11 +599,12 @@ pub struct FrustumInput {
     pub pixel: (u32, u32),
     /// Primary hit point of each of the 16 pixels (row-major), if any.
     pub hits: [Option<[f32; 3]>; 16],
-    /// 16 light sample points per pixel (pixel k uses Hammersley set k).
+    /// 16 light sample points per pixel (pixel k uses set k of the split).
     pub samples: [[[f32; 3]; 16]; 16],
 }
 
-/// MFT inputs over the camera's image, 4 x 4 pixel groups.
+/// MFT inputs over the camera's image, 4 x 4 pixel groups, the paper's
+/// sample sets ([`SampleSplit::Nets`]).
 #[must_use]
 pub fn soft_shadow_frusta(scene: &Scene, bvh: &Bvh2) -> Vec<FrustumInput> {
     let refi = Reference::with_bvh(&scene.mesh, bvh);
@@ -567,12 +613,13 @@ pub fn soft_shadow_frusta(scene: &Scene, bvh: &Bvh2) -> Vec<FrustumInput> {
         .step_by(4)
         .flat_map(|gy| (0..cam.width).step_by(4).map(move |gx| (gx, gy)))
         .collect();
-    soft_shadow_groups(scene, &refi, &groups)
+    soft_shadow_groups(scene, &refi, &groups, SampleSplit::Nets)
 }
 
 /// The MFT soft-shadow input of the 4 x 4 pixel group whose top-left pixel
 /// is (`gx`, `gy`): primary hits by `refi`, offset along the facing normal,
-/// and pixel k's 16 light samples from Hammersley set k.
+/// and pixel k's 16 light samples from set k of the paper's split
+/// ([`SampleSplit::Nets`]).
 #[must_use]
 pub fn soft_shadow_group(scene: &Scene, refi: &Reference, gx: u32, gy: u32) -> FrustumInput {
     let cam = &scene.config.camera;
@@ -580,16 +627,25 @@ pub fn soft_shadow_group(scene: &Scene, refi: &Reference, gx: u32, gy: u32) -> F
         let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
         refi.closest(&Ray::new(o, d)).map(|h| (h.t, h.prim))
     };
-    shadow_group_with(scene, scene_size(scene), &hit, gx, gy, 0)
+    shadow_group_with(
+        scene,
+        scene_size(scene),
+        &hit,
+        (gx, gy),
+        0,
+        SampleSplit::Nets,
+    )
 }
 
-/// [`soft_shadow_group`] of each top-left pixel in `groups`, in order (the
-/// scene's extent computed once: it walks the whole mesh).
+/// [`soft_shadow_group`] of each top-left pixel in `groups`, in order, with
+/// the sample sets of `split` (the scene's extent computed once: it walks
+/// the whole mesh).
 #[must_use]
 pub fn soft_shadow_groups(
     scene: &Scene,
     refi: &Reference,
     groups: &[(u32, u32)],
+    split: SampleSplit,
 ) -> Vec<FrustumInput> {
     let cam = &scene.config.camera;
     let size = scene_size(scene);
@@ -599,7 +655,7 @@ pub fn soft_shadow_groups(
     };
     groups
         .par_iter()
-        .map(|&(gx, gy)| shadow_group_with(scene, size, &hit, gx, gy, 0))
+        .map(|&g| shadow_group_with(scene, size, &hit, g, 0, split))
         .collect()
 }
 
@@ -618,16 +674,17 @@ pub fn shadow_origin(scene: &Scene, size: f64, x: u32, y: u32, t: f64, prim: u32
 }
 
 /// [`soft_shadow_group`] in a scene of extent `size` ([`scene_size`]) with
-/// the primary hits (t, prim) of each pixel from `hit`, and pixel k sampling Hammersley set `k ^ rot`: the 16 rotations
-/// give every pixel all 256 points (a 256-sample reference, 16 at a time).
+/// the primary hits (t, prim) of each pixel from `hit`, and pixel k
+/// sampling set `k ^ rot` of `split`: the 16 rotations give every pixel all
+/// 256 points (a 256-sample reference, 16 at a time).
 #[must_use]
 pub fn shadow_group_with(
     scene: &Scene,
     size: f64,
     hit: &dyn Fn(u32, u32) -> Option<(f64, u32)>,
-    gx: u32,
-    gy: u32,
+    (gx, gy): (u32, u32),
     rot: u32,
+    split: SampleSplit,
 ) -> FrustumInput {
     let cam = &scene.config.camera;
     let mut f = FrustumInput {
@@ -642,7 +699,7 @@ pub fn shadow_group_with(
                 f.hits[k as usize] = Some(shadow_origin(scene, size, x, y, t, prim));
             }
         }
-        for (j, uv) in hammersley_set(k ^ (rot & 15)).iter().enumerate() {
+        for (j, uv) in split.set(k ^ (rot & 15)).iter().enumerate() {
             if let Some(l) = light_point(scene, uv[0], uv[1]) {
                 f.samples[k as usize][j] = l.map(|c| c as f32);
             }
@@ -895,6 +952,69 @@ mod tests {
             let row = (set[0][1] * 16.0) as u64;
             assert!(set.iter().all(|p| (p[1] * 16.0) as u64 == row), "set {k}");
         }
+    }
+
+    #[test]
+    fn both_splits_partition_the_256_points() {
+        for split in SampleSplit::ALL {
+            let mut all: Vec<u32> = (0..16).flat_map(|k| split.indices(k)).collect();
+            all.sort_unstable();
+            assert_eq!(all, (0..256).collect::<Vec<u32>>(), "{split:?}");
+        }
+    }
+
+    /// The paper's sets each span the light: the 2D bounds of every set
+    /// cover at least 90% of each edge (one point per 1/16 row and column:
+    /// 15/16 at least); the strips do not (one row: under 1/16 high).
+    #[test]
+    fn each_net_spans_the_light_and_strips_do_not() {
+        let span = |set: [[f64; 2]; 16], a: usize| {
+            let lo = set.iter().map(|p| p[a]).fold(f64::INFINITY, f64::min);
+            let hi = set.iter().map(|p| p[a]).fold(f64::NEG_INFINITY, f64::max);
+            hi - lo
+        };
+        for k in 0..16 {
+            let net = SampleSplit::Nets.set(k);
+            for a in 0..2 {
+                assert!(span(net, a) >= 0.9, "net {k} axis {a}: {}", span(net, a));
+                let mut cells: Vec<u64> = net.iter().map(|p| (p[a] * 16.0) as u64).collect();
+                cells.sort_unstable();
+                assert_eq!(cells, (0..16).collect::<Vec<u64>>(), "net {k} axis {a}");
+            }
+            assert!(span(SampleSplit::Strips.set(k), 1) < 1.0 / 16.0);
+        }
+        assert_eq!(SampleSplit::default(), SampleSplit::Nets);
+    }
+
+    /// On a scene: each pixel's 16 light points (the default split) span
+    /// at least 90% of the light's quad along both edges.
+    #[test]
+    fn each_pixel_s_light_samples_span_the_light() {
+        let mut s = Scene::load("sphere").unwrap();
+        s.config.camera.width = 16;
+        s.config.camera.height = 16;
+        let b = Bvh2::build(&s.mesh, &BuildConfig::default()).unwrap();
+        let Some(Light::Quad(c, e1, e2, _)) = s.config.lights.first().cloned() else {
+            panic!("the sphere scene has a quad light");
+        };
+        let (c, e) = (c.map(f64::from), [e1, e2].map(|e| e.map(f64::from)));
+        let mut checked = 0;
+        for g in soft_shadow_frusta(&s, &b) {
+            for pts in &g.samples {
+                for e in e {
+                    let ee = dot(e, e);
+                    let t: Vec<f64> = pts
+                        .iter()
+                        .map(|p| dot(sub(p.map(f64::from), c), e) / ee)
+                        .collect();
+                    let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+                    let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+                    assert!(hi - lo >= 0.9, "span {}", hi - lo);
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 0);
     }
 
     #[test]

@@ -10,7 +10,7 @@ use repro::{AppError, AppResult, Report, ReproduceArgs, Row};
 use scene::bvh::{BuildConfig, Bvh2};
 use scene::reference::Reference;
 use scene::scene::{Light, Scene};
-use scene::workload::soft_shadow_groups;
+use scene::workload::{soft_shadow_groups, SampleSplit};
 use scene::Hit;
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -366,6 +366,8 @@ pub(crate) struct Prepared {
     deep: Bvh2,
     pub(crate) primary: Vec<Frusta>,
     pub(crate) shadow: Vec<Frusta>,
+    /// How each pixel's 16 light samples are drawn (the paper's nets by default).
+    pub(crate) split: SampleSplit,
 }
 
 impl Prepared {
@@ -393,27 +395,42 @@ impl Prepared {
             .flat_map(|by| (0..res / 16).map(move |bx| (bx, by)))
             .map(|(bx, by)| Frusta::primary(&cam, bx, by))
             .collect();
-        let shadow = if !with_shadow {
-            Vec::new()
-        } else {
-            let refi = Reference::with_bvh(&scene.mesh, &shallow).front_faces_only();
-            let groups: Vec<(u32, u32)> = (0..res / 4)
-                .flat_map(|gy| (0..res / 4).map(move |gx| (4 * gx, 4 * gy)))
-                .collect();
-            soft_shadow_groups(&scene, &refi, &groups)
-                .iter()
-                .map(|g| Frusta::shadow(g, [c, e1, e2]))
-                .filter(|f| f.active != 0)
-                .collect()
-        };
-        Ok(Prepared {
+        let mut pr = Prepared {
             scene,
             light: [c, e1, e2],
             shallow,
             deep,
             primary,
-            shadow,
-        })
+            shadow: Vec::new(),
+            split: SampleSplit::default(),
+        };
+        if with_shadow {
+            pr.shadow = pr.shadow_frusta(SampleSplit::default());
+        }
+        Ok(pr)
+    }
+
+    /// The same scene with its soft-shadow sets drawn by `split`.
+    pub(crate) fn with_split(&self, split: SampleSplit) -> Prepared {
+        let mut pr = self.clone();
+        pr.shadow = pr.shadow_frusta(split);
+        pr.split = split;
+        pr
+    }
+
+    /// The soft-shadow frusta sets with a hit over the image, in render
+    /// order, each pixel's samples from `split`.
+    fn shadow_frusta(&self, split: SampleSplit) -> Vec<Frusta> {
+        let res = self.scene.config.camera.width;
+        let refi = self.reference();
+        let groups: Vec<(u32, u32)> = (0..res / 4)
+            .flat_map(|gy| (0..res / 4).map(move |gx| (4 * gx, 4 * gy)))
+            .collect();
+        soft_shadow_groups(&self.scene, &refi, &groups, split)
+            .iter()
+            .map(|g| Frusta::shadow(g, self.light))
+            .filter(|f| f.active != 0)
+            .collect()
     }
 
     /// The front-faces-only reference (both kernels cull back faces).

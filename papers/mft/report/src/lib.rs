@@ -13,6 +13,7 @@
 mod frame;
 mod light;
 pub mod paper;
+pub mod perset;
 mod quality;
 mod shading;
 mod table1;

@@ -47,7 +47,7 @@ pub(crate) fn shadow_sets(pr: &Prepared, hits: &Hits, w: u32, rot: u32) -> Vec<F
         .flat_map(|gy| (0..w / 4).map(move |gx| (4 * gx, 4 * gy)))
         .map(|(x, y)| {
             Frusta::shadow(
-                &shadow_group_with(&pr.scene, size, &hit, x, y, rot),
+                &shadow_group_with(&pr.scene, size, &hit, (x, y), rot, pr.split),
                 pr.light,
             )
         })

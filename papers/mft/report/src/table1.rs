@@ -9,6 +9,7 @@
 
 use crate::frame::*;
 use crate::paper::*;
+use crate::perset::{paper_per_set, PerSet};
 use mft_kernels::{
     checked_rays, mismatches_expected, Frusta, FrustaRun, MftStats, PacketLeaves, PacketPrimaryRun,
     PlaneNoise, Shrink,
@@ -17,6 +18,7 @@ use rayon::prelude::*;
 use repro::sampling::{paired_ratio_systematic as paired_ratio, separates};
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::{Expected, F32Test};
+use scene::workload::SampleSplit;
 use scene::Hit;
 use std::time::Instant;
 
@@ -78,6 +80,8 @@ struct Measured {
     count_ci: [Option<[f64; 4]>; 4],
     /// The soft-shadow sets counted (their hits are `frusta_out[1]`).
     shadow_counted: Vec<Frusta>,
+    /// Soft-shadow sets with a hit over the image.
+    shadow_sets: usize,
     cycles: [(f64, Option<f64>); 4],
     /// Per method, each batch's estimate of the image's cycles (paired).
     estimates: [Vec<f64>; 4],
@@ -106,6 +110,16 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
         ops_total += ms.ops + o;
         bad_total += ms.bad;
         rows.append(&mut ms.rows);
+        // Per set of 16 shadow frusta, before the primary rows are added.
+        if !p256 {
+            let (r, n) = per_set_rows(scene_name, &ms.stats, pr.shadow.len());
+            rows.extend(r);
+            notes.push(n);
+            let (r, n, bad) = strip_split(&su, &pr, scene_name, &ms)?;
+            rows.extend(r);
+            notes.push(n);
+            bad_total += bad;
+        }
         // The paper's soft-shadow rows include the primary rays.
         let (p0, p1) = (ms.stats[0], ms.stats[1]);
         ms.stats[2].add(p0);
@@ -268,6 +282,7 @@ fn measure_methods(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<Mea
         stats: [MftStats::default(); 4],
         count_ci: [None; 4],
         shadow_counted: Vec::new(),
+        shadow_sets: shadow.len(),
         cycles: [(0.0, None); 4],
         estimates: Default::default(),
         frusta_out: [Vec::new(), Vec::new()],
@@ -579,6 +594,141 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
             pparts.join("; ")
         ),
     ))
+}
+
+/// Soft-shadow counts per set of 16 frusta (the shadow rows alone: S - P),
+/// ours over the sets with a hit, the paper's over its image's 65,536
+/// groups (a lower bound), each with its ratio; and frusta's triangles
+/// accessed over the packets'.
+fn per_set_rows(scene_name: &str, stats: &[MftStats; 4], sets: usize) -> (Vec<Row>, String) {
+    let paper = paper_per_set(scene_name);
+    let mut rows = Vec::new();
+    let ours = [2, 3].map(|mi| PerSet::of(&stats[mi], sets as f64));
+    let mut worst = (1.0f64, String::new());
+    for (j, mi) in [2usize, 3].into_iter().enumerate() {
+        let theirs = paper.map(|p| if j == 0 { p.0 } else { p.1 });
+        for (k, (metric, v)) in ours[j].named().into_iter().enumerate() {
+            let p = theirs.map(|t| t.named()[k].1);
+            let mut r = keyed(
+                Row::new(&format!("per_set_{metric}"), v),
+                scene_name,
+                mi,
+                false,
+            );
+            r.paper = p;
+            rows.push(r);
+            if let Some(p) = p {
+                let x = v / p.max(1e-9);
+                rows.push(keyed(
+                    Row::new(&format!("per_set_{metric}_vs_paper"), x),
+                    scene_name,
+                    mi,
+                    false,
+                ));
+                if x.ln().abs() > worst.0.ln().abs() {
+                    worst = (x, format!("{} {metric}", METHODS[mi]));
+                }
+            }
+        }
+    }
+    let ratio = ours[1].tris_accessed / ours[0].tris_accessed.max(1e-9);
+    let mut r = Row::new("per_set_frusta_over_packets_tris", ratio)
+        .key("scene", scene_name)
+        .key("rays", "shadow");
+    r.paper = paper.map(|p| p.1.tris_accessed / p.0.tris_accessed);
+    rows.push(r);
+    let note = format!(
+        "{scene_name} per shadow set (S - P over {sets} sets with a hit; the paper's over 65,536 groups, a lower bound): packets {:.0} AABB tests and {:.0} triangles, frusta {:.0} triangles accessed and {:.1} after culling (the paper's {}); farthest from the paper: {} x{:.2}; frusta access {ratio:.2}x the packets' triangles (the paper {})",
+        ours[0].aabb_tests,
+        ours[0].tris_accessed,
+        ours[1].tris_accessed,
+        ours[1].tris_after_culling,
+        paper.map_or("-".into(), |p| format!(
+            "{:.0}, {:.0}, {:.0}, {:.1}",
+            p.0.aabb_tests, p.0.tris_accessed, p.1.tris_accessed, p.1.tris_after_culling
+        )),
+        worst.1,
+        worst.0,
+        paper.map_or("-".into(), |p| format!("{:.2}", p.1.tris_accessed / p.0.tris_accessed)),
+    );
+    (rows, note)
+}
+
+/// The strip split of the light samples (a named variant; the paper's sets
+/// each span the light, [`SampleSplit::Nets`], the default): the same
+/// scene's soft-shadow sets with each pixel's 16 samples in one 1/16 strip
+/// of the light, counted and timed as the default (the same runs), per set
+/// and as the shadow cycle reduction, beside the default's.
+fn strip_split(
+    su: &Setup,
+    pr: &Prepared,
+    scene_name: &str,
+    ms: &Measured,
+) -> AppResult<(Vec<Row>, String, usize)> {
+    let strips = pr.with_split(SampleSplit::Strips);
+    let fl = su.m.flavour();
+    let b = bands(&strips.shadow, su.count_every);
+    let packets = count_native(fl, &strips.shadow, &b, |s| strips.packets(s));
+    let frusta = count_native(fl, &strips.shadow, &b, |s| {
+        strips.frusta(s, false, Shrink::None)
+    });
+    // Every counted ray held to the reference, as the default's.
+    let refi = strips.reference();
+    let mut bad = 0;
+    for (test, method, c) in [
+        (F32Test::MollerTrumbore, "s-packet", &packets),
+        (F32Test::Pluecker, "s-frusta", &frusta),
+    ] {
+        let (sub, keep) = checked_rays(&c.sets);
+        let want = Expected::of(&refi, &sub);
+        let label = format!("{scene_name} {method} strips");
+        bad += mismatches_expected(test, &label, &refi, (&sub, &keep, &want), &c.out);
+    }
+    let (batches, per) = (su.batches, su.per_s);
+    let key = (su.seed, &su.progress);
+    let sp = sample(&su.m, &strips.shadow, batches, per, key, |s| {
+        strips.packets(s)
+    })?;
+    let sf = sample(&su.m, &strips.shadow, batches, per, key, |s| {
+        strips.frusta(s, false, Shrink::None)
+    })?;
+    let n = strips.shadow.len() as f64;
+    let (pk, fr) = (PerSet::of(&packets.stats, n), PerSet::of(&frusta.stats, n));
+    let mut rows = Vec::new();
+    for (mi, ps) in [(2usize, pk), (3, fr)] {
+        for (metric, v) in ps.named() {
+            rows.push(
+                keyed(
+                    Row::new(&format!("per_set_{metric}"), v),
+                    scene_name,
+                    mi,
+                    false,
+                )
+                .key("split", "strips"),
+            );
+        }
+    }
+    let red = sp.cycles / sf.cycles.max(1.0);
+    let mut r = Row::new("cycle_reduction", red)
+        .key("scene", scene_name)
+        .key("rays", "shadow")
+        .key("split", "strips");
+    r.ci95 = paired_ratio(&sp.estimates, &sf.estimates).1;
+    rows.push(r);
+    rows.push(
+        Row::new("hit_mismatches", bad as f64)
+            .key("scene", scene_name)
+            .key("split", "strips"),
+    );
+    let nets = ms.cycles[2].0 / ms.cycles[3].0.max(1.0);
+    let nets_pk = PerSet::of(&ms.stats[2], ms.shadow_sets as f64);
+    let nets_fr = PerSet::of(&ms.stats[3], ms.shadow_sets as f64);
+    let note = format!(
+        "{scene_name} light samples split into strips (a named variant; the default is the paper's sets, each spanning the light): per shadow set packets {:.0} AABB tests / {:.0} triangles, frusta {:.0} triangles / {:.1} after culling / {:.0} isec tests (nets: {:.0} / {:.0}, {:.0} / {:.1} / {:.0}); shadow cycle reduction without the primary rays {red:.2} (nets {nets:.2})",
+        pk.aabb_tests, pk.tris_accessed, fr.tris_accessed, fr.tris_after_culling, fr.isec_tests,
+        nets_pk.aabb_tests, nets_pk.tris_accessed, nets_fr.tris_accessed, nets_fr.tris_after_culling, nets_fr.isec_tests,
+    );
+    Ok((rows, note, bad))
 }
 
 #[cfg(test)]

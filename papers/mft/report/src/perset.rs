@@ -1,0 +1,121 @@
+//! Per-set counts of soft shadows: what Table 1 gives that no machine
+//! changes. The paper's soft-shadow rows include the primary rays, so its
+//! shadow work per set of 16 frusta (one 4 x 4 pixel group) is (S - P) over
+//! the 1024 x 1024 image's 65,536 groups: a lower bound, as groups without a
+//! hit trace no shadows and the paper does not say how many it had. Ours is
+//! over the sets with a hit. The stand-ins' lights are matched on these
+//! counts (never on cycles): see each scene file and `papers/mft/README.md`.
+
+use crate::frame::{bands, count_native, zero_interval_share, Prepared};
+use crate::paper::PAPER;
+use mft_kernels::{MftStats, Shrink};
+use repro::{AppError, AppResult};
+use scene::workload::SampleSplit;
+
+/// 4 x 4 pixel groups in the paper's 1024 x 1024 image.
+pub const PAPER_SETS: f64 = 65_536.0;
+
+/// One method's soft-shadow counts per set of 16 frusta.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PerSet {
+    /// 16-wide AABB tests.
+    pub aabb_tests: f64,
+    /// Triangles accessed.
+    pub tris_accessed: f64,
+    /// Triangles after culling.
+    pub tris_after_culling: f64,
+    /// 16-wide intersection tests.
+    pub isec_tests: f64,
+}
+
+impl PerSet {
+    /// `st` over `sets` sets.
+    #[must_use]
+    pub fn of(st: &MftStats, sets: f64) -> PerSet {
+        let d = sets.max(1.0);
+        PerSet {
+            aabb_tests: st.aabb_tests as f64 / d,
+            tris_accessed: st.tris_accessed as f64 / d,
+            tris_after_culling: st.tris_after_culling as f64 / d,
+            isec_tests: st.isec_tests as f64 / d,
+        }
+    }
+
+    /// The four counts with their row names.
+    #[must_use]
+    pub fn named(&self) -> [(&'static str, f64); 4] {
+        [
+            ("aabb_tests", self.aabb_tests),
+            ("tris_accessed", self.tris_accessed),
+            ("tris_after_culling", self.tris_after_culling),
+            ("isec_tests", self.isec_tests),
+        ]
+    }
+}
+
+/// The paper's per-set soft-shadow counts of `scene` (a Table 1 key):
+/// (packets, frusta), each (S - P) / 65,536. Packets' "after culling" is
+/// the paper's figure where it gives one.
+#[must_use]
+pub fn paper_per_set(scene: &str) -> Option<(PerSet, PerSet)> {
+    let (_, _, rows) = PAPER.iter().find(|(k, _, _)| *k == scene)?;
+    let of = |s: usize, p: usize| PerSet {
+        aabb_tests: (rows[s].2 - rows[p].2) * 1e3 / PAPER_SETS,
+        tris_accessed: (rows[s].0 - rows[p].0) * 1e3 / PAPER_SETS,
+        tris_after_culling: (rows[s].1.unwrap_or(rows[s].0) - rows[p].1.unwrap_or(rows[p].0)) * 1e3
+            / PAPER_SETS,
+        isec_tests: (rows[s].3 - rows[p].3) * 1e3 / PAPER_SETS,
+    };
+    Some((of(2, 0), of(3, 1)))
+}
+
+/// What [`shadow_per_set`] measured.
+#[derive(Clone, Debug)]
+pub struct ShadowCounts {
+    /// The scene's name (its Table 1 key for a stand-in).
+    pub name: String,
+    /// Soft-shadow sets with a hit over the image.
+    pub sets: usize,
+    /// 4 x 4 pixel groups of the image.
+    pub groups: usize,
+    /// 16-ray packets per set.
+    pub packets: PerSet,
+    /// Multi-frusta per set.
+    pub frusta: PerSet,
+    /// Share of active shadow frusta whose direction interval holds zero.
+    pub zero_share: f64,
+}
+
+/// Soft-shadow counts per set of `scene` (a built-in name or a `.ron`
+/// file) at `res` x `res`, counted natively over every `every`-th set in
+/// render order (1: all), each pixel's samples from `split`. For matching a
+/// stand-in's light on Table 1's counts: no simulation, seconds per scene.
+pub fn shadow_per_set(
+    scene: &str,
+    res: u32,
+    every: u32,
+    split: SampleSplit,
+) -> AppResult<ShadowCounts> {
+    if res < 16 || !res.is_multiple_of(16) {
+        return Err(AppError(format!(
+            "--res {res}: the frusta need a multiple of 16 pixels"
+        )));
+    }
+    let pr = Prepared::new(scene, res, "shadow counts", false)?.with_split(split);
+    let fl = sim::MachineConfig::load(crate::MACHINE)
+        .map_err(|e| AppError(e.to_string()))?
+        .flavour();
+    let b = bands(&pr.shadow, every);
+    let packets = count_native(fl, &pr.shadow, &b, |s| pr.packets(s));
+    let frusta = count_native(fl, &pr.shadow, &b, |s| pr.frusta(s, false, Shrink::None));
+    // count_native scales sampled counts to all sets; per set over all.
+    let n = pr.shadow.len() as f64;
+    Ok(ShadowCounts {
+        name: pr.scene.config.name.clone(),
+        sets: pr.shadow.len(),
+        groups: (res as usize / 4).pow(2),
+        packets: PerSet::of(&packets.stats, n),
+        frusta: PerSet::of(&frusta.stats, n),
+        zero_share: zero_interval_share(&pr.shadow),
+    })
+}

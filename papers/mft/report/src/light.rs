@@ -30,7 +30,7 @@ const SCALES: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
 const OFFSETS: [f64; 4] = [0.0, 0.5, 1.0, 2.0];
 
 /// The paper's Figure 6 scenes, and Fairy Forest (not in the figure; the
-/// stand-in where soft-shadow frusta lose most to packets in mft-table1).
+/// stand-in farthest from Table 1's per-set counts in mft-table1).
 const SCENES: [&str; 4] = ["trex", "fern", "saloon", "fairy"];
 
 /// `rtsim reproduce mft-fig6`.

@@ -98,7 +98,7 @@ pub fn shadow_per_set(
 ) -> AppResult<ShadowCounts> {
     if res < 16 || !res.is_multiple_of(16) {
         return Err(AppError(format!(
-            "--res {res}: the frusta need a multiple of 16 pixels"
+            "resolution {res}: the frusta need a multiple of 16 pixels"
         )));
     }
     let pr = Prepared::new(scene, res, "shadow counts", false)?.with_split(split);
@@ -118,4 +118,44 @@ pub fn shadow_per_set(
         frusta: PerSet::of(&frusta.stats, n),
         zero_share: zero_interval_share(&pr.shadow),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Table 1's T-Rex rows, by hand: S - P over 65,536 groups.
+    #[test]
+    fn the_paper_s_per_set_counts_are_its_shadow_rows_less_its_primary_rows() {
+        let (pk, fr) = paper_per_set("trex").unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+        assert!(close(pk.aabb_tests, (36_234e3 - 1_218e3) / 65_536.0));
+        assert!(close(pk.tris_accessed, (10_957e3 - 399e3) / 65_536.0));
+        // P-Packet gives no after-culling figure: its triangles stand in.
+        assert!(close(pk.tris_after_culling, (7_298e3 - 399e3) / 65_536.0));
+        assert!(close(fr.tris_accessed, (3_575e3 - 173e3) / 65_536.0));
+        assert!(close(fr.tris_after_culling, (725e3 - 42e3) / 65_536.0));
+        assert!(close(fr.isec_tests, (5_527e3 - 125e3) / 65_536.0));
+        assert!(paper_per_set("bunny").is_none());
+    }
+
+    #[test]
+    fn per_set_divides_by_the_sets() {
+        let st = MftStats {
+            aabb_tests: 30,
+            tris_accessed: 20,
+            tris_after_culling: 10,
+            isec_tests: 40,
+            ..MftStats::default()
+        };
+        let p = PerSet::of(&st, 10.0);
+        assert_eq!(p.named().map(|x| x.1), [3.0, 2.0, 1.0, 4.0]);
+        assert_eq!(PerSet::of(&st, 0.0).aabb_tests, 30.0, "no sets: over one");
+    }
+
+    #[test]
+    fn a_resolution_the_frusta_cannot_tile_is_an_error() {
+        let e = shadow_per_set("trex", 100, 1, SampleSplit::Nets).unwrap_err();
+        assert!(e.0.starts_with("resolution 100"), "{}", e.0);
+    }
 }

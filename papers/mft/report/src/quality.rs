@@ -141,7 +141,7 @@ pub fn mft_quality(a: &ReproduceArgs) -> AppResult<Produced> {
     notes.push(format!("images: {}", files.join(", ")));
     let (m, batches, per_p, per_s, bands) = (&st.m, st.batches, st.per_p, st.per_s, st.bands);
     notes.push(format!(
-        "{scene_name} (T-Rex stand-in, {} triangles) at {res}x{res}: MFT with 16 interleaved Hammersley samples per pixel (pixel k of each 4 x 4 tile takes set k: one sample in each 1/16 column of one 1/16 row of the light), shading from the light's centre, 4 x 4 discontinuity filter (depth within {}%, normals within cos {}) against 256 samples per pixel traced as 16-ray packets without filtering (the paper's Figure 5); RMSE over all {npx} pixels of linear values in [0, 1], PSNR = 20 log10(1 / RMSE); penumbra rows over the {npen} pixels the reference sees partly lit",
+        "{scene_name} (T-Rex stand-in, {} triangles) at {res}x{res}: MFT with 16 interleaved Hammersley samples per pixel (pixel k of each 4 x 4 tile takes set k, the paper's sets: a 16-point net over the whole light, one sample in each 1/16 row and each 1/16 column), shading from the light's centre, 4 x 4 discontinuity filter (depth within {}%, normals within cos {}) against 256 samples per pixel traced as 16-ray packets without filtering (the paper's Figure 5); RMSE over all {npx} pixels of linear values in [0, 1], PSNR = 20 log10(1 / RMSE); penumbra rows over the {npen} pixels the reference sees partly lit",
         pr.scene.mesh.len(),
         100.0 * mft_kernels::shade::DEPTH_TOL,
         mft_kernels::shade::NORMAL_COS

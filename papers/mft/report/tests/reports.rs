@@ -102,6 +102,44 @@ fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
             get(scene, "p-packet", "aabb_tests") > 4.0 * get(scene, "p-frusta", "aabb_tests"),
             "{scene}: frusta cut box tests"
         );
+        // Per set of 16 shadow frusta: ours beside the paper's, with the
+        // ratio, for the default split; the strip split counted beside.
+        let split_rows = |method: &str,
+                          metric: &str,
+                          split: Option<&str>|
+         -> Vec<&serde_json::Value> {
+            rows.iter()
+                .filter(|r| r["scene"] == scene && r["method"] == method && r["metric"] == metric)
+                .filter(|r| r.get("split").and_then(|v| v.as_str()) == split)
+                .collect()
+        };
+        for method in ["s-packet", "s-frusta"] {
+            for count in [
+                "aabb_tests",
+                "tris_accessed",
+                "tris_after_culling",
+                "isec_tests",
+            ] {
+                let metric = format!("per_set_{count}");
+                let r = split_rows(method, &metric, None);
+                assert_eq!(r.len(), 1, "{scene} {method} {metric}");
+                let (v, p) = (
+                    r[0]["value"].as_f64().unwrap(),
+                    r[0]["paper"].as_f64().unwrap(),
+                );
+                assert!(v > 0.0 && p > 0.0, "{scene} {method} {metric}");
+                let x = split_rows(method, &format!("{metric}_vs_paper"), None);
+                assert!((x[0]["value"].as_f64().unwrap() - v / p).abs() < 1e-9);
+                assert_eq!(split_rows(method, &metric, Some("strips")).len(), 1);
+            }
+        }
+        let strips_bad = rows
+            .iter()
+            .find(|r| {
+                r["scene"] == scene && r["split"] == "strips" && r["metric"] == "hit_mismatches"
+            })
+            .expect("the strip split's hits checked");
+        assert_eq!(strips_bad["value"], 0.0, "{scene} strips");
     }
 }
 
@@ -181,7 +219,10 @@ fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
     // light, a pixel's own 16 samples are already a good estimate and the
     // filter mostly blurs: no claim that it beats them.)
     let (f, raw) = (get("mft", "psnr"), get("mft-unfiltered", "psnr"));
-    assert!(f > 30.0 && raw > 30.0, "filtered {f} dB, unfiltered {raw} dB");
+    assert!(
+        f > 30.0 && raw > 30.0,
+        "filtered {f} dB, unfiltered {raw} dB"
+    );
     assert!(get("mft", "cycles") < get("reference", "cycles"));
     for name in ["mft", "mft-unfiltered", "reference", "diff4x"] {
         let p = dir.join(format!("mft-quality-{name}.png"));

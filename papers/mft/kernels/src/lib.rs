@@ -124,9 +124,31 @@ pub enum PlaneNoise {
     /// The edge tests' verdict stands (the paper).
     Keep,
     /// Such rays miss: 5 more ops per intersection test and 5 per
-    /// triangle a frustum reaches (the noise floor, stored).
+    /// triangle a frustum reaches (the noise floor, stored). Charged to the
+    /// 16-ray packet baseline too ([`PacketPrimaryRun::plane_noise`]), so
+    /// the comparison is even.
     #[default]
     Reject,
+}
+
+/// The interval slab test of a node's boxes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum SlabTest {
+    /// The paper's `SlabsTest` (Appendix A): the near and far plane of each
+    /// axis picked once per frusta set by an offset table from the sign of
+    /// the set's directions, so a box costs 6 multiplies with the plane as a
+    /// broadcast memory operand, 2 max and 2 min over the axes, the clamps
+    /// to 0 and to the distance, and the compare: 13 VPU ops (shadow frusta:
+    /// 6 subtractions of their own origins more). It needs every active
+    /// frustum's direction interval to keep one sign on each axis; a set
+    /// where one does not (an interval holding zero, or frusta of both
+    /// signs) takes the sign-free test below (one branch per set).
+    #[default]
+    Paper,
+    /// A named variant: the sign-free test for every set: per axis entry
+    /// min(lo rlo, hi rhi) and exit max(lo rlo, hi rhi), the zero-interval
+    /// lanes masked out (20 VPU ops a box), then the zero-interval fix.
+    SignFree,
 }
 
 /// Frustum shrinking for partly occluded shadow frusta (the paper's section
@@ -212,9 +234,11 @@ pub mod site {
     pub const BOX_FRUSTUM: Site = isa::sites::MFT.at(15);
     /// Next frustum to shrink (CR, FS)?
     pub const SHRINK: Site = isa::sites::MFT.at(16);
+    /// Does the set keep one sign per axis (the paper's slab test)?
+    pub const ONE_SIGN: Site = isa::sites::MFT.at(17);
 
     /// Every site of the module (checked for duplicates by the layout test).
-    pub const ALL: [Site; 17] = [
+    pub const ALL: [Site; 18] = [
         STACK,
         LEAF,
         CHILDREN,
@@ -232,6 +256,7 @@ pub mod site {
         LEAF_BOX,
         BOX_FRUSTUM,
         SHRINK,
+        ONE_SIGN,
     ];
 }
 
@@ -467,6 +492,8 @@ pub struct MftBufs {
     pub shrink: Shrink,
     /// Rays nearly in a triangle's plane.
     pub plane_noise: PlaneNoise,
+    /// The slab test of a node's boxes.
+    pub slab: SlabTest,
     /// Per-ray reciprocal directions of the 256-ray packet traversal.
     pub rcp: Buf,
     /// Frusta terminated because all their rays were occluded.
@@ -498,6 +525,7 @@ impl MftBufs {
             packets256: false,
             shrink: Shrink::None,
             plane_noise: PlaneNoise::Reject,
+            slab: SlabTest::Paper,
             rcp: sp.alloc(MemKind::Rays, "packet-rcp", 64 * 48, 64),
             terminated: 0,
             stats: MftStats::default(),
@@ -559,6 +587,7 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
         culls: [0, 1, 2].map(|_| m.mask(0)),
         any_zero: [0, 1, 2].map(|_| m.int(0)),
         corner,
+        signs: None,
     };
     fr_regs.zero_axes(m);
     let fmax = m.splat(f32::MAX);
@@ -578,6 +607,8 @@ pub fn trace<M: Machine>(m: &mut M, s: &Bvh2Bufs, b: &mut MftBufs, cull_back: bo
     let p256 = b.packets256;
     if p256 {
         store_ray_rcp(m, b, &delta);
+    } else if b.slab == SlabTest::Paper {
+        fr_regs.signs = one_sign(m, &fr_regs, all);
     }
     let zero = m.int(0);
     let leaf_flag = m.int(i64::from(LEAF));
@@ -764,6 +795,28 @@ fn frusta_node<M: Machine>(
     };
     let r = fr_regs;
     let test = |m: &mut M, child: usize| {
+        if let Some(pos) = r.signs {
+            // The paper's SlabsTest: per axis the near plane (lo for a
+            // positive direction, hi for a negative one) times the
+            // reciprocal nearest zero's other end, the far plane likewise,
+            // as the set's offset table picks them.
+            let t = |m: &mut M, a: usize, far: bool| {
+                let hi_plane = pos[a] == far;
+                let p = plane(m, a, hi_plane, child);
+                let rc = if hi_plane { r.rhi[a] } else { r.rlo[a] };
+                m.mul(p, rc)
+            };
+            let (nx, ny, nz) = (t(m, 0, false), t(m, 1, false), t(m, 2, false));
+            let (xx, xy, xz) = (t(m, 0, true), t(m, 1, true), t(m, 2, true));
+            let min_dist = m.max(nx, ny);
+            let min_dist = m.max(min_dist, nz);
+            let max_dist = m.min(xx, xy);
+            let max_dist = m.min(max_dist, xz);
+            let near = m.max(min_dist, zero_v);
+            let far = m.min(max_dist, dist);
+            let hit = m.cmp(Cmp::Le, near, far);
+            return (near, far, m.kand(hit, mask));
+        }
         let mut near = zero_v;
         let mut far = dist;
         for a in 0..3 {
@@ -791,7 +844,8 @@ fn frusta_node<M: Machine>(
     // zero, the rays reach only o + [near, far] x [dlo, dhi] there.
     // Only the axes where some frustum's interval holds zero (a branch each).
     let r = &fr_regs;
-    for a in 0..3 {
+    // A set of one sign per axis has no direction interval holding zero.
+    for a in (0..3).filter(|_| r.signs.is_none()) {
         if !m.branch(site::ZERO, r.any_zero[a]) {
             continue;
         }
@@ -849,6 +903,10 @@ struct Regs<M: Machine> {
     /// Per axis: any lane whose interval holds zero (a scalar for the branch).
     any_zero: [M::S; 3],
     corner: [[M::F; 3]; 4],
+    /// The paper's slab test: per axis whether every active frustum's
+    /// direction is positive (else every one is negative); `None`: the
+    /// sign-free test.
+    signs: Option<[bool; 3]>,
 }
 
 impl<M: Machine> Regs<M> {
@@ -863,6 +921,28 @@ impl<M: Machine> Regs<M> {
         self.culls = self.zero_axis.map(|z| m.knot(z));
         self.any_zero = self.zero_axis.map(|z| m.any(z));
     }
+}
+
+/// The offset table of the paper's `SlabsTest` for a frusta set: per axis,
+/// whether every active frustum (bits `active`) has a positive direction
+/// interval (else every one a negative one); `None` (one branch) when some
+/// axis has both signs or an interval holding zero.
+fn one_sign<M: Machine>(m: &mut M, r: &Regs<M>, active: M::S) -> Option<[bool; 3]> {
+    let zero_v = m.splat(0.0);
+    let mut ok = m.int(1);
+    let mut pos = [false; 3];
+    for a in 0..3 {
+        let p = m.cmp(Cmp::Gt, r.dlo[a], zero_v);
+        let n = m.cmp(Cmp::Lt, r.dhi[a], zero_v);
+        let (pb, nb) = (m.movemask(p), m.movemask(n));
+        let (pa, na) = (m.s_and(pb, active), m.s_and(nb, active));
+        let all_p = m.s_cmp(Cmp::Eq, pa, active);
+        let all_n = m.s_cmp(Cmp::Eq, na, active);
+        let one = m.s_op(isa::SOp::Or, all_p, all_n);
+        ok = m.s_and(ok, one);
+        pos[a] = all_p.get() != 0;
+    }
+    m.branch(site::ONE_SIGN, ok).then_some(pos)
 }
 
 /// A mask register from frustum bits stored as a u32 at `at` of `buf`: a
@@ -1028,40 +1108,81 @@ fn dot3<M: Machine>(m: &mut M, p: [M::F; 3], q: [M::F; 3]) -> M::F {
 type Edges<M> = Vec<[<M as Machine>::F; 3]>;
 
 /// A leaf triangle as every frustum sees it: vertices relative to each
-/// frustum's origin, the normal, `a . n` (orientation and distance), the
-/// triangle id (as f32 bits) and the sign masks of `a . n`.
-struct LeafTri<M: Machine> {
+/// frustum's origin, the normal, `a . n` (orientation and distance), where
+/// its id is (read, as f32 bits, only when a ray hits it) and the sign
+/// masks of `a . n`.
+struct LeafTri<'t, M: Machine> {
     a: [M::F; 3],
     bv: [M::F; 3],
     cv: [M::F; 3],
     nrm: [M::F; 3],
     an: M::F,
-    prim_f: M::F,
+    /// The triangle block's buffer, the block's byte offset and the slot.
+    id_at: (&'t Buf, M::S, usize),
     front: M::K,
     back: M::K,
 }
 
+impl<M: Machine> LeafTri<'_, M> {
+    /// The triangle's id broadcast to every lane (as f32 bits): read when a
+    /// ray hits it, not per triangle.
+    fn prim_f(&self, m: &mut M) -> M::F {
+        let (tris, bb, j) = self.id_at;
+        m.load_bcast(tris, At::idx(bb, 1, 32 * 9 + 4 * j))
+    }
+}
+
 /// Triangle `j` of the block at byte `bb`, broadcast to all frusta.
-fn load_triangle<M: Machine>(
+fn load_triangle<'t, M: Machine>(
     m: &mut M,
-    tris: &Buf,
+    tris: &'t Buf,
     bb: M::S,
     j: usize,
     org: &[M::F; 3],
     zero_v: M::F,
-) -> LeafTri<M> {
-    let mut r = |k: usize| m.load_bcast(tris, At::idx(bb, 1, 32 * k + 4 * j));
-    let (e1, e2) = ([r(3), r(4), r(5)], [r(6), r(7), r(8)]);
-    let prim_f = r(9);
+) -> LeafTri<'t, M> {
+    // e2 in registers; e1 (and v0) read at each use as the op's broadcast
+    // memory operand (LRBni's {1to16}: no issue slot), so e1 costs no load.
+    let at = |k: usize| At::idx(bb, 1, 32 * k + 4 * j);
+    let e2 = [6, 7, 8].map(|k| m.load_bcast(tris, at(k)));
     // Vertices relative to each frustum's origin; v0 is read once, as the
     // subtraction's broadcast memory operand.
     let a = [0, 1, 2].map(|i| {
-        let v0 = m.load_operand(tris, At::idx(bb, 1, 32 * i + 4 * j), 1);
+        let v0 = m.load_operand(tris, at(i), 1);
         m.sub(v0, org[i])
     });
-    let bv = [0, 1, 2].map(|i| m.add(a[i], e1[i]));
+    let bv = [0, 1, 2].map(|i| {
+        let e1 = m.load_operand(tris, at(3 + i), 1);
+        m.add(e1, a[i])
+    });
     let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
-    let nrm = cross3(m, e1, e2);
+    // n = e1 x e2, each e1 component a memory operand of its op (fmsub form).
+    let e1op = |m: &mut M, i: usize| m.load_operand(tris, at(3 + i), 1);
+    let x0 = {
+        let e = e1op(m, 2);
+        m.mul(e, e2[1])
+    };
+    let x = {
+        let e = e1op(m, 1);
+        m.fmsub(e, e2[2], x0)
+    };
+    let y0 = {
+        let e = e1op(m, 0);
+        m.mul(e, e2[2])
+    };
+    let y = {
+        let e = e1op(m, 2);
+        m.fmsub(e, e2[0], y0)
+    };
+    let z0 = {
+        let e = e1op(m, 1);
+        m.mul(e, e2[0])
+    };
+    let z = {
+        let e = e1op(m, 0);
+        m.fmsub(e, e2[1], z0)
+    };
+    let nrm = [x, y, z];
     let an = dot3(m, a, nrm);
     // Orientation: front faces (origin on the normal's side) have a.n < 0.
     let front = m.cmp(Cmp::Lt, an, zero_v);
@@ -1072,7 +1193,7 @@ fn load_triangle<M: Machine>(
         cv,
         nrm,
         an,
-        prim_f,
+        id_at: (tris, bb, j),
         front,
         back,
     }
@@ -1084,7 +1205,7 @@ fn load_triangle<M: Machine>(
 /// computed. The frusta left and the edge normals; `None`: none left.
 fn cull_triangle<M: Machine>(
     m: &mut M,
-    t3: &LeafTri<M>,
+    t3: &LeafTri<'_, M>,
     (mask, alive): (M::K, Option<M::K>),
     (corner, zero_v): (&[[M::F; 3]; 4], M::F),
     cull_back: bool,
@@ -1140,7 +1261,12 @@ fn cull_triangle<M: Machine>(
 /// normals, `a . n`, and the noise floor of `d . E` in f32 (about 4 ulp x
 /// |a|^2 x |d| for cross products of two long, nearly parallel vectors),
 /// kept squared as (4 eps)^2 |a|^4.
-fn store_per_frustum<M: Machine>(m: &mut M, b: &mut MftBufs, t3: &LeafTri<M>, edges: &[[M::F; 3]]) {
+fn store_per_frustum<M: Machine>(
+    m: &mut M,
+    b: &mut MftBufs,
+    t3: &LeafTri<'_, M>,
+    edges: &[[M::F; 3]],
+) {
     let mut slot = 0;
     let mut keep = |m: &mut M, buf: &mut Buf, v: M::F| {
         m.store(buf, At::off(64 * slot), v);
@@ -1169,7 +1295,7 @@ fn store_per_frustum<M: Machine>(m: &mut M, b: &mut MftBufs, t3: &LeafTri<M>, ed
 fn intersect_rays<M: Machine>(
     m: &mut M,
     b: &mut MftBufs,
-    t3: &LeafTri<M>,
+    t3: &LeafTri<'_, M>,
     (tmask, nedges): (M::K, usize),
     delta: &[M::F; 3],
     zero_v: M::F,
@@ -1229,7 +1355,8 @@ fn intersect_rays<M: Machine>(
             hit = m.kand(hit, live);
             let any = m.any(hit);
             if m.branch(site::RAY_HIT, any) {
-                m.store_masked(hit, &mut b.hits, At::off(ht + 64), t3.prim_f);
+                let prim_f = t3.prim_f(m);
+                m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
                 let new = m.movemask(hit);
                 let old = m.s_load(&b.occl, At::off(4 * n), 4, false);
                 let now = m.s_op(isa::SOp::Or, old, new);
@@ -1253,7 +1380,8 @@ fn intersect_rays<M: Machine>(
             let any = m.any(hit);
             if m.branch(site::RAY_HIT, any) {
                 m.store_masked(hit, &mut b.hits, At::off(ht), t);
-                m.store_masked(hit, &mut b.hits, At::off(ht + 64), t3.prim_f);
+                let prim_f = t3.prim_f(m);
+                m.store_masked(hit, &mut b.hits, At::off(ht + 64), prim_f);
                 let bit = m.int(1 << n);
                 *updated = m.s_op(isa::SOp::Or, *updated, bit);
             }
@@ -1455,6 +1583,8 @@ pub struct FrustaRun<'a> {
     pub shrink: Shrink,
     /// Rays nearly in a triangle's plane (the paper's kernel: `Keep`).
     pub plane_noise: PlaneNoise,
+    /// The slab test of a node's boxes.
+    pub slab: SlabTest,
 }
 
 impl Program for FrustaRun<'_> {
@@ -1498,6 +1628,7 @@ impl UnitProgram for FrustaRun<'_> {
         b.packets256 = self.packets256;
         b.shrink = self.shrink;
         b.plane_noise = self.plane_noise;
+        b.slab = self.slab;
         trace(m, s, &mut b, self.cull_back);
         let hits = (0..FRUSTA)
             .flat_map(|n| (0..FRUSTA).map(move |k| (n, k)))
@@ -1611,6 +1742,10 @@ pub struct PacketPrimaryRun<'a> {
     pub cull_back: bool,
     /// Where the packets' leaves read triangles from.
     pub leaves: PacketLeaves,
+    /// Rays nearly in a triangle's plane (front faces only: with back-face
+    /// culling, `Reject` runs the same robustness test as MFT's, in
+    /// Moller-Trumbore's terms: [`rt::single::Sides::FrontNoGrazing`]).
+    pub plane_noise: PlaneNoise,
 }
 
 /// Where the 16-ray packet baseline's leaves read triangles from.
@@ -1664,10 +1799,10 @@ impl UnitProgram for PacketPrimaryRun<'_> {
         let tf = vec![0.0f32; FRUSTA * FRUSTA];
         let mut pb = rt::packet::PacketBufs::new(m, &full, &full, &tf, None);
         pb.reload(FRUSTA, &org, &dir, &tfar, None);
-        pb.sides = if self.cull_back {
-            Sides::Front
-        } else {
-            Sides::Both
+        pb.sides = match (self.cull_back, self.plane_noise) {
+            (true, PlaneNoise::Reject) => Sides::FrontNoGrazing,
+            (true, PlaneNoise::Keep) => Sides::Front,
+            (false, _) => Sides::Both,
         };
         pb.tri_form = match form {
             rt::packet::TriForm::Indexed(ix) => rt::packet::TriForm::Indexed(ix.clone()),

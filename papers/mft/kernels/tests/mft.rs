@@ -72,6 +72,7 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
             packets256: false,
             shrink: mft_kernels::Shrink::None,
             plane_noise: mft_kernels::PlaneNoise::Reject,
+            slab: mft_kernels::SlabTest::Paper,
         };
         let (traced, stats) = isa::record(&run, FlavourId::Lrb16, "mft").1;
         assert_eq!(
@@ -98,6 +99,18 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
             n, 0,
             "mft without the robustness test {label}: {n} rays differ"
         );
+        // The sign-free slab test (the named variant): the same hits and
+        // counts as the paper's offset-table test.
+        let free = FrustaRun {
+            slab: mft_kernels::SlabTest::SignFree,
+            sets: sets.to_vec(),
+            ..run
+        };
+        assert_eq!(
+            isa::run_native(&free, FlavourId::Lrb16),
+            (traced.clone(), stats),
+            "{label}: the sign-free slab test answers and counts the same"
+        );
         let hits = traced.iter().filter(|h| h.is_hit()).count();
         assert!(hits > traced.len() / 16, "{label}: some hits ({hits})");
         assert!(stats.aabb_tests > 0 && stats.isec_tests > 0, "{stats:?}");
@@ -108,6 +121,7 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
             sets: sets.to_vec(),
             cull_back,
             leaves: mft_kernels::PacketLeaves::Indexed,
+            plane_noise: mft_kernels::PlaneNoise::Reject,
         };
         let (ptraced, pstats) = isa::record(&pr, FlavourId::Lrb16, "p16").1;
         assert_eq!(
@@ -253,6 +267,7 @@ fn mft_shadow_frusta_match_the_reference() {
             packets256: false,
             shrink,
             plane_noise: mft_kernels::PlaneNoise::Reject,
+            slab: mft_kernels::SlabTest::Paper,
         };
         let (out, st) = isa::record(&run, FlavourId::Lrb16, "shrink").1;
         assert_eq!((out.clone(), st), isa::run_native(&run, FlavourId::Lrb16));
@@ -313,6 +328,7 @@ fn every_mft_scene_at_small_resolution_matches_the_reference() {
                     packets256,
                     shrink,
                     plane_noise: mft_kernels::PlaneNoise::Reject,
+                    slab: mft_kernels::SlabTest::Paper,
                 },
                 FlavourId::Lrb16,
             )

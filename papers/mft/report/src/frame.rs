@@ -279,6 +279,23 @@ pub(crate) fn zero_interval_share(shadow: &[Frusta]) -> f64 {
     zero as f64 / lanes.max(1) as f64
 }
 
+/// Share of frusta sets whose active frusta keep one sign per axis (no
+/// direction interval holding zero): the sets the paper's slab test serves
+/// (`mft_kernels::SlabTest::Paper`); the rest take the sign-free test.
+pub(crate) fn one_sign_share(sets: &[Frusta]) -> f64 {
+    let one = |f: &Frusta| {
+        let rec = f.record();
+        let lanes: Vec<usize> = (0..16).filter(|&n| f.active & (1 << n) != 0).collect();
+        (0..3).all(|a| {
+            let lo = |n: usize| rec[(mft_kernels::row::DIR_LO + a) * 16 + n];
+            let hi = |n: usize| rec[(mft_kernels::row::DIR_HI + a) * 16 + n];
+            lanes.iter().all(|&n| lo(n) > 0.0) || lanes.iter().all(|&n| hi(n) < 0.0)
+        })
+    };
+    let n = sets.iter().filter(|f| one(f)).count();
+    n as f64 / sets.len().max(1) as f64
+}
+
 /// The machine of a 16-lane MFT report (the report's own, Larrabee, unless
 /// `--machine` names another): an error unless it has 16 lanes.
 pub(crate) fn lrb_machine(a: &ReproduceArgs, name: &str) -> AppResult<sim::MachineConfig> {
@@ -453,6 +470,7 @@ impl Prepared {
             packets256,
             shrink,
             plane_noise: mft_kernels::PlaneNoise::Reject,
+            slab: mft_kernels::SlabTest::Paper,
         }
     }
 
@@ -464,6 +482,7 @@ impl Prepared {
             sets,
             cull_back: true,
             leaves: mft_kernels::PacketLeaves::Indexed,
+            plane_noise: mft_kernels::PlaneNoise::Reject,
         }
     }
 }

@@ -12,7 +12,7 @@ use crate::paper::*;
 use crate::perset::{paper_per_set, PerSet};
 use mft_kernels::{
     checked_rays, mismatches_expected, Frusta, FrustaRun, MftStats, PacketLeaves, PacketPrimaryRun,
-    PlaneNoise, Shrink,
+    PlaneNoise, Shrink, SlabTest,
 };
 use rayon::prelude::*;
 use repro::sampling::{paired_ratio_systematic as paired_ratio, separates};
@@ -167,6 +167,13 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
             let (row, note) = variant_costs(&su, &pr, scene_name)?;
             rows.extend(row);
             notes.push(note);
+        }
+        for (rays, sets) in [("primary", &pr.primary), ("shadow", &pr.shadow)] {
+            rows.push(
+                Row::new("one_sign_share", one_sign_share(sets))
+                    .key("scene", scene_name)
+                    .key("rays", rays),
+            );
         }
         let share = zero_interval_share(&pr.shadow);
         rows.push(
@@ -500,11 +507,12 @@ fn unit_cost_rows(rows: &mut Vec<Row>, smp: &Sample, (scene_name, mi, p256): (&s
     }
 }
 
-/// What the kernels' named variants cost (first scene only): MFT's
+/// What the kernels' named variants cost (first scene only): the
 /// robustness test (rays nearly in a triangle's plane miss; not in the
-/// paper, on by default) against the paper's form without it, and the packet
-/// baseline with precomputed-edge leaves instead of vertex indices; cycles
-/// of the same samples.
+/// paper, on by default for both methods) against the paper's forms without
+/// it, the sign-free slab test against the paper's, and the packet baseline
+/// with precomputed-edge leaves instead of vertex indices; cycles of the
+/// same samples.
 fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<Row>, String)> {
     let (m, b) = (&su.m, su.batches);
     let mut rows = Vec::new();
@@ -544,6 +552,59 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
         parts.push(format!(
             "{}: x{ratio:.3} cycles, {ops:.1} instructions per intersection test",
             method_name(mi, false)
+        ));
+    }
+    // The packet baseline pays the same test (Moller-Trumbore's form).
+    for (mi, sets, per) in [(0usize, &pr.primary, su.per_p), (2, &pr.shadow, su.per_s)] {
+        let with = |noise| {
+            move |sets: Vec<Frusta>| PacketPrimaryRun {
+                plane_noise: noise,
+                ..pr.packets(sets)
+            }
+        };
+        let key = (su.seed, &su.progress);
+        let keep = sample(m, sets, b, per, key, with(PlaneNoise::Keep))?;
+        let reject = sample(m, sets, b, per, key, with(PlaneNoise::Reject))?;
+        let ratio = reject.cycles / keep.cycles.max(1.0);
+        let tests = keep.stats.isec_tests.max(1) as f64;
+        let ops = (reject.regions.ops as f64 - keep.regions.ops as f64) / tests;
+        rows.push(keyed(
+            Row::new("plane_noise_cycle_ratio", ratio),
+            scene_name,
+            mi,
+            false,
+        ));
+        parts.push(format!(
+            "{}: x{ratio:.3} cycles, {ops:.1} instructions per intersection test",
+            method_name(mi, false)
+        ));
+    }
+    // The slab test: the paper's offset table (default) against the
+    // sign-free variant, on the same runs.
+    let mut sparts = Vec::new();
+    for (mi, sets, per) in [(1usize, &pr.primary, su.per_p), (3, &pr.shadow, su.per_s)] {
+        let with = |slab| {
+            move |sets: Vec<Frusta>| FrustaRun {
+                slab,
+                ..pr.frusta(sets, false, Shrink::None)
+            }
+        };
+        let key = (su.seed, &su.progress);
+        let paper = sample(m, sets, b, per, key, with(SlabTest::Paper))?;
+        let free = sample(m, sets, b, per, key, with(SlabTest::SignFree))?;
+        let ratio = free.cycles / paper.cycles.max(1.0);
+        let (pa, _) = paper.per(isa::Region::Traversal, paper.stats.aabb_tests);
+        let (fa, _) = free.per(isa::Region::Traversal, free.stats.aabb_tests);
+        rows.push(keyed(
+            Row::new("sign_free_slab_cycle_ratio", ratio),
+            scene_name,
+            mi,
+            false,
+        ));
+        sparts.push(format!(
+            "{}: x{ratio:.3} cycles, {fa:.1} traversal instructions per AABB test against {pa:.1} ({} of its sets keep one sign per axis)",
+            method_name(mi, false),
+            format_args!("{:.0}%", 100.0 * one_sign_share(sets))
         ));
     }
     // The packet baseline's leaves: vertex indices (the paper, default)
@@ -589,8 +650,9 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
     Ok((
         rows,
         format!(
-            "the robustness test (rays nearly in a triangle's plane miss; not in the paper; on here, as without it a grazing ray of the full-size T-Rex image hits a triangle the reference misses) costs on {scene_name}: {}; the packet baseline reads three vertex indices per triangle as the paper's; its precomputed-edge variant on {scene_name}: {}",
+            "the robustness test (rays nearly in a triangle's plane miss; not in the paper; on for both methods, as without it a grazing ray of the full-size T-Rex image hits a triangle the reference misses in MFT's test; the packets' Moller-Trumbore form rejects |det| within (4 eps) |e1| |e2| |d|) costs on {scene_name}: {}; the sign-free slab test (a named variant) against the paper's offset-table SlabsTest (the default, on the sets that keep one sign per axis; the others take the sign-free test) on {scene_name}: {}; the packet baseline reads three vertex indices per triangle as the paper's; its precomputed-edge variant on {scene_name}: {}",
             parts.join("; "),
+            sparts.join("; "),
             pparts.join("; ")
         ),
     ))

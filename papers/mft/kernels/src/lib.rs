@@ -1746,6 +1746,24 @@ pub struct PacketPrimaryRun<'a> {
     /// culling, `Reject` runs the same robustness test as MFT's, in
     /// Moller-Trumbore's terms: [`rt::single::Sides::FrontNoGrazing`]).
     pub plane_noise: PlaneNoise,
+    /// Which 16 rays of a set form one packet.
+    pub grouping: PacketGrouping,
+}
+
+/// Which 16 of a soft-shadow set's 256 rays the packet baseline traces
+/// together (the paper does not say; primary packets are always a
+/// frustum's 4 x 4 pixel grid).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PacketGrouping {
+    /// Ray k of every frustum: the 4 x 4 pixels' hit points toward their
+    /// k-th light sample, as a packet tracer shades its packet of 16 surface
+    /// samples one light sample at a time (the paper's "16 shadow rays each
+    /// for a packet tracer's 16 surface samples"). The default, a named
+    /// assumption; pixels without a hit leave their lanes empty.
+    #[default]
+    PerSample,
+    /// One pixel's 16 rays (a frustum's: one origin, its 16 light samples).
+    PerFrustum,
 }
 
 /// Where the 16-ray packet baseline's leaves read triangles from.
@@ -1798,7 +1816,21 @@ impl UnitProgram for PacketPrimaryRun<'_> {
         let full = vec![[0.0f32; 3]; FRUSTA * FRUSTA];
         let tf = vec![0.0f32; FRUSTA * FRUSTA];
         let mut pb = rt::packet::PacketBufs::new(m, &full, &full, &tf, None);
-        pb.reload(FRUSTA, &org, &dir, &tfar, None);
+        // Per sample: packet k holds ray k of each live frustum (lane j:
+        // the j-th live one); ray j * 16 + k in the order above.
+        let by_sample: Vec<u32> = (0..FRUSTA * FRUSTA)
+            .map(|s| {
+                let (k, j) = (s / FRUSTA, s % FRUSTA);
+                if j < live.len() {
+                    (j * FRUSTA + k) as u32
+                } else {
+                    u32::MAX
+                }
+            })
+            .collect();
+        let per_sample = self.grouping == PacketGrouping::PerSample && f.policy.is_any();
+        let slots = per_sample.then_some(&by_sample[..]);
+        pb.reload(FRUSTA, &org, &dir, &tfar, slots);
         pb.sides = match (self.cull_back, self.plane_noise) {
             (true, PlaneNoise::Reject) => Sides::FrontNoGrazing,
             (true, PlaneNoise::Keep) => Sides::Front,

@@ -122,6 +122,7 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
             cull_back,
             leaves: mft_kernels::PacketLeaves::Indexed,
             plane_noise: mft_kernels::PlaneNoise::Reject,
+            grouping: mft_kernels::PacketGrouping::PerFrustum,
         };
         let (ptraced, pstats) = isa::record(&pr, FlavourId::Lrb16, "p16").1;
         assert_eq!(
@@ -130,6 +131,21 @@ fn check(fx: &Fixture, sets: &[Frusta]) -> (MftStats, MftStats) {
         );
         let n = bad(&format!("packet {label}"), &refi, sets, &ptraced);
         assert_eq!(n, 0, "packet {label}: {n} rays differ");
+        // Packets of ray k of every frustum (the other grouping): the
+        // reference's hits too, traced as native.
+        let per_sample = PacketPrimaryRun {
+            grouping: mft_kernels::PacketGrouping::PerSample,
+            sets: sets.to_vec(),
+            ..pr
+        };
+        let (straced, _) = isa::record(&per_sample, FlavourId::Lrb16, "p16s").1;
+        assert_eq!(
+            straced,
+            isa::run_native(&per_sample, FlavourId::Lrb16).0,
+            "{label}: per-sample packets, traced and native"
+        );
+        let n = bad(&format!("packet per-sample {label}"), &refi, sets, &straced);
+        assert_eq!(n, 0, "packet per-sample {label}: {n} rays differ");
         // The precomputed-edge variant: the same hits and counts.
         let edges = PacketPrimaryRun {
             leaves: mft_kernels::PacketLeaves::Edges,

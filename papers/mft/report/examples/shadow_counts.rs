@@ -1,9 +1,11 @@
 //! Soft-shadow counts per set of 16 frusta against the paper's Table 1, no
 //! simulation: the tool the stand-ins' lights were matched with.
 //!
-//! `cargo run --release -p mft-report --example shadow_counts -- SCENE [RES] [EVERY] [nets|strips]`
-//! (SCENE: a built-in name or a `.ron` file; defaults 1024, every 8th set, nets).
+//! `cargo run --release -p mft-report --example shadow_counts -- SCENE [RES] [EVERY] [nets|strips] [per-sample|per-frustum]`
+//! (SCENE: a built-in name or a `.ron` file; defaults 1024, every 8th set,
+//! nets, packets of the 4 x 4 pixels' k-th rays).
 
+use mft_kernels::PacketGrouping;
 use mft_report::perset::{paper_per_set, shadow_per_set};
 use scene::workload::SampleSplit;
 
@@ -14,7 +16,10 @@ fn main() {
         std::process::exit(2)
     };
     let Some(scene) = args.first() else {
-        fail("usage: shadow_counts SCENE [RES] [EVERY] [nets|strips]".into())
+        fail(
+            "usage: shadow_counts SCENE [RES] [EVERY] [nets|strips] [per-sample|per-frustum]"
+                .into(),
+        )
     };
     let num = |i: usize, d: u32| -> u32 {
         args.get(i).map_or(d, |s| {
@@ -28,10 +33,18 @@ fn main() {
         Some("strips") => SampleSplit::Strips,
         Some(s) => fail(format!("argument 4: {s}: not nets or strips")),
     };
-    let c = shadow_per_set(scene, res, every, split).unwrap_or_else(|e| fail(e.0));
+    let grouping = match args.get(4).map(String::as_str) {
+        None | Some("per-sample") => PacketGrouping::PerSample,
+        Some("per-frustum") => PacketGrouping::PerFrustum,
+        Some(s) => fail(format!("argument 5: {s}: not per-sample or per-frustum")),
+    };
+    if args.len() > 5 {
+        fail(format!("argument 6: {}: unused", args[5]));
+    }
+    let c = shadow_per_set(scene, res, every, (split, grouping)).unwrap_or_else(|e| fail(e.0));
     let paper = paper_per_set(&c.name);
     println!(
-        "{} at {res}x{res}, {} split, every {every}th set: {} of {} groups have a hit; zero-interval frusta {:.0}%",
+        "{} at {res}x{res}, {} split, packets {grouping:?}, every {every}th set: {} of {} groups have a hit; zero-interval frusta {:.0}%",
         c.name,
         split.name(),
         c.sets,

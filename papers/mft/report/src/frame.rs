@@ -435,6 +435,24 @@ impl Prepared {
         pr
     }
 
+    /// The same scene with its light's edges scaled by `s` about its
+    /// centre, the soft-shadow sets drawn again.
+    pub(crate) fn with_light_scaled(&self, s: f64) -> Prepared {
+        let mut pr = self.clone();
+        let [c, e1, e2] = self.light.map(|v| v.map(f64::from));
+        let f = |v: [f64; 3]| v.map(|x| x as f32);
+        let ne1 = e1.map(|x| x * s);
+        let ne2 = e2.map(|x| x * s);
+        let nc: [f64; 3] =
+            std::array::from_fn(|a| c[a] + 0.5 * (e1[a] + e2[a]) - 0.5 * (ne1[a] + ne2[a]));
+        if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
+            (*lc, *l1, *l2) = (f(nc), f(ne1), f(ne2));
+        }
+        pr.light = [f(nc), f(ne1), f(ne2)];
+        pr.shadow = pr.shadow_frusta(pr.split);
+        pr
+    }
+
     /// The soft-shadow frusta sets with a hit over the image, in render
     /// order, each pixel's samples from `split`.
     fn shadow_frusta(&self, split: SampleSplit) -> Vec<Frusta> {
@@ -483,6 +501,7 @@ impl Prepared {
             cull_back: true,
             leaves: mft_kernels::PacketLeaves::Indexed,
             plane_noise: mft_kernels::PlaneNoise::Reject,
+            grouping: mft_kernels::PacketGrouping::PerSample,
         }
     }
 }

@@ -8,7 +8,7 @@
 
 use crate::frame::{bands, count_native, zero_interval_share, Prepared};
 use crate::paper::PAPER;
-use mft_kernels::{MftStats, Shrink};
+use mft_kernels::{MftStats, PacketGrouping, PacketPrimaryRun, Shrink};
 use repro::{AppError, AppResult};
 use scene::workload::SampleSplit;
 
@@ -88,13 +88,14 @@ pub struct ShadowCounts {
 
 /// Soft-shadow counts per set of `scene` (a built-in name or a `.ron`
 /// file) at `res` x `res`, counted natively over every `every`-th set in
-/// render order (1: all), each pixel's samples from `split`. For matching a
+/// render order (1: all), each pixel's samples from `split`, the packets
+/// grouped by `grouping`. For matching a
 /// stand-in's light on Table 1's counts: no simulation, seconds per scene.
 pub fn shadow_per_set(
     scene: &str,
     res: u32,
     every: u32,
-    split: SampleSplit,
+    (split, grouping): (SampleSplit, PacketGrouping),
 ) -> AppResult<ShadowCounts> {
     if res < 16 || !res.is_multiple_of(16) {
         return Err(AppError(format!(
@@ -106,7 +107,10 @@ pub fn shadow_per_set(
         .map_err(|e| AppError(e.to_string()))?
         .flavour();
     let b = bands(&pr.shadow, every);
-    let packets = count_native(fl, &pr.shadow, &b, |s| pr.packets(s));
+    let packets = count_native(fl, &pr.shadow, &b, |s| PacketPrimaryRun {
+        grouping,
+        ..pr.packets(s)
+    });
     let frusta = count_native(fl, &pr.shadow, &b, |s| pr.frusta(s, false, Shrink::None));
     // count_native scales sampled counts to all sets; per set over all.
     let n = pr.shadow.len() as f64;
@@ -155,7 +159,8 @@ mod tests {
 
     #[test]
     fn a_resolution_the_frusta_cannot_tile_is_an_error() {
-        let e = shadow_per_set("trex", 100, 1, SampleSplit::Nets).unwrap_err();
+        let g = (SampleSplit::Nets, PacketGrouping::default());
+        let e = shadow_per_set("trex", 100, 1, g).unwrap_err();
         assert!(e.0.starts_with("resolution 100"), "{}", e.0);
     }
 }

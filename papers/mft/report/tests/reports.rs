@@ -296,3 +296,48 @@ fn one_and_two_host_threads_give_identical_reports() {
     let one = on_threads(1, "mft-table1", g());
     assert_eq!(one, on_threads(2, "mft-table1", g()));
 }
+
+#[test]
+fn reproduce_mft_loose_counts_every_variant_and_smaller_leaves_fetch_fewer_triangles() {
+    let j = report(
+        "mft-loose",
+        Given {
+            quick: true,
+            res: Some(256),
+            ..Given::default()
+        },
+    );
+    let rows = j["rows"].as_array().unwrap();
+    let get = |scene: &str, variant: &str, method: Option<&str>, metric: &str| -> f64 {
+        let r: Vec<&serde_json::Value> = rows
+            .iter()
+            .filter(|r| r["scene"] == scene && r["variant"] == variant && r["metric"] == metric)
+            .filter(|r| method.is_none_or(|m| r["method"] == m))
+            .collect();
+        assert_eq!(r.len(), 1, "{scene} {variant} {metric}");
+        r[0]["value"].as_f64().unwrap()
+    };
+    for scene in ["trex", "fern", "saloon", "fairy"] {
+        for variant in [
+            "default",
+            "strips",
+            "packets-per-pixel",
+            "light-x0.5",
+            "light-x2",
+            "mft-leaf-8",
+            "mft-leaf-16",
+        ] {
+            let r = get(scene, variant, None, "frusta_over_packets_tris");
+            assert!(r > 0.0, "{scene} {variant}");
+        }
+        let tris = |v: &str| get(scene, v, Some("s-frusta"), "per_set_tris_accessed");
+        assert!(tris("mft-leaf-8") < tris("default"), "{scene}: leaves of 8");
+        // The grouping changes the packets only.
+        assert_eq!(tris("packets-per-pixel"), tris("default"), "{scene}");
+        let share = get(scene, "default", None, "frustum_light_share");
+        assert!(
+            share > 0.8 && share <= 1.0,
+            "{scene}: nets span the light ({share})"
+        );
+    }
+}

@@ -119,7 +119,7 @@ fn scene_rows(
     let row = |metric: &str, v: f64, variant: Variant| {
         Row::new(metric, v)
             .key("scene", scene_name)
-            .key("variant", &variant.name())
+            .key("variant", variant.name())
     };
     for variant in Variant::ALL {
         let (p, grouping) = prepared(pr, variant)?;

@@ -1156,33 +1156,14 @@ fn load_triangle<'t, M: Machine>(
         m.add(e1, a[i])
     });
     let cv = [0, 1, 2].map(|i| m.add(a[i], e2[i]));
-    // n = e1 x e2, each e1 component a memory operand of its op (fmsub form).
-    let e1op = |m: &mut M, i: usize| m.load_operand(tris, at(3 + i), 1);
-    let x0 = {
-        let e = e1op(m, 2);
-        m.mul(e, e2[1])
-    };
-    let x = {
-        let e = e1op(m, 1);
-        m.fmsub(e, e2[2], x0)
-    };
-    let y0 = {
-        let e = e1op(m, 0);
-        m.mul(e, e2[2])
-    };
-    let y = {
-        let e = e1op(m, 2);
-        m.fmsub(e, e2[0], y0)
-    };
-    let z0 = {
-        let e = e1op(m, 1);
-        m.mul(e, e2[0])
-    };
-    let z = {
-        let e = e1op(m, 0);
-        m.fmsub(e, e2[1], z0)
-    };
-    let nrm = [x, y, z];
+    // n = e1 x e2 (fmsub form), each e1 component the memory operand of
+    // its op: x = e1y e2z - e1z e2y, and so on.
+    let nrm = [(2, 1, 1, 2), (0, 2, 2, 0), (1, 0, 0, 1)].map(|(i, j, k, l)| {
+        let e = m.load_operand(tris, at(3 + i), 1);
+        let t0 = m.mul(e, e2[j]);
+        let e = m.load_operand(tris, at(3 + k), 1);
+        m.fmsub(e, e2[l], t0)
+    });
     let an = dot3(m, a, nrm);
     // Orientation: front faces (origin on the normal's side) have a.n < 0.
     let front = m.cmp(Cmp::Lt, an, zero_v);

@@ -524,35 +524,9 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
                 ..pr.frusta(sets, false, Shrink::None)
             }
         };
-        let keep = sample(
-            m,
-            sets,
-            b,
-            per,
-            (su.seed, &su.progress),
-            with(PlaneNoise::Keep),
-        )?;
-        let reject = sample(
-            m,
-            sets,
-            b,
-            per,
-            (su.seed, &su.progress),
-            with(PlaneNoise::Reject),
-        )?;
-        let ratio = reject.cycles / keep.cycles.max(1.0);
-        let tests = keep.stats.isec_tests.max(1) as f64;
-        let ops = (reject.regions.ops as f64 - keep.regions.ops as f64) / tests;
-        rows.push(keyed(
-            Row::new("plane_noise_cycle_ratio", ratio),
-            scene_name,
-            mi,
-            false,
-        ));
-        parts.push(format!(
-            "{}: x{ratio:.3} cycles, {ops:.1} instructions per intersection test",
-            method_name(mi, false)
-        ));
+        let (row, part) = noise_cost(su, (sets, per), (scene_name, mi), with)?;
+        rows.push(row);
+        parts.push(part);
     }
     // The packet baseline pays the same test (Moller-Trumbore's form).
     for (mi, sets, per) in [(0usize, &pr.primary, su.per_p), (2, &pr.shadow, su.per_s)] {
@@ -562,22 +536,9 @@ fn variant_costs(su: &Setup, pr: &Prepared, scene_name: &str) -> AppResult<(Vec<
                 ..pr.packets(sets)
             }
         };
-        let key = (su.seed, &su.progress);
-        let keep = sample(m, sets, b, per, key, with(PlaneNoise::Keep))?;
-        let reject = sample(m, sets, b, per, key, with(PlaneNoise::Reject))?;
-        let ratio = reject.cycles / keep.cycles.max(1.0);
-        let tests = keep.stats.isec_tests.max(1) as f64;
-        let ops = (reject.regions.ops as f64 - keep.regions.ops as f64) / tests;
-        rows.push(keyed(
-            Row::new("plane_noise_cycle_ratio", ratio),
-            scene_name,
-            mi,
-            false,
-        ));
-        parts.push(format!(
-            "{}: x{ratio:.3} cycles, {ops:.1} instructions per intersection test",
-            method_name(mi, false)
-        ));
+        let (row, part) = noise_cost(su, (sets, per), (scene_name, mi), with)?;
+        rows.push(row);
+        parts.push(part);
     }
     // The slab test: the paper's offset table (default) against the
     // sign-free variant, on the same runs.
@@ -791,6 +752,38 @@ fn strip_split(
         nets_pk.aabb_tests, nets_pk.tris_accessed, nets_fr.tris_accessed, nets_fr.tris_after_culling, nets_fr.isec_tests,
     );
     Ok((rows, note, bad))
+}
+
+/// What the robustness test costs one method (method index `mi`): its
+/// program with the test (`with(PlaneNoise::Reject)`) against without, on
+/// the same runs; the row and the note's part.
+fn noise_cost<P, G>(
+    su: &Setup,
+    (sets, per): (&[Frusta], usize),
+    (scene_name, mi): (&str, usize),
+    with: impl Fn(PlaneNoise) -> G,
+) -> AppResult<(Row, String)>
+where
+    P: isa::UnitProgram<Unit = Frusta, Out = (Vec<Hit>, MftStats)>,
+    G: Fn(Vec<Frusta>) -> P,
+{
+    let key = (su.seed, &su.progress);
+    let keep = sample(&su.m, sets, su.batches, per, key, with(PlaneNoise::Keep))?;
+    let reject = sample(&su.m, sets, su.batches, per, key, with(PlaneNoise::Reject))?;
+    let ratio = reject.cycles / keep.cycles.max(1.0);
+    let tests = keep.stats.isec_tests.max(1) as f64;
+    let ops = (reject.regions.ops as f64 - keep.regions.ops as f64) / tests;
+    let row = keyed(
+        Row::new("plane_noise_cycle_ratio", ratio),
+        scene_name,
+        mi,
+        false,
+    );
+    let part = format!(
+        "{}: x{ratio:.3} cycles, {ops:.1} instructions per intersection test",
+        method_name(mi, false)
+    );
+    Ok((row, part))
 }
 
 #[cfg(test)]

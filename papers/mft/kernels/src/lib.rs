@@ -1799,19 +1799,20 @@ impl UnitProgram for PacketPrimaryRun<'_> {
         let mut pb = rt::packet::PacketBufs::new(m, &full, &full, &tf, None);
         // Per sample: packet k holds ray k of each live frustum (lane j:
         // the j-th live one); ray j * 16 + k in the order above.
-        let by_sample: Vec<u32> = (0..FRUSTA * FRUSTA)
-            .map(|s| {
-                let (k, j) = (s / FRUSTA, s % FRUSTA);
-                if j < live.len() {
-                    (j * FRUSTA + k) as u32
-                } else {
-                    u32::MAX
-                }
-            })
-            .collect();
         let per_sample = self.grouping == PacketGrouping::PerSample && f.policy.is_any();
-        let slots = per_sample.then_some(&by_sample[..]);
-        pb.reload(FRUSTA, &org, &dir, &tfar, slots);
+        let by_sample: Option<Vec<u32>> = per_sample.then(|| {
+            (0..FRUSTA * FRUSTA)
+                .map(|s| {
+                    let (k, j) = (s / FRUSTA, s % FRUSTA);
+                    if j < live.len() {
+                        (j * FRUSTA + k) as u32
+                    } else {
+                        u32::MAX
+                    }
+                })
+                .collect()
+        });
+        pb.reload(FRUSTA, &org, &dir, &tfar, by_sample.as_deref());
         pb.sides = match (self.cull_back, self.plane_noise) {
             (true, PlaneNoise::Reject) => Sides::FrontNoGrazing,
             (true, PlaneNoise::Keep) => Sides::Front,

@@ -279,6 +279,15 @@ pub(crate) fn zero_interval_share(shadow: &[Frusta]) -> f64 {
     zero as f64 / lanes.max(1) as f64
 }
 
+/// A quad light centred at `centre` with edges `e1` and `e2` scaled by `s`:
+/// (corner, edge 1, edge 2) in f32.
+pub(crate) fn light_about(centre: [f64; 3], e1: [f32; 3], e2: [f32; 3], s: f64) -> [[f32; 3]; 3] {
+    let e1s = e1.map(|x| (f64::from(x) * s) as f32);
+    let e2s = e2.map(|x| (f64::from(x) * s) as f32);
+    let cs = [0, 1, 2].map(|i| (centre[i] - 0.5 * f64::from(e1s[i] + e2s[i])) as f32);
+    [cs, e1s, e2s]
+}
+
 /// Share of frusta sets whose active frusta keep one sign per axis (no
 /// direction interval holding zero): the sets the paper's slab test serves
 /// (`mft_kernels::SlabTest::Paper`); the rest take the sign-free test.
@@ -435,20 +444,23 @@ impl Prepared {
         pr
     }
 
+    /// The same scene under `light` (corner, edge 1, edge 2), its sets as
+    /// they were: the shadow rays' samples come from the scene's light.
+    pub(crate) fn with_light(&self, light: [[f32; 3]; 3]) -> Prepared {
+        let mut pr = self.clone();
+        pr.light = light;
+        if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
+            [*lc, *l1, *l2] = light;
+        }
+        pr
+    }
+
     /// The same scene with its light's edges scaled by `s` about its
     /// centre, the soft-shadow sets drawn again.
     pub(crate) fn with_light_scaled(&self, s: f64) -> Prepared {
-        let mut pr = self.clone();
-        let [c, e1, e2] = self.light.map(|v| v.map(f64::from));
-        let f = |v: [f64; 3]| v.map(|x| x as f32);
-        let ne1 = e1.map(|x| x * s);
-        let ne2 = e2.map(|x| x * s);
-        let nc: [f64; 3] =
-            std::array::from_fn(|a| c[a] + 0.5 * (e1[a] + e2[a]) - 0.5 * (ne1[a] + ne2[a]));
-        if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
-            (*lc, *l1, *l2) = (f(nc), f(ne1), f(ne2));
-        }
-        pr.light = [f(nc), f(ne1), f(ne2)];
+        let [c, e1, e2] = self.light;
+        let centre = [0, 1, 2].map(|i| f64::from(c[i]) + 0.5 * f64::from(e1[i] + e2[i]));
+        let mut pr = self.with_light(light_about(centre, e1, e2, s));
         pr.shadow = pr.shadow_frusta(pr.split);
         pr
     }

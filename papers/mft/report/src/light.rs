@@ -4,7 +4,9 @@
 //! packet baseline beside it, so the light size where frusta stop paying is
 //! measured rather than assumed.
 
-use crate::frame::{lrb_machine, sampled_cycles, zero_interval_share, Frame, Prepared};
+use crate::frame::{
+    light_about, lrb_machine, sampled_cycles, zero_interval_share, Frame, Prepared,
+};
 use crate::shading::{pixel_hits, shadow_sets, Hits};
 use mft_kernels::{mismatches_of, Frusta, MftStats, Shrink};
 use rayon::prelude::*;
@@ -14,7 +16,6 @@ use repro::Produced;
 use repro::ReproduceArgs;
 use repro::Row;
 use scene::agreement::F32Test;
-use scene::scene::Light;
 use scene::Hit;
 use std::time::Instant;
 
@@ -274,17 +275,9 @@ fn light_point(
     (batches, per, check_every, seed): (usize, usize, usize, (u64, &Progress)),
 ) -> AppResult<Point> {
     let fl = m.flavour();
-    let e1s = e1.map(|x| (f64::from(x) * s) as f32);
-    let e2s = e2.map(|x| (f64::from(x) * s) as f32);
-    let cs = [0, 1, 2].map(|i| (centre[i] - 0.5 * f64::from(e1s[i] + e2s[i])) as f32);
-    // The shadow rays' light samples come from the scene's light: a copy
-    // with this light (the points run at once; the scenes are small).
-    let mut pr = pr.clone();
-    pr.light = [cs, e1s, e2s];
-    if let Some(Light::Quad(lc, l1, l2, _)) = pr.scene.config.lights.first_mut() {
-        (*lc, *l1, *l2) = (cs, e1s, e2s);
-    }
-    let pr = &pr;
+    // A copy of the scene under this light (the points run at once; the
+    // scenes are small).
+    let pr = &pr.with_light(light_about(centre, e1, e2, s));
     let sets = shadow_sets(pr, hits, res, 0);
     let (fout, fst) = isa::run_native(&pr.frusta(sets.clone(), false, Shrink::None), fl);
     let (pkout, pst) = isa::run_native(&pr.packets(sets.clone()), fl);

@@ -12,11 +12,10 @@
 //! 16 triangles. Counts only (natively, every answer checked against the
 //! f64 reference): no cycles.
 
-use crate::frame::{bands, count_native, zero_interval_share, Frame, Prepared};
-use crate::perset::{paper_per_set, PerSet};
-use mft_kernels::{checked_rays, mismatches_expected, PacketGrouping, PacketPrimaryRun, Shrink};
+use crate::frame::{zero_interval_share, Frame, Prepared};
+use crate::perset::{count_shadow, paper_per_set, PerSet};
+use mft_kernels::PacketGrouping;
 use repro::{AppError, AppResult, Produced, ReproduceArgs, Row};
-use scene::agreement::{Expected, F32Test};
 use scene::bvh::BuildConfig;
 use scene::workload::SampleSplit;
 use std::time::Instant;
@@ -123,7 +122,7 @@ fn scene_rows(
     };
     for variant in Variant::ALL {
         let (p, grouping) = prepared(pr, variant)?;
-        let (pk, fr, b) = counts(fl, &p, every, grouping, scene_name)?;
+        let (pk, fr, b) = counts(fl, &p, every, grouping, scene_name);
         bad += b;
         let ratio = fr.tris_accessed / pk.tris_accessed.max(1e-9);
         for (method, ps) in [("s-packet", pk), ("s-frusta", fr)] {
@@ -203,30 +202,11 @@ fn counts(
     every: u32,
     grouping: PacketGrouping,
     scene_name: &str,
-) -> AppResult<(PerSet, PerSet, usize)> {
-    let b = bands(&pr.shadow, every);
-    let packets = count_native(fl, &pr.shadow, &b, |s| PacketPrimaryRun {
-        grouping,
-        ..pr.packets(s)
-    });
-    let frusta = count_native(fl, &pr.shadow, &b, |s| pr.frusta(s, false, Shrink::None));
-    let refi = pr.reference();
-    let (sub, keep) = checked_rays(&frusta.sets);
-    let want = Expected::of(&refi, &sub);
-    let mut bad = 0;
-    for (test, method, c) in [
-        (F32Test::MollerTrumbore, "s-packet", &packets),
-        (F32Test::Pluecker, "s-frusta", &frusta),
-    ] {
-        let label = format!("{scene_name} {method} mft-loose");
-        bad += mismatches_expected(test, &label, &refi, (&sub, &keep, &want), &c.out);
-    }
-    let n = pr.shadow.len() as f64;
-    Ok((
-        PerSet::of(&packets.stats, n),
-        PerSet::of(&frusta.stats, n),
-        bad,
-    ))
+) -> (PerSet, PerSet, usize) {
+    let c = count_shadow(fl, pr, every, grouping);
+    let bad = c.mismatches(pr, scene_name, "mft-loose");
+    let (pk, fr) = c.per_set();
+    (pk, fr, bad)
 }
 
 /// What may drive the frusta's triangles per set, from the sets alone.

@@ -6,10 +6,13 @@
 //! over the sets with a hit. The stand-ins' lights are matched on these
 //! counts (never on cycles): see each scene file and `papers/mft/README.md`.
 
-use crate::frame::{bands, count_native, zero_interval_share, Prepared};
+use crate::frame::{bands, count_native, zero_interval_share, Counted, Prepared};
 use crate::paper::PAPER;
-use mft_kernels::{MftStats, PacketGrouping, PacketPrimaryRun, Shrink};
+use mft_kernels::{
+    checked_rays, mismatches_expected, MftStats, PacketGrouping, PacketPrimaryRun, Shrink,
+};
 use repro::{AppError, AppResult};
+use scene::agreement::{Expected, F32Test};
 use scene::workload::SampleSplit;
 
 /// 4 x 4 pixel groups in the paper's 1024 x 1024 image.
@@ -106,22 +109,76 @@ pub fn shadow_per_set(
     let fl = sim::MachineConfig::load(crate::MACHINE)
         .map_err(|e| AppError(e.to_string()))?
         .flavour();
-    let b = bands(&pr.shadow, every);
-    let packets = count_native(fl, &pr.shadow, &b, |s| PacketPrimaryRun {
-        grouping,
-        ..pr.packets(s)
-    });
-    let frusta = count_native(fl, &pr.shadow, &b, |s| pr.frusta(s, false, Shrink::None));
-    // count_native scales sampled counts to all sets; per set over all.
-    let n = pr.shadow.len() as f64;
+    let (packets, frusta) = count_shadow(fl, &pr, every, grouping).per_set();
     Ok(ShadowCounts {
         name: pr.scene.config.name.clone(),
         sets: pr.shadow.len(),
         groups: (res as usize / 4).pow(2),
-        packets: PerSet::of(&packets.stats, n),
-        frusta: PerSet::of(&frusta.stats, n),
+        packets,
+        frusta,
         zero_share: zero_interval_share(&pr.shadow),
     })
+}
+
+/// A scene's soft shadows counted natively by both methods over the same
+/// sets ([`count_shadow`]).
+pub(crate) struct ShadowCounted {
+    /// The 16-ray packets' counts and answers.
+    pub(crate) packets: Counted,
+    /// The frusta's.
+    pub(crate) frusta: Counted,
+    /// Soft-shadow sets with a hit over the image.
+    sets: usize,
+}
+
+impl ShadowCounted {
+    /// (packets, frusta) per set with a hit (the counts are scaled to all
+    /// sets when only some were counted).
+    pub(crate) fn per_set(&self) -> (PerSet, PerSet) {
+        let n = self.sets as f64;
+        (
+            PerSet::of(&self.packets.stats, n),
+            PerSet::of(&self.frusta.stats, n),
+        )
+    }
+
+    /// Rays of both methods whose answer differs from the f64 reference's
+    /// (each counted ray, the reference answering once for both); `tag`
+    /// names the run in a mismatch's report.
+    pub(crate) fn mismatches(&self, pr: &Prepared, scene_name: &str, tag: &str) -> usize {
+        let refi = pr.reference();
+        let (sub, keep) = checked_rays(&self.frusta.sets);
+        let want = Expected::of(&refi, &sub);
+        [
+            (F32Test::MollerTrumbore, "s-packet", &self.packets),
+            (F32Test::Pluecker, "s-frusta", &self.frusta),
+        ]
+        .into_iter()
+        .map(|(test, method, c)| {
+            let label = format!("{scene_name} {method} {tag}");
+            mismatches_expected(test, &label, &refi, (&sub, &keep, &want), &c.out)
+        })
+        .sum()
+    }
+}
+
+/// `pr`'s soft shadows by packets (grouped by `grouping`) and by frusta,
+/// counted natively over every `every`-th set in render order (1: all).
+pub(crate) fn count_shadow(
+    fl: isa::FlavourId,
+    pr: &Prepared,
+    every: u32,
+    grouping: PacketGrouping,
+) -> ShadowCounted {
+    let b = bands(&pr.shadow, every);
+    ShadowCounted {
+        packets: count_native(fl, &pr.shadow, &b, |s| PacketPrimaryRun {
+            grouping,
+            ..pr.packets(s)
+        }),
+        frusta: count_native(fl, &pr.shadow, &b, |s| pr.frusta(s, false, Shrink::None)),
+        sets: pr.shadow.len(),
+    }
 }
 
 #[cfg(test)]

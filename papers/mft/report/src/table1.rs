@@ -9,10 +9,10 @@
 
 use crate::frame::*;
 use crate::paper::*;
-use crate::perset::{paper_per_set, PerSet};
+use crate::perset::{count_shadow, paper_per_set, PerSet};
 use mft_kernels::{
-    checked_rays, mismatches_expected, Frusta, FrustaRun, MftStats, PacketLeaves, PacketPrimaryRun,
-    PlaneNoise, Shrink, SlabTest,
+    checked_rays, mismatches_expected, Frusta, FrustaRun, MftStats, PacketGrouping, PacketLeaves,
+    PacketPrimaryRun, PlaneNoise, Shrink, SlabTest,
 };
 use rayon::prelude::*;
 use repro::sampling::{paired_ratio_systematic as paired_ratio, separates};
@@ -689,24 +689,14 @@ fn strip_split(
     ms: &Measured,
 ) -> AppResult<(Vec<Row>, String, usize)> {
     let strips = pr.with_split(SampleSplit::Strips);
-    let fl = su.m.flavour();
-    let b = bands(&strips.shadow, su.count_every);
-    let packets = count_native(fl, &strips.shadow, &b, |s| strips.packets(s));
-    let frusta = count_native(fl, &strips.shadow, &b, |s| {
-        strips.frusta(s, false, Shrink::None)
-    });
+    let counted = count_shadow(
+        su.m.flavour(),
+        &strips,
+        su.count_every,
+        PacketGrouping::default(),
+    );
     // Every counted ray held to the reference, as the default's.
-    let refi = strips.reference();
-    let mut bad = 0;
-    for (test, method, c) in [
-        (F32Test::MollerTrumbore, "s-packet", &packets),
-        (F32Test::Pluecker, "s-frusta", &frusta),
-    ] {
-        let (sub, keep) = checked_rays(&c.sets);
-        let want = Expected::of(&refi, &sub);
-        let label = format!("{scene_name} {method} strips");
-        bad += mismatches_expected(test, &label, &refi, (&sub, &keep, &want), &c.out);
-    }
+    let bad = counted.mismatches(&strips, scene_name, "strips");
     let (batches, per) = (su.batches, su.per_s);
     let key = (su.seed, &su.progress);
     let sp = sample(&su.m, &strips.shadow, batches, per, key, |s| {
@@ -715,8 +705,7 @@ fn strip_split(
     let sf = sample(&su.m, &strips.shadow, batches, per, key, |s| {
         strips.frusta(s, false, Shrink::None)
     })?;
-    let n = strips.shadow.len() as f64;
-    let (pk, fr) = (PerSet::of(&packets.stats, n), PerSet::of(&frusta.stats, n));
+    let (pk, fr) = counted.per_set();
     let mut rows = Vec::new();
     for (mi, ps) in [(2usize, pk), (3, fr)] {
         for (metric, v) in ps.named() {

@@ -78,7 +78,9 @@ pub struct CoreConfig {
     /// come from the uop cache at the dispatch width.
     #[serde(default)]
     pub legacy_decode: Option<LegacyDecode>,
-    /// Hardware threads (in-order), interleaved on the core.
+    /// Hardware threads per core: in-order, interleaved on the core (every
+    /// run uses them all); out-of-order, simultaneous multithreading, used
+    /// where a run asks for it (`sim::Session::with_threads`).
     #[serde(default = "one")]
     pub threads: u32,
     /// A thread cannot issue in two consecutive cycles (Knights Corner rule).
@@ -502,7 +504,8 @@ impl MachineConfig {
             if c.store_buffer == 0 || c.store_buffer > 1024 {
                 return e("core.store_buffer", "must be 1 to 1024");
             }
-        } else if c.threads == 0 || c.threads > 16 {
+        }
+        if c.threads == 0 || c.threads > 16 {
             return e("core.threads", "must be 1 to 16");
         }
         if let Some(p) = c.taken_branch_ports.iter().find(|&&p| p >= c.ports) {

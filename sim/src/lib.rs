@@ -17,6 +17,7 @@ pub mod memory;
 pub mod ooo;
 pub mod predictor;
 pub mod session;
+mod smt;
 pub mod stats;
 
 pub use config::{CoreKind, MachineConfig};

@@ -272,7 +272,12 @@ impl Pool {
     /// Hold an entry until cycle `c`.
     #[inline(always)]
     fn hold(&mut self, c: u64) {
-        debug_assert!(c > self.cursor && c - self.cursor < WINDOW);
+        // With SMT a thread may dispatch behind the cursor another moved
+        // on: an entry issuing by then has already left.
+        if c <= self.cursor {
+            return;
+        }
+        debug_assert!(c - self.cursor < WINDOW);
         self.count[(c & (WINDOW - 1)) as usize] += 1;
         self.held += 1;
     }
@@ -510,9 +515,80 @@ fn with_taken_branch(mut table: Vec<ClassT>, m: &MachineConfig) -> Vec<ClassT> {
     table
 }
 
+/// What one hardware thread of a core holds of its own: its values, its
+/// part of the ROB and store buffer, its front end's place, its retirement.
+/// (Everything else of [`OooCore`] its threads share; see [`crate::smt`].)
+pub(crate) struct Thread {
+    values: Values,
+    /// Retire cycle of each fused uop by its place in program order,
+    /// modulo a power of two at least the full ROB's size (so the entry
+    /// `rob` back is found with a mask, and a place not yet written reads 0).
+    rob_ring: Vec<u64>,
+    rob_seq: u64,
+    /// This thread's ROB entries (the whole ROB, or its partition).
+    rob: u64,
+    /// This thread's store buffer (the whole buffer, or its partition).
+    stores: Vec<StoreEntry>,
+    store_seq: usize,
+    /// Per 8-byte granule (hashed): the youngest store to write it, as its
+    /// place in the store sequence plus one (0: none).
+    granules: Box<[usize; GRANULES]>,
+    /// The legacy decoders' place, for ops with an instruction length.
+    legacy: Option<crate::frontend::Legacy>,
+    /// The conditional predictor's global history while another thread
+    /// runs (the tables are the core's).
+    history: Option<crate::predictor::History>,
+    d: u64,
+    dcount: u32,
+    fetch_block: u64,
+    last_ret: u64,
+    ret_count: u32,
+    /// Cycle of this thread's last retirement.
+    now: u64,
+    /// Whether it has ops in the current step (SMT).
+    running: bool,
+}
+
+impl Thread {
+    fn new(m: &MachineConfig, share: u32) -> Thread {
+        let c = &m.core;
+        let share = share.max(1);
+        Thread {
+            values: Values::new(),
+            rob_ring: vec![0; (c.rob as usize).next_power_of_two()],
+            rob_seq: 0,
+            rob: u64::from(c.rob / share),
+            stores: vec![StoreEntry::default(); (c.store_buffer / share).max(1) as usize],
+            store_seq: 0,
+            granules: Box::new([0; GRANULES]),
+            legacy: c.legacy_decode.map(crate::frontend::Legacy::new),
+            history: None,
+            d: 0,
+            dcount: 0,
+            fetch_block: 0,
+            last_ret: 0,
+            ret_count: 0,
+            now: 0,
+            running: false,
+        }
+    }
+}
+
+/// One hardware thread's ops for [`OooCore::run_threads`].
+pub struct ThreadOps<'t> {
+    /// The thread.
+    pub thread: usize,
+    /// Its ops.
+    pub trace: &'t Trace,
+    /// The next op to time.
+    pub pos: usize,
+    /// Where its ops end for now (a piece's end).
+    pub end: usize,
+}
+
 /// An out-of-order core's state between ops.
 pub struct OooCore {
-    /// Ops whose pipeline times to keep, and those kept.
+    /// Ops whose pipeline times to keep, and those kept (thread 0's).
     pub timeline: Option<Timeline>,
     core: usize,
     classes: Vec<ClassT>,
@@ -520,11 +596,8 @@ pub struct OooCore {
     narrow: Vec<ClassT>,
     /// A taken branch ends its dispatch group.
     taken_ends_issue: bool,
-    /// The legacy decoders, for ops with an instruction length.
-    legacy: Option<crate::frontend::Legacy>,
     width: u32,
     retire_width: u32,
-    rob: u64,
     l1_latency: u64,
     sf_latency: u64,
     sf_fail: u64,
@@ -532,38 +605,32 @@ pub struct OooCore {
     macro_fusion: bool,
     penalty: u64,
     cal: Calendar,
-    values: Values,
-    /// Retire cycle of each fused uop by its place in program order,
-    /// modulo a power of two at least the ROB's size (so the entry `rob`
-    /// back is found with a mask, and a place not yet written reads 0).
-    rob_ring: Vec<u64>,
-    rob_seq: u64,
     /// The scheduler, and the second one where the config splits them
     /// (`pools[1]`, for the uops of `fp_mask`'s ports).
     pools: [Pool; 2],
     fp_mask: u32,
     mshr: crate::memory::Mshrs,
-    stores: Vec<StoreEntry>,
-    store_seq: usize,
     pred: Predictor,
     /// Per load site: the load once issued before an older store to its
     /// bytes had its address, so it now waits for every older store's
     /// address (Intel's memory disambiguation predictor).
     mdp: Vec<bool>,
-    /// Per 8-byte granule (hashed): the youngest store to write it, as its
-    /// place in the store sequence plus one (0: none).
-    granules: Box<[usize; GRANULES]>,
-    d: u64,
-    dcount: u32,
-    fetch_block: u64,
-    last_ret: u64,
-    ret_count: u32,
-    /// Cycle of the last retirement.
+    /// The running hardware thread's own state.
+    th: Thread,
+    /// The core's other hardware threads (SMT), each with its index.
+    parked: Vec<(usize, Thread)>,
+    /// The running thread's index.
+    cur: usize,
+    /// The selection points the threads take turns at, while more than one
+    /// thread runs (`None`: one thread, today's single-thread core).
+    smt: Option<crate::smt::Turns>,
+    /// Cycle of the last retirement (of any of its threads).
     pub now: u64,
 }
 
 impl OooCore {
-    /// A core of machine `m` with index `core` (its private caches).
+    /// A core of machine `m` with index `core` (its private caches), one
+    /// hardware thread.
     #[must_use]
     pub fn new(m: &MachineConfig, core: usize) -> OooCore {
         let c = &m.core;
@@ -573,10 +640,8 @@ impl OooCore {
             classes: with_taken_branch(class_table(m), m),
             narrow: with_taken_branch(class_table_of(m, true), m),
             taken_ends_issue: c.taken_branch_ends_issue,
-            legacy: c.legacy_decode.map(crate::frontend::Legacy::new),
             width: c.width,
             retire_width: c.retire_width,
-            rob: u64::from(c.rob),
             l1_latency: u64::from(m.caches[0].latency),
             sf_latency: u64::from(c.store_forward_latency),
             sf_fail: u64::from(c.store_forward_fail_penalty),
@@ -584,27 +649,168 @@ impl OooCore {
             macro_fusion: c.macro_fusion,
             penalty: u64::from(c.mispredict_penalty),
             cal: Calendar::new(c.ports as usize),
-            values: Values::new(),
-            rob_ring: vec![0; (c.rob as usize).next_power_of_two()],
-            rob_seq: 0,
             pools: [
                 Pool::new(c.scheduler as usize),
                 Pool::new(c.fp_scheduler.as_ref().map_or(0, |f| f.entries as usize)),
             ],
             fp_mask: fp_mask(m),
             mshr: crate::memory::Mshrs::new(m.mshrs as usize),
-            stores: vec![StoreEntry::default(); c.store_buffer.max(1) as usize],
-            store_seq: 0,
             pred: Predictor::new(c.history_bits, c.predictor_bits, c.tage.as_ref()),
             mdp: vec![false; MDP],
-            granules: Box::new([0; GRANULES]),
-            d: 0,
-            dcount: 0,
-            fetch_block: 0,
-            last_ret: 0,
-            ret_count: 0,
+            th: Thread::new(m, 1),
+            parked: Vec::new(),
+            cur: 0,
+            smt: None,
             now: 0,
         }
+    }
+
+    /// A core of machine `m` with `threads` hardware threads (SMT; at most
+    /// `core.threads`), thread 0 running.
+    #[must_use]
+    pub fn with_threads(m: &MachineConfig, core: usize, threads: usize) -> OooCore {
+        let mut c = OooCore::new(m, core);
+        let fresh = c.pred.history();
+        c.parked = (1..threads.max(1))
+            .map(|k| {
+                let mut t = Thread::new(m, 1);
+                t.history = Some(fresh.clone());
+                (k, t)
+            })
+            .collect();
+        c
+    }
+
+    /// Hardware threads.
+    #[must_use]
+    pub fn threads(&self) -> usize {
+        1 + self.parked.len()
+    }
+
+    /// Cycle of thread `k`'s last retirement.
+    #[must_use]
+    pub fn thread_now(&self, k: usize) -> u64 {
+        if k == self.cur {
+            self.th.now
+        } else {
+            self.parked
+                .iter()
+                .find(|p| p.0 == k)
+                .map_or(self.now, |p| p.1.now)
+        }
+    }
+
+    /// Start a step in which the threads `running` (a bit per thread) have
+    /// ops, every op in flight before it retired: with several, the ROB and
+    /// the store buffer are split evenly among them and they take turns at
+    /// dispatch and retirement ([`crate::smt`]); with one, it has them whole.
+    pub fn start_step(&mut self, m: &MachineConfig, running: u32) {
+        if self.parked.is_empty() {
+            return;
+        }
+        let n = running.count_ones().max(1);
+        let rob = u64::from(m.core.rob / n);
+        let sb = (m.core.store_buffer / n).max(1) as usize;
+        let threads = std::iter::once((self.cur, &mut self.th))
+            .chain(self.parked.iter_mut().map(|p| (p.0, &mut p.1)));
+        for (k, th) in threads {
+            th.running = running >> k & 1 == 1;
+            th.rob = rob;
+            if th.stores.len() != sb {
+                // Every store has retired: the buffer starts empty.
+                th.stores = vec![StoreEntry::default(); sb];
+                th.store_seq = 0;
+                th.granules.fill(0);
+            }
+        }
+        self.smt = (n > 1).then(crate::smt::Turns::new);
+        if let Some(turns) = &mut self.smt {
+            turns.advance(self.now);
+        }
+    }
+
+    /// Thread `k` has no more ops this step: it no longer holds the
+    /// booking calendars back.
+    pub fn stop_thread(&mut self, k: usize) {
+        if k == self.cur {
+            self.th.running = false;
+        } else if let Some(p) = self.parked.iter_mut().find(|p| p.0 == k) {
+            p.1.running = false;
+        }
+    }
+
+    /// Make thread `k` the running one (its global branch history into
+    /// the predictor, the other's out).
+    fn switch(&mut self, k: usize) {
+        if k == self.cur {
+            return;
+        }
+        let j = self
+            .parked
+            .iter()
+            .position(|p| p.0 == k)
+            .expect("a thread of this core");
+        std::mem::swap(&mut self.th, &mut self.parked[j].1);
+        self.parked[j].0 = self.cur;
+        self.cur = k;
+        let mut h = self.th.history.take().expect("a parked thread's history");
+        self.pred.swap_history(&mut h);
+        self.parked[j].1.history = Some(h);
+    }
+
+    /// The first cycle the running thread's next op could dispatch in, as
+    /// far as its own state says.
+    fn next_dispatch(&self, t: &Thread) -> u64 {
+        (t.d + u64::from(t.dcount >= self.width)).max(t.fetch_block)
+    }
+
+    /// Time the threads' ops op by op, each next op from the thread whose
+    /// next dispatch cycle is earliest (on a tie, the one that dispatched
+    /// less recently, then the lowest), until one thread's ops run out
+    /// (`pos == end`); returns its place in `ops`.
+    pub fn run_threads(
+        &mut self,
+        ops: &mut [ThreadOps<'_>],
+        mem: &mut Hierarchy,
+        s: &mut Stats,
+    ) -> usize {
+        let classes = std::mem::take(&mut self.classes);
+        let narrow = std::mem::take(&mut self.narrow);
+        let timeline = self.timeline.is_some();
+        let done = loop {
+            if let Some(k) = ops.iter().position(|o| o.pos >= o.end) {
+                break k;
+            }
+            let pick = (0..ops.len())
+                .min_by_key(|&k| {
+                    let th = if ops[k].thread == self.cur {
+                        &self.th
+                    } else {
+                        &self
+                            .parked
+                            .iter()
+                            .find(|p| p.0 == ops[k].thread)
+                            .expect("a thread")
+                            .1
+                    };
+                    (self.next_dispatch(th), th.d, ops[k].thread)
+                })
+                .expect("some thread's ops");
+            self.switch(ops[pick].thread);
+            let o = &mut ops[pick];
+            self.step(
+                o.trace,
+                (o.pos, o.end),
+                (&classes, &narrow),
+                mem,
+                s,
+                (0, timeline),
+            );
+            o.pos += 1;
+        };
+        self.classes = classes;
+        self.narrow = narrow;
+        done
     }
 
     /// Time ops `range` of `t`, counting into `s` (stats only for ops at or after `count_from`).
@@ -622,89 +828,112 @@ impl OooCore {
         let timeline = self.timeline.is_some();
         let end = range.end;
         for i in range {
-            let op = &t.ops[i];
-            let fused = self.macro_fusion
-                && op.class == OpClass::Cmp
-                && i + 1 < end
-                && fuses(op, &t.ops[i + 1]);
-            let taken_branch = op.class == OpClass::Branch && op.taken();
-            let ct = if fused {
-                &FUSED_CMP
-            } else if taken_branch {
-                &classes[TAKEN_BRANCH]
-            } else if op.bytes != 0 && op.bytes <= 16 && !op.class.is_per_lane_mem() {
-                // A gather's or scatter's bytes are per lane: never narrow.
-                &narrow[op.class as usize]
-            } else {
-                &classes[op.class as usize]
-            };
-            let counted = i >= count_from;
-            let decoded = if op.ilen == 0 {
-                0
-            } else {
-                self.legacy_decoded(op, ct.fused, taken_branch)
-            };
-            let (d, f, mut why) = self.dispatch(ct, decoded);
-            if taken_branch && self.taken_ends_issue {
-                // The next op dispatches in the next cycle.
-                self.dcount = self.width;
-            }
-            let Issued {
-                first,
-                last,
-                operands,
-                gather_lat,
-                gather_level,
-                wait_port,
-                ports,
-            } = self.issue(t, op, ct, d, mem);
-            let mut done = if fused {
-                first
-            } else {
-                // (An op with no uops — an eliminated move, a zero idiom —
-                // has `last` one before `first`: done at `first + lat`.)
-                (first + ct.lat).max(last + 1)
-            };
-            if ct.per_lane {
-                done += gather_lat;
-                if gather_lat > 0 {
-                    why = Stall::memory(gather_level, mem.levels()).unwrap_or(why);
-                }
-            } else {
-                done = self.execute(op, ct, (d, first, done), mem, (s, counted), &mut why);
-            }
-            if why == Stall::Issue && done > d + 1 + ct.lat + 1 {
-                // Late: charged to the longer of the wait for operands
-                // (after dispatch) and the wait for a port (after them).
-                why = if first.saturating_sub(operands) > operands.saturating_sub(d + 1) {
-                    Stall::Ports
-                } else {
-                    Stall::Dependency
-                };
-            }
-            if op.dst.is_some() {
-                self.values.set(op.dst, done);
-            }
-            if op.class == OpClass::Branch {
-                self.branch(op, done, (s, counted));
-            }
-            let ret = self.retire(f, done);
-            if ct.store && !ct.per_lane {
-                let k = (self.store_seq - 1) % self.stores.len();
-                self.stores[k].ret = ret;
-            }
-            if counted {
-                count(s, op, ct, why, ret - self.last_ret);
-                count_ports(s, op, ct, (why, ret - self.last_ret), (wait_port, ports));
-            }
-            if timeline {
-                self.note_timeline(i, op, (d, first, done, ret), why);
-            }
-            self.last_ret = ret;
-            self.now = ret;
+            self.step(
+                t,
+                (i, end),
+                (&classes, &narrow),
+                mem,
+                s,
+                (count_from, timeline),
+            );
         }
         self.classes = classes;
         self.narrow = narrow;
+    }
+
+    /// Time op `i` of `t` (`end`: where the ops given end) on the running
+    /// thread.
+    #[inline(always)]
+    fn step(
+        &mut self,
+        t: &Trace,
+        (i, end): (usize, usize),
+        (classes, narrow): (&[ClassT], &[ClassT]),
+        mem: &mut Hierarchy,
+        s: &mut Stats,
+        (count_from, timeline): (usize, bool),
+    ) {
+        let op = &t.ops[i];
+        let fused = self.macro_fusion
+            && op.class == OpClass::Cmp
+            && i + 1 < end
+            && fuses(op, &t.ops[i + 1]);
+        let taken_branch = op.class == OpClass::Branch && op.taken();
+        let ct = if fused {
+            &FUSED_CMP
+        } else if taken_branch {
+            &classes[TAKEN_BRANCH]
+        } else if op.bytes != 0 && op.bytes <= 16 && !op.class.is_per_lane_mem() {
+            // A gather's or scatter's bytes are per lane: never narrow.
+            &narrow[op.class as usize]
+        } else {
+            &classes[op.class as usize]
+        };
+        let counted = i >= count_from;
+        let decoded = if op.ilen == 0 {
+            0
+        } else {
+            self.legacy_decoded(op, ct.fused, taken_branch)
+        };
+        let (d, f, mut why) = self.dispatch(ct, decoded);
+        if taken_branch && self.taken_ends_issue {
+            // The next op dispatches in the next cycle.
+            self.th.dcount = self.width;
+        }
+        let Issued {
+            first,
+            last,
+            operands,
+            gather_lat,
+            gather_level,
+            wait_port,
+            ports,
+        } = self.issue(t, op, ct, d, mem);
+        let mut done = if fused {
+            first
+        } else {
+            // (An op with no uops — an eliminated move, a zero idiom —
+            // has `last` one before `first`: done at `first + lat`.)
+            (first + ct.lat).max(last + 1)
+        };
+        if ct.per_lane {
+            done += gather_lat;
+            if gather_lat > 0 {
+                why = Stall::memory(gather_level, mem.levels()).unwrap_or(why);
+            }
+        } else {
+            done = self.execute(op, ct, (d, first, done), mem, (s, counted), &mut why);
+        }
+        if why == Stall::Issue && done > d + 1 + ct.lat + 1 {
+            // Late: charged to the longer of the wait for operands
+            // (after dispatch) and the wait for a port (after them).
+            why = if first.saturating_sub(operands) > operands.saturating_sub(d + 1) {
+                Stall::Ports
+            } else {
+                Stall::Dependency
+            };
+        }
+        if op.dst.is_some() {
+            self.th.values.set(op.dst, done);
+        }
+        if op.class == OpClass::Branch {
+            self.branch(op, done, (s, counted));
+        }
+        let ret = self.retire(f, done);
+        if ct.store && !ct.per_lane {
+            let k = (self.th.store_seq - 1) % self.th.stores.len();
+            self.th.stores[k].ret = ret;
+        }
+        if counted {
+            count(s, op, ct, why, ret - self.th.last_ret);
+            count_ports(s, op, ct, (why, ret - self.th.last_ret), (wait_port, ports));
+        }
+        if timeline && self.cur == 0 {
+            self.note_timeline(i, op, (d, first, done, ret), why);
+        }
+        self.th.last_ret = ret;
+        self.th.now = ret;
+        self.now = self.now.max(ret);
     }
 
     /// Keep op `i`'s pipeline times when it is in the timeline's window.
@@ -722,8 +951,8 @@ impl OooCore {
     /// kernels carry no lengths.
     #[inline(never)]
     fn legacy_decoded(&mut self, op: &Op, fused: u32, taken: bool) -> u64 {
-        let (d, redirect) = (self.d, self.fetch_block);
-        match &mut self.legacy {
+        let (d, redirect) = (self.th.d, self.th.fetch_block);
+        match &mut self.th.legacy {
             Some(l) => l.decode(op, fused, taken, (d, redirect)),
             None => 0,
         }
@@ -734,6 +963,12 @@ impl OooCore {
     /// on by the ops' dispatch bound (fused uops / width) so the memory
     /// system's clock keeps going.
     pub fn warm(&mut self, t: &Trace, mem: &mut Hierarchy) {
+        self.warm_thread(0, t, mem);
+    }
+
+    /// [`OooCore::warm`] as hardware thread `k` (its branch history).
+    pub fn warm_thread(&mut self, k: usize, t: &Trace, mem: &mut Hierarchy) {
+        self.switch(k);
         let width = u64::from(self.width.max(1));
         let mut fused = 0u64;
         for op in &t.ops {
@@ -750,17 +985,24 @@ impl OooCore {
     /// Move the core's clock on to cycle `t` (nothing in flight after it):
     /// the start of a unit that begins with the other cores'.
     pub fn advance_to(&mut self, t: u64) {
-        if t <= self.now {
+        if t <= self.now && self.parked.is_empty() {
             return;
         }
-        self.d = self.d.max(t);
-        self.dcount = 0;
+        let threads = std::iter::once(&mut self.th).chain(self.parked.iter_mut().map(|p| &mut p.1));
+        for th in threads {
+            th.d = th.d.max(t);
+            th.dcount = 0;
+            th.last_ret = th.last_ret.max(t);
+            th.now = th.now.max(t);
+        }
+        self.now = self.now.max(t);
         self.cal.advance(t);
+        if let Some(turns) = &mut self.smt {
+            turns.advance(t);
+        }
         for p in &mut self.pools {
             p.free_until(t);
         }
-        self.last_ret = self.last_ret.max(t);
-        self.now = t;
     }
 
     /// Dispatch: the cycle the op enters the window (after the width, a
@@ -769,13 +1011,13 @@ impl OooCore {
     #[inline(always)]
     fn dispatch(&mut self, ct: &ClassT, decoded: u64) -> (u64, u32, Stall) {
         let f = ct.fused;
-        let mut d = self.d;
-        if self.dcount + f > self.width {
+        let mut d = self.th.d;
+        if self.th.dcount + f > self.width {
             d += 1;
         }
         let mut why = Stall::Issue;
-        if self.fetch_block > d {
-            d = self.fetch_block;
+        if self.th.fetch_block > d {
+            d = self.th.fetch_block;
             why = Stall::Branch;
         }
         if decoded > d {
@@ -783,8 +1025,8 @@ impl OooCore {
             why = Stall::FrontEnd;
         }
         if f > 0 {
-            let back = (self.rob_seq + u64::from(f) - 1).wrapping_sub(self.rob);
-            let need = self.rob_ring[back as usize & (self.rob_ring.len() - 1)];
+            let back = (self.th.rob_seq + u64::from(f) - 1).wrapping_sub(self.th.rob);
+            let need = self.th.rob_ring[back as usize & (self.th.rob_ring.len() - 1)];
             if need > d {
                 d = need;
                 why = Stall::Resources;
@@ -792,8 +1034,8 @@ impl OooCore {
         }
         if ct.store && !ct.per_lane {
             // The entry this store takes is free once its last store retired.
-            let free = self.stores[self.store_seq % self.stores.len()].ret + 1;
-            if free > d && self.store_seq >= self.stores.len() {
+            let free = self.th.stores[self.th.store_seq % self.th.stores.len()].ret + 1;
+            if free > d && self.th.store_seq >= self.th.stores.len() {
                 d = free;
                 why = Stall::Resources;
             }
@@ -810,12 +1052,24 @@ impl OooCore {
                 }
             }
         }
-        if d > self.d {
-            self.dcount = 0;
-            self.cal.advance(d);
+        if let Some(turns) = &mut self.smt {
+            // Rename takes one thread's uops a cycle (crate::smt, rule 1).
+            let c = turns.dispatch.take(self.cur, d);
+            if c > d {
+                d = c;
+                why = Stall::Thread;
+            }
         }
-        self.d = d;
-        self.dcount += f;
+        if d > self.th.d {
+            self.th.dcount = 0;
+            let floor = self.floor(d);
+            self.cal.advance(floor);
+            if let Some(turns) = &mut self.smt {
+                turns.advance(floor);
+            }
+        }
+        self.th.d = d;
+        self.th.dcount += f;
         (d, f, why)
     }
 
@@ -827,7 +1081,7 @@ impl OooCore {
         let nuops = ct.uops.len();
         let mut r = d + 1;
         for &src in op.sources() {
-            r = r.max(self.values.get(src));
+            r = r.max(self.th.values.get(src));
         }
         if ct.load && op.aux != 0 && !ct.per_lane && self.mdp[mdp_slot(op)] {
             r = r.max(self.older_store_addresses(r));
@@ -915,7 +1169,7 @@ impl OooCore {
                     // Issued before the store's address was known: a
                     // memory-ordering machine clear; the site now waits.
                     self.mdp[mdp_slot(op)] = true;
-                    self.fetch_block = self.fetch_block.max(st.addr + self.penalty);
+                    self.th.fetch_block = self.th.fetch_block.max(st.addr + self.penalty);
                     s.ordering_clears += u64::from(counted);
                 }
                 done = first.max(st.data).max(st.addr) + self.sf_latency;
@@ -938,18 +1192,18 @@ impl OooCore {
         } else if ct.store {
             mem.store_span(self.core, (op.addr.0, op.bytes), op.mem, first);
             let (addr, data) = self.store_ready(op, d);
-            let k = self.store_seq % self.stores.len();
-            self.stores[k] = StoreEntry {
+            let k = self.th.store_seq % self.th.stores.len();
+            self.th.stores[k] = StoreEntry {
                 lo: op.addr.0,
                 hi: op.addr.0 + u64::from(op.bytes),
                 addr,
                 data,
                 ret: u64::MAX - 1,
             };
-            self.store_seq += 1;
+            self.th.store_seq += 1;
             let hi = op.addr.0 + u64::from(op.bytes);
             for g in op.addr.0 >> 3..=(hi.max(op.addr.0 + 1) - 1) >> 3 {
-                self.granules[g as usize % GRANULES] = self.store_seq;
+                self.th.granules[g as usize % GRANULES] = self.th.store_seq;
             }
         }
         done
@@ -961,7 +1215,11 @@ impl OooCore {
     #[inline(always)]
     fn store_ready(&self, op: &Op, d: u64) -> (u64, u64) {
         let (addr, data) = op.sources().split_at(usize::from(op.has_addr_src()));
-        let at = |vs: &[ValId]| vs.iter().map(|v| self.values.get(*v)).fold(d + 1, u64::max);
+        let at = |vs: &[ValId]| {
+            vs.iter()
+                .map(|v| self.th.values.get(*v))
+                .fold(d + 1, u64::max)
+        };
         (at(addr), at(data))
     }
 
@@ -970,9 +1228,9 @@ impl OooCore {
     /// retired one.
     #[inline(always)]
     fn buffered(&self, at: u64) -> impl Iterator<Item = &StoreEntry> {
-        let n = self.stores.len();
-        (1..=self.store_seq.min(n))
-            .map(move |j| &self.stores[(self.store_seq - j) % n])
+        let n = self.th.stores.len();
+        (1..=self.th.store_seq.min(n))
+            .map(move |j| &self.th.stores[(self.th.store_seq - j) % n])
             .take_while(move |st| st.ret >= at)
     }
 
@@ -1001,9 +1259,9 @@ impl OooCore {
     /// later, so the slot is never older than an overlapping store.)
     #[inline(always)]
     fn store_near(&self, lo: u64, hi: u64) -> bool {
-        let oldest = self.store_seq.saturating_sub(self.stores.len());
+        let oldest = self.th.store_seq.saturating_sub(self.th.stores.len());
         (lo >> 3..=(hi.max(lo + 1) - 1) >> 3).any(|g| {
-            let v = self.granules[g as usize % GRANULES];
+            let v = self.th.granules[g as usize % GRANULES];
             v > oldest
         })
     }
@@ -1025,26 +1283,53 @@ impl OooCore {
             s.mispredicts += u64::from(!ok);
         }
         if !ok {
-            self.fetch_block = done + self.penalty;
+            self.th.fetch_block = done + self.penalty;
         }
+    }
+
+    /// The first cycle from `c` this thread may retire in (every cycle
+    /// with one thread).
+    #[inline(always)]
+    fn retire_turn(&mut self, c: u64) -> u64 {
+        match &mut self.smt {
+            Some(turns) => turns.retire.take(self.cur, c),
+            None => c,
+        }
+    }
+
+    /// The earliest cycle any running thread may still dispatch in, with
+    /// the running thread at `d`: booking calendars are cleared only
+    /// before it.
+    #[inline(always)]
+    fn floor(&self, d: u64) -> u64 {
+        if self.smt.is_none() {
+            return d;
+        }
+        self.parked
+            .iter()
+            .filter(|(_, t)| t.running)
+            .fold(d, |f, (_, t)| f.min(t.d))
     }
 
     /// Retire in order at the retire width; the op's retire cycle.
     #[inline(always)]
     fn retire(&mut self, f: u32, done: u64) -> u64 {
-        let mut ret = done.max(self.last_ret);
-        if ret > self.last_ret {
-            self.ret_count = 0;
+        let mut ret = done.max(self.th.last_ret);
+        if f > 0 {
+            ret = self.retire_turn(ret);
         }
-        if self.ret_count + f > self.retire_width {
-            ret += 1;
-            self.ret_count = 0;
+        if ret > self.th.last_ret {
+            self.th.ret_count = 0;
         }
-        self.ret_count += f;
+        if self.th.ret_count + f > self.retire_width {
+            ret = self.retire_turn(ret + 1);
+            self.th.ret_count = 0;
+        }
+        self.th.ret_count += f;
         for _ in 0..f {
-            let k = self.rob_seq as usize & (self.rob_ring.len() - 1);
-            self.rob_ring[k] = ret;
-            self.rob_seq += 1;
+            let k = self.th.rob_seq as usize & (self.th.rob_ring.len() - 1);
+            self.th.rob_ring[k] = ret;
+            self.th.rob_seq += 1;
         }
         ret
     }

@@ -302,9 +302,91 @@ impl Predictor {
     }
 }
 
+/// A hardware thread's global branch history, kept while another thread
+/// uses the predictor (SMT: the tables are shared, the histories are not).
+#[derive(Clone, Debug, Default)]
+pub struct History {
+    gshare: u64,
+    ring: Vec<bool>,
+    head: usize,
+    /// Each tagged table's folded index and tags.
+    folded: Vec<[u32; 3]>,
+}
+
+impl Predictor {
+    /// The current global history (a fresh predictor's: none yet).
+    #[must_use]
+    pub fn history(&self) -> History {
+        let mut h = History::default();
+        let mut me = self.clone();
+        me.swap_history(&mut h);
+        h
+    }
+
+    /// Put history `h` in and take the current one out into `h`.
+    pub fn swap_history(&mut self, h: &mut History) {
+        match self {
+            Predictor::Gshare(g) => std::mem::swap(&mut g.history, &mut h.gshare),
+            Predictor::Tage(t) => {
+                std::mem::swap(&mut t.base.history, &mut h.gshare);
+                if h.ring.len() != t.ring.len() {
+                    // A history never taken out: a fresh one.
+                    h.ring = vec![false; t.ring.len()];
+                    h.head = 0;
+                    h.folded = vec![[0; 3]; t.tables.len()];
+                }
+                std::mem::swap(&mut t.ring, &mut h.ring);
+                std::mem::swap(&mut t.head, &mut h.head);
+                for (tb, f) in t.tables.iter_mut().zip(&mut h.folded) {
+                    let now = [tb.index.value, tb.tag_a.value, tb.tag_b.value];
+                    [tb.index.value, tb.tag_a.value, tb.tag_b.value] = *f;
+                    *f = now;
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_history_swapped_out_and_back_leaves_the_predictor_as_it_was() {
+        let c = TageConfig {
+            tables: 6,
+            table_bits: 10,
+            tag_bits: 9,
+            min_history: 4,
+            max_history: 200,
+        };
+        for mut p in [
+            Predictor::new(12, 14, None),
+            Predictor::new(12, 14, Some(&c)),
+        ] {
+            let mut other = p.clone();
+            let mut h = p.history();
+            for i in 0..300u32 {
+                p.predict_and_update(i % 7, i % 3 == 0);
+                other.predict_and_update(i % 7, i % 3 == 0);
+            }
+            // A second thread's branches in between, on its own history.
+            p.swap_history(&mut h);
+            for i in 0..50u32 {
+                p.predict_and_update(100 + i % 5, i % 2 == 0);
+            }
+            p.swap_history(&mut h);
+            // The first thread's history is back: what it predicts for a
+            // branch the second thread never ran is unchanged.
+            for i in 0..200u32 {
+                assert_eq!(
+                    p.predict_and_update(i % 7, i % 3 == 0),
+                    other.predict_and_update(i % 7, i % 3 == 0),
+                    "branch {i}"
+                );
+            }
+        }
+    }
 
     fn tage() -> Predictor {
         let c = TageConfig {

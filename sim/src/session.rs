@@ -7,7 +7,7 @@
 
 use crate::config::{CoreKind, MachineConfig};
 use crate::memory::Hierarchy;
-use crate::ooo::OooCore;
+use crate::ooo::{OooCore, ThreadOps};
 use crate::predictor::Predictor;
 use crate::stats::Stats;
 use crate::{inorder, stats};
@@ -55,6 +55,35 @@ impl UnitTimed {
     }
 }
 
+/// A unit's ops in an SMT step: a whole trace, or a chunk of a streamed unit.
+enum Held<'t> {
+    Whole(&'t Trace),
+    Chunk(Trace),
+}
+
+impl std::ops::Deref for Held<'_> {
+    type Target = Trace;
+    fn deref(&self) -> &Trace {
+        match self {
+            Held::Whole(t) => t,
+            Held::Chunk(t) => t,
+        }
+    }
+}
+
+/// A unit on a hardware thread during an SMT step.
+struct OnThread<'t> {
+    core: usize,
+    thread: usize,
+    /// Its place in the step's unit counts.
+    unit: usize,
+    ops: Held<'t>,
+    /// The next op to time.
+    pos: usize,
+    /// Whether its thread still has ops.
+    live: bool,
+}
+
 /// A machine's state between steps.
 pub struct Session {
     m: MachineConfig,
@@ -65,6 +94,8 @@ pub struct Session {
     preds: Vec<Predictor>,
     /// In-order machines: the core's clock.
     clock: u64,
+    /// Out-of-order machines: hardware threads used per core (SMT).
+    threads: usize,
 }
 
 impl Session {
@@ -97,13 +128,53 @@ impl Session {
             ooo,
             preds,
             clock: 0,
+            threads: 1,
         }
+    }
+
+    /// An out-of-order machine's cores with `threads` hardware threads each
+    /// (simultaneous multithreading, [`crate::ooo::OooCore::run_threads`]):
+    /// slot `k` is thread `k / cores` of core `k % cores`, so the first
+    /// `cores` slots are one thread on every core, as an operating system
+    /// places threads. One thread per core is [`Session::new`].
+    pub fn with_threads(m: &MachineConfig, threads: usize) -> Result<Session, String> {
+        if m.core.kind != CoreKind::OutOfOrder {
+            return Err(format!(
+                "{} is an in-order machine: its hardware threads are its slots already",
+                m.name
+            ));
+        }
+        if threads == 0 || threads > m.core.threads as usize {
+            return Err(format!(
+                "{threads} threads per core: {} has 1 to {} (core.threads)",
+                m.name, m.core.threads
+            ));
+        }
+        let mut s = Session::new(m);
+        if threads > 1 {
+            s.ooo = (0..m.cores as usize)
+                .map(|c| OooCore::with_threads(m, c, threads))
+                .collect();
+        }
+        s.threads = threads;
+        Ok(s)
+    }
+
+    /// Hardware threads used per core (out-of-order machines; 1 on in-order ones).
+    #[must_use]
+    pub fn threads_per_core(&self) -> usize {
+        self.threads
+    }
+
+    /// The core and hardware thread of out-of-order slot `k`.
+    fn place(&self, k: usize) -> (usize, usize) {
+        (k % self.ooo.len(), k / self.ooo.len())
     }
 
     /// Units per step: the cores (out-of-order) or hardware threads (in-order).
     #[must_use]
     pub fn slots(&self) -> usize {
-        self.ooo.len().max(self.preds.len())
+        (self.ooo.len() * self.threads).max(self.preds.len())
     }
 
     fn check(&self, units: &[(usize, &Trace)]) -> Result<(), String> {
@@ -216,6 +287,13 @@ impl Session {
     /// The out-of-order cores run `units`, a core that finishes taking the
     /// next of `rest`; each slot's cycles from the common start to its end.
     fn timed_ooo(&mut self, units: &[(usize, &Trace)], rest: &[&Trace], s: &mut Stats) -> Vec<u64> {
+        if self.threads > 1 {
+            let firsts = units.iter().map(|&(k, t)| (k, Held::Whole(t))).collect();
+            let (own, _) = self
+                .timed_smt(firsts, &mut |_| None, rest, s)
+                .expect("whole traces of the machine's flavour, checked");
+            return own;
+        }
         // The units start together: every core's clock at the latest.
         let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
         for c in &mut self.ooo {
@@ -303,6 +381,16 @@ impl Session {
         units: &mut [(usize, Chunks<'_>)],
         s: &mut Stats,
     ) -> Result<Vec<UnitTimed>, String> {
+        if self.threads > 1 {
+            let firsts = firsts
+                .into_iter()
+                .map(|(k, t)| (k, Held::Chunk(t)))
+                .collect();
+            let mut next = |k: usize| units[k].1.next();
+            return self
+                .timed_smt(firsts, &mut next, &[], s)
+                .map(|(_, each)| each);
+        }
         let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
         for c in &mut self.ooo {
             c.advance_to(start);
@@ -358,6 +446,127 @@ impl Session {
         Ok(each)
     }
 
+    /// An SMT step: the units (slot, first ops) started together, each
+    /// unit's further chunks from `more` (by its place in `firsts`), a
+    /// thread that finishes its unit taking the next of `rest`. Each core
+    /// furthest behind in simulated time runs its threads op by op until
+    /// one reaches the end of a piece ([`PIECE`] ops from its unit's
+    /// start). Each first unit's cycles to its end, and every unit's counts.
+    fn timed_smt<'t>(
+        &mut self,
+        firsts: Vec<(usize, Held<'t>)>,
+        more: &mut dyn FnMut(usize) -> Option<Trace>,
+        rest: &[&'t Trace],
+        s: &mut Stats,
+    ) -> Result<(Vec<u64>, Vec<UnitTimed>), String> {
+        let start = self.ooo.iter().map(|c| c.now).max().unwrap_or(0);
+        let mut running = vec![0u32; self.ooo.len()];
+        let mut on: Vec<OnThread<'t>> = Vec::with_capacity(firsts.len());
+        for (u, (slot, ops)) in firsts.into_iter().enumerate() {
+            let (core, thread) = self.place(slot);
+            running[core] |= 1 << thread;
+            on.push(OnThread {
+                core,
+                thread,
+                unit: u,
+                ops,
+                pos: 0,
+                live: true,
+            });
+        }
+        for (c, bits) in self.ooo.iter_mut().zip(&running) {
+            c.advance_to(start);
+            c.start_step(&self.m, *bits);
+        }
+        let mut each = vec![UnitTimed::default(); on.len()];
+        let mut next = 0usize;
+        loop {
+            for r in on.iter_mut().filter(|r| r.live && r.pos >= r.ops.ops.len()) {
+                self.refill(r, more, (rest, &mut next), &mut each, start)?;
+            }
+            let Some(core) = on
+                .iter()
+                .filter(|r| r.live)
+                .map(|r| (self.ooo[r.core].thread_now(r.thread), r.core))
+                .min()
+                .map(|(_, c)| c)
+            else {
+                break;
+            };
+            let mine: Vec<usize> = (0..on.len())
+                .filter(|&k| on[k].live && on[k].core == core)
+                .collect();
+            let mut ops: Vec<ThreadOps<'_>> = mine
+                .iter()
+                .map(|&k| {
+                    let r = &on[k];
+                    let end = ((r.pos / PIECE + 1) * PIECE).min(r.ops.ops.len());
+                    ThreadOps {
+                        thread: r.thread,
+                        trace: &r.ops,
+                        pos: r.pos,
+                        end,
+                    }
+                })
+                .collect();
+            self.ooo[core].run_threads(&mut ops, &mut self.mem, s);
+            let moved: Vec<usize> = ops.iter().map(|o| o.pos).collect();
+            drop(ops);
+            for (&k, pos) in mine.iter().zip(moved) {
+                let r = &mut on[k];
+                let u = &mut each[r.unit];
+                for o in &r.ops.ops[r.pos..pos] {
+                    let i = stats::instructions(o.class);
+                    u.records += 1;
+                    u.instructions += i;
+                    u.region_instructions[o.region as usize] += i;
+                }
+                r.pos = pos;
+            }
+        }
+        let first = on.len().min(each.len());
+        let own = each[..first].iter().map(|u| u.cycles).collect();
+        Ok((own, each))
+    }
+
+    /// A unit whose ops so far are timed: its next chunk, else the next
+    /// unit of `rest` on its thread, else its thread stops (its cycles noted).
+    fn refill<'t>(
+        &mut self,
+        r: &mut OnThread<'t>,
+        more: &mut dyn FnMut(usize) -> Option<Trace>,
+        (rest, next): (&[&'t Trace], &mut usize),
+        each: &mut Vec<UnitTimed>,
+        start: u64,
+    ) -> Result<(), String> {
+        while r.live && r.pos >= r.ops.ops.len() {
+            let len = r.ops.ops.len();
+            if let Some(n) = more(r.unit) {
+                if !len.is_multiple_of(PIECE) {
+                    return Err(format!("a chunk of {len} ops is followed by another: chunks but the last hold a multiple of {PIECE} ops"));
+                }
+                if n.flavour != self.m.flavour() {
+                    return Err(format!(
+                        "a chunk is {} code but machine {} runs {} code",
+                        n.flavour, self.m.name, self.m.isa
+                    ));
+                }
+                (r.ops, r.pos) = (Held::Chunk(n), 0);
+                continue;
+            }
+            each[r.unit].cycles = self.ooo[r.core].thread_now(r.thread) - start;
+            if let Some(&q) = rest.get(*next) {
+                *next += 1;
+                each.push(UnitTimed::default());
+                (r.unit, r.ops, r.pos) = (each.len() - 1, Held::Whole(q), 0);
+            } else {
+                r.live = false;
+                self.ooo[r.core].stop_thread(r.thread);
+            }
+        }
+        Ok(())
+    }
+
     /// Functional warming of `units` (slot, trace): caches, prefetchers and
     /// predictors see every op; nothing is timed or counted.
     pub fn warm(&mut self, units: &[(usize, &Trace)]) -> Result<(), String> {
@@ -367,7 +576,8 @@ impl Session {
             if self.ooo.is_empty() {
                 inorder::warm(t, &mut self.preds[slot], &mut self.mem, self.clock);
             } else {
-                self.ooo[slot].warm(t, &mut self.mem);
+                let (core, thread) = self.place(slot);
+                self.ooo[core].warm_thread(thread, t, &mut self.mem);
             }
         }
         self.mem.functional = false;
@@ -647,6 +857,206 @@ mod tests {
         assert!(
             other.mispredicts > first.mispredicts / 2,
             "thread 1 is cold"
+        );
+    }
+
+    /// `n` ops of `class`, each reading the one before if `chain`.
+    fn ops(class: OpClass, n: u32, chain: bool) -> Trace {
+        let mut t = Trace::new(isa::FlavourId::Avx2, "test");
+        for i in 0..n {
+            let mut op = Op::new(class, Region::Other);
+            if chain && i > 0 {
+                op.push_src(ValId(i));
+            }
+            op.dst = ValId(i + 1);
+            t.ops.push(op);
+        }
+        t
+    }
+
+    /// A long op (a load from DRAM), then `t`'s ops.
+    fn behind_a_miss(t: &Trace) -> Trace {
+        let mut out = chase(1);
+        let base = 1;
+        for o in &t.ops {
+            let mut o = *o;
+            o.dst = ValId(o.dst.0 + base);
+            if o.nsrc > 0 {
+                o.srcs[0] = ValId(o.srcs[0].0 + base);
+            }
+            out.ops.push(o);
+        }
+        out
+    }
+
+    /// Each unit's own cycles on a fresh Haswell session with `threads`
+    /// per core, units on `slots`; with thread 0's pipeline times.
+    fn smt_run(threads: usize, units: &[(usize, &Trace)]) -> (Vec<u64>, Vec<crate::OpTimes>) {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let mut s = Session::with_threads(&m, threads).unwrap();
+        s.ooo[0].timeline = Some(crate::ooo::Timeline::new(0..10_000));
+        let (_, own) = s.timed_each(units).unwrap();
+        let tl = s.ooo[0].timeline.take().unwrap().events;
+        (own, tl)
+    }
+
+    #[test]
+    fn two_threads_take_turns_at_dispatch_when_both_can() {
+        // Independent one-cycle ops: alone, 4 a cycle; two threads on one
+        // core (slots 0 and 4 of 4 cores) alternate whole cycles.
+        let t = ops(OpClass::Alu, 64, false);
+        let (_, alone) = smt_run(1, &[(0, &t)]);
+        let d: Vec<u64> = alone.iter().map(|e| e.dispatch).collect();
+        assert_eq!(&d[..9], &[0, 0, 0, 0, 1, 1, 1, 1, 2]);
+        let (own, both) = smt_run(2, &[(0, &t), (4, &t)]);
+        let d: Vec<u64> = both.iter().map(|e| e.dispatch).collect();
+        assert_eq!(
+            &d[..9],
+            &[0, 0, 0, 0, 2, 2, 2, 2, 4],
+            "thread 0 takes every other cycle"
+        );
+        assert_eq!(both[4].stall, crate::Stall::Thread);
+        // 64 ops in 16 dispatch cycles each: the pair ends one cycle apart.
+        assert_eq!(own[1], own[0] + 1, "{own:?}");
+    }
+
+    #[test]
+    fn a_thread_that_cannot_dispatch_leaves_every_cycle_to_the_other() {
+        let t = ops(OpClass::Alu, 64, false);
+        let one = ops(OpClass::Alu, 1, false);
+        let (_, tl) = smt_run(2, &[(0, &t), (4, &one)]);
+        let d: Vec<u64> = tl.iter().map(|e| e.dispatch).collect();
+        // Thread 1 takes cycle 1 for its one op, then has nothing left.
+        assert_eq!(&d[..13], &[0, 0, 0, 0, 2, 2, 2, 2, 3, 3, 3, 3, 4]);
+    }
+
+    #[test]
+    fn two_dependent_chains_interleave() {
+        // Chains of one-cycle ops: each needs one dispatch a cycle and
+        // gets two on average, so two threads finish as one does, give or
+        // take their retirement turns.
+        let t = ops(OpClass::Alu, 200, true);
+        let (alone, _) = smt_run(1, &[(0, &t)]);
+        let (both, _) = smt_run(2, &[(0, &t), (4, &t)]);
+        assert_eq!(alone, vec![201]);
+        assert_eq!(both, vec![202, 203]);
+    }
+
+    #[test]
+    fn a_throughput_bound_pair_halves() {
+        // Independent adds on port 1 only: one a cycle for the core.
+        let t = ops(OpClass::VAdd, 200, false);
+        let (alone, _) = smt_run(1, &[(0, &t)]);
+        let (both, _) = smt_run(2, &[(0, &t), (4, &t)]);
+        assert_eq!(alone, vec![203]);
+        // The 400 adds take the port 400 cycles; the threads share it.
+        assert_eq!(both, vec![400, 403], "each thread at half the rate");
+    }
+
+    #[test]
+    fn a_partitioned_rob_holds_half_the_ops_behind_a_long_one() {
+        let t = behind_a_miss(&ops(OpClass::Alu, 250, false));
+        let one = ops(OpClass::Alu, 1, false);
+        let (_, alone) = smt_run(2, &[(0, &t)]);
+        let (_, split) = smt_run(2, &[(0, &t), (4, &one)]);
+        let head = |tl: &[crate::OpTimes]| tl[0].retire;
+        // Alone the whole ROB (192): the op 192 places on waits for the head.
+        assert!(alone[191].dispatch < head(&alone));
+        assert_eq!(alone[192].dispatch, head(&alone));
+        // With the other thread running, its half (96).
+        assert!(split[95].dispatch < head(&split));
+        assert_eq!(split[96].dispatch, head(&split));
+        assert_eq!(split[96].stall, crate::Stall::Resources);
+    }
+
+    #[test]
+    fn a_partitioned_store_buffer_holds_half_the_stores() {
+        let mut stores = Trace::new(isa::FlavourId::Avx2, "test");
+        for i in 0..60u64 {
+            let mut op = Op::new(OpClass::Store, Region::Other);
+            op.addr = Addr(0x10_0000 + 64 * i);
+            op.bytes = 8;
+            stores.ops.push(op);
+        }
+        let t = behind_a_miss(&stores);
+        let one = ops(OpClass::Alu, 1, false);
+        let (_, alone) = smt_run(2, &[(0, &t)]);
+        let (_, split) = smt_run(2, &[(0, &t), (4, &one)]);
+        // Store k sits at op 1 + k; it needs the entry of store k - size.
+        assert_eq!(alone[1 + 42].dispatch, alone[1].retire + 1, "42 entries");
+        assert!(alone[1 + 41].dispatch < alone[1].retire);
+        assert_eq!(split[1 + 21].dispatch, split[1].retire + 1, "21 entries");
+        assert!(split[1 + 20].dispatch < split[1].retire);
+    }
+
+    #[test]
+    fn one_thread_per_core_is_today_s_core() {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let traces = [mixed(700, 1), mixed(129, 2), mixed(300, 3), mixed(400, 4)];
+        let units: Vec<(usize, &Trace)> = traces.iter().enumerate().collect();
+        let mut one = Session::new(&m);
+        let mut smt = Session::with_threads(&m, 2).unwrap();
+        for step in 0..2 {
+            assert_eq!(
+                one.timed_each(&units).unwrap(),
+                smt.timed_each(&units).unwrap(),
+                "step {step}: units on the first thread of each core"
+            );
+        }
+        assert!(Session::with_threads(&m, 3)
+            .err()
+            .unwrap()
+            .contains("1 to 2"));
+    }
+
+    #[test]
+    fn smt_units_from_chunks_give_the_whole_traces_figures() {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let traces = [
+            mixed(700, 1),
+            mixed(129, 2),
+            mixed(0, 3),
+            mixed(400, 4),
+            mixed(333, 5),
+        ];
+        let slots = [0, 4, 1, 5, 2];
+        let whole: Vec<(usize, &Trace)> = slots.iter().copied().zip(&traces).collect();
+        let mut a = Session::with_threads(&m, 2).unwrap();
+        let mut b = Session::with_threads(&m, 2).unwrap();
+        for step in 0..2 {
+            let want = a.timed_each(&whole).unwrap();
+            let mut cut: Vec<std::vec::IntoIter<Trace>> =
+                traces.iter().map(|t| chunks(t, 512).into_iter()).collect();
+            let mut units: Vec<(usize, Chunks<'_>)> = cut
+                .iter_mut()
+                .zip(slots)
+                .map(|(c, k)| (k, c as Chunks<'_>))
+                .collect();
+            let (s, each) = b.timed_streams(&mut units).unwrap();
+            let cycles: Vec<u64> = each.iter().map(|u| u.cycles).collect();
+            assert_eq!((s, cycles), want, "step {step}");
+            for (u, t) in each.iter().zip(&traces) {
+                assert_eq!(u.instructions, UnitTimed::of(t).instructions);
+            }
+        }
+    }
+
+    #[test]
+    fn smt_threads_share_the_core_s_caches() {
+        let m = MachineConfig::load("haswell-i7-4750hq").unwrap();
+        let t = chase(256);
+        let mut s = Session::with_threads(&m, 2).unwrap();
+        s.timed(&[(0, &t)]).unwrap();
+        let other = s.timed(&[(4, &t)]).unwrap();
+        assert_eq!(
+            other.levels[0].total_misses(),
+            0,
+            "thread 1 of core 0 finds thread 0's lines"
+        );
+        let core1 = s.timed(&[(1, &t)]).unwrap();
+        assert!(
+            core1.levels[0].total_misses() >= 256,
+            "core 1's L1 is its own"
         );
     }
 }

@@ -30,6 +30,8 @@ pub enum Stall {
     /// The legacy decoders had not delivered the op yet (fetch bytes,
     /// decoder slots, a length-changing prefix).
     FrontEnd = 9,
+    /// The core's other hardware thread had the dispatch cycle (SMT).
+    Thread = 10,
 }
 
 /// Most execution ports a core has (the config checks it).
@@ -37,7 +39,7 @@ pub const MAX_PORTS: usize = 16;
 
 impl Stall {
     /// How many reasons there are (the length of the stall arrays).
-    pub const COUNT: usize = 10;
+    pub const COUNT: usize = 11;
     /// All reasons, in the order a CPI stack lists them.
     pub const ALL: [Stall; Stall::COUNT] = [
         Stall::Issue,
@@ -50,6 +52,7 @@ impl Stall {
         Stall::Ports,
         Stall::Resources,
         Stall::FrontEnd,
+        Stall::Thread,
     ];
     /// Stable name.
     #[must_use]
@@ -65,6 +68,7 @@ impl Stall {
             Stall::Ports => "ports",
             Stall::Resources => "resources",
             Stall::FrontEnd => "front-end",
+            Stall::Thread => "other-thread",
         }
     }
     /// The reason for a load served at cache `level` (0: L1, a level

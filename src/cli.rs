@@ -224,6 +224,10 @@ pub struct ReproduceCli {
     /// Samples per pixel (DRS reports; overrides 16).
     #[arg(long)]
     pub spp: Option<u32>,
+    /// Hardware threads per core (DRS tables: 1 or 2, default 2, the
+    /// paper's 8 threads on 4 cores; see papers/drs/README.md).
+    #[arg(long, value_name = "N")]
+    pub threads_per_core: Option<u32>,
     /// Sample seed (default 7).
     #[arg(long)]
     pub seed: Option<u64>,
@@ -248,6 +252,7 @@ impl ReproduceCli {
             tiles: self.tiles,
             res: self.res,
             spp: self.spp,
+            threads_per_core: self.threads_per_core,
             seed: self.seed,
             format: self.format,
             out: self.out,

@@ -25,13 +25,15 @@ pub enum Opt {
     Res,
     /// `--seed S`: the sample's seed.
     Seed,
+    /// `--threads-per-core N`: hardware threads used on each core (SMT).
+    ThreadsPerCore,
     /// `--out DIR`: write the report (and its figures) there too.
     Out,
 }
 
 impl Opt {
     /// Every option.
-    pub const ALL: [Opt; 8] = [
+    pub const ALL: [Opt; 9] = [
         Opt::Quick,
         Opt::Machine,
         Opt::Set,
@@ -39,6 +41,7 @@ impl Opt {
         Opt::Spp,
         Opt::Res,
         Opt::Seed,
+        Opt::ThreadsPerCore,
         Opt::Out,
     ];
     /// The command-line flag.
@@ -52,6 +55,7 @@ impl Opt {
             Opt::Spp => "--spp",
             Opt::Res => "--res",
             Opt::Seed => "--seed",
+            Opt::ThreadsPerCore => "--threads-per-core",
             Opt::Out => "--out",
         }
     }
@@ -98,6 +102,8 @@ pub struct Given {
     pub spp: Option<u32>,
     /// `--res`.
     pub res: Option<u32>,
+    /// `--threads-per-core`.
+    pub threads_per_core: Option<u32>,
     /// `--seed`.
     pub seed: Option<u64>,
     /// `--format`.
@@ -120,6 +126,7 @@ impl Given {
             Opt::Spp => self.spp.is_some(),
             Opt::Res => self.res.is_some(),
             Opt::Seed => self.seed.is_some(),
+            Opt::ThreadsPerCore => self.threads_per_core.is_some(),
             Opt::Out => self.out.is_some(),
         }
     }
@@ -157,6 +164,8 @@ pub struct ReproduceArgs {
     pub spp: Option<u32>,
     /// Image width and height override (a multiple of 16, 64 to 4096).
     pub res: Option<u32>,
+    /// Hardware threads per core (checked against the machine by the report).
+    pub threads_per_core: Option<u32>,
     /// Sample seed (default 7).
     pub seed: u64,
     /// Output format.
@@ -243,6 +252,7 @@ impl ReportDef {
             tiles: g.tiles,
             spp: g.spp,
             res: g.res,
+            threads_per_core: g.threads_per_core,
             seed: g.seed.unwrap_or(DEFAULT_SEED),
             format: g.format,
             out: g.out,

@@ -170,6 +170,8 @@ pub fn fidelity_frame(m: &sim::MachineConfig, f: &FrameFidelity) -> AppResult<Re
         spp: f.spp,
         block: 0,
         progress: repro::progress::Progress::hidden(),
+        // One thread per core: the design is measured on the cores alone.
+        threads: 1,
     };
     let refi = Reference::with_bvh(&ld.scene.mesh, &ld.b2);
     let rounds = window_rounds(&ld, f, smp.size, m.cores.max(1) as usize);

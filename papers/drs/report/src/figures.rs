@@ -50,8 +50,8 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("method", Kernel::DrsBvh4.name())
                     .key("tile", format!("{size}x{size}"))
             };
-            let (rate, ci) = ac.chip_mray_ci(&base.m);
-            let bpr = ac.per_ray(&base.m).bytes_per_ray;
+            let (rate, ci) = ac.chip_mray_ci(&base);
+            let bpr = ac.per_ray(&base).bytes_per_ray;
             let mut r = row("mray_per_s", rate).unit("Mray/s");
             r.ci95 = ci;
             rows.push(r);
@@ -95,7 +95,7 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             repro::plot::Panel {
                 title: "Our BVH4: ray-query speed",
                 x: "tile size (pixels per side, 16 spp)",
-                y: "Mray/s (simulated, 4 cores)",
+                y: "Mray/s (simulated chip)",
                 series: s_mray,
             },
             repro::plot::Panel {
@@ -109,8 +109,8 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     notes.push(format!("plot: {}", png.display()));
     notes.push("every tile size looks at the same seeded anchor pixels on the geometry (the sample's tiles; an anchor is the first of up to 64 seeded pixels whose centre ray hits), each covered by the k x k aligned tiles around it, k = ceil(16 / size), so about 16x16 to 28x28 pixels per anchor at every size; bounce and shadow streams follow each tile, shadow streams batched to the primary stream's size, as in the paper".into());
     let input = format!(
-        "Our BVH4 (drs-bvh4) on the 4 DRS stand-ins, tile 4x4..28x28 px at {} spp; Mray/s for {} cores at {} GHz, ray queries only",
-        base.spp, base.m.cores, base.m.clock_ghz
+        "Our BVH4 (drs-bvh4) on the 4 DRS stand-ins, tile 4x4..28x28 px at {} spp; Mray/s for {} at {} GHz, ray queries only",
+        base.spp, base.layout(), base.m.clock_ghz
     );
     finish(
         a,
@@ -168,7 +168,7 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         ops_total += ops;
         for (ki, k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
-            let (rate, ci) = ac.chip_mray_ci(&base.m);
+            let (rate, ci) = ac.chip_mray_ci(&base);
             let row = |metric: &str, v: f64| {
                 Row::new(metric, v)
                     .key("scene", scene_name)
@@ -194,7 +194,7 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         &[repro::plot::Panel {
             title: "dragon stand-in: ray-query speed vs field of view",
             x: "field of view (degrees)",
-            y: "Mray/s (simulated, 4 cores)",
+            y: "Mray/s (simulated chip)",
             series,
         }],
     )?;
@@ -209,8 +209,8 @@ pub fn drs_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     notes.push(format!("plot: {}", png.display()));
     notes.push("the same seeded tiles at every FOV; the paper's Figure 6 scene is not named in its text, the dragon stand-in has the mirror dragon and the large floor its text describes".into());
     let input = format!(
-        "Our BVH4, Single BVH4, Hybrid BVH4 on the dragon stand-in, FOV 8..64 degrees; Mray/s for {} cores at {} GHz, ray queries only",
-        base.m.cores, base.m.clock_ghz
+        "Our BVH4, Single BVH4, Hybrid BVH4 on the dragon stand-in, FOV 8..64 degrees; Mray/s for {} at {} GHz, ray queries only",
+        base.layout(), base.m.clock_ghz
     );
     finish(
         a,

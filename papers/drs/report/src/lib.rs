@@ -36,6 +36,7 @@ const OPTIONS: &[Opt] = &[
     Opt::Tiles,
     Opt::Spp,
     Opt::Seed,
+    Opt::ThreadsPerCore,
     Opt::Out,
 ];
 

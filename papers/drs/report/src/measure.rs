@@ -19,13 +19,20 @@ use std::time::Instant;
 #[derive(Default)]
 pub(crate) struct Acc {
     pub(crate) rays: u64,
+    /// Each hardware thread's own cycles, summed over its units (what a
+    /// per-logical-thread CPI divides).
     pub(crate) cycles: u64,
+    /// Each core's cycles while any of its threads ran, summed over the
+    /// steps (what a per-core CPI divides).
+    pub(crate) core_time: u64,
     pub(crate) ops: u64,
     pub(crate) core_cycles: u64,
     pub(crate) core_ops: u64,
     pub(crate) dram: u64,
     pub(crate) core_tests: u64,
     pub(crate) node_tests: u64,
+    /// Ray-leaf tests (a ray against a leaf's triangle block).
+    pub(crate) leaf_tests: u64,
     pub(crate) bad: u64,
     /// Per tile: (rays, cycles), for the confidence interval.
     pub(crate) tiles: Vec<(u64, u64)>,
@@ -33,6 +40,10 @@ pub(crate) struct Acc {
     pub(crate) kinds: BTreeMap<&'static str, (u64, u64)>,
     /// Per stream kind: instructions and node tests, all and the core loop's.
     pub(crate) kind_work: BTreeMap<&'static str, Work>,
+    /// DRAM bytes of the timed steps by the data structure that moved them:
+    /// reads by the kind of memory region missed in ([`isa::MemKind`]'s
+    /// names), and "written-back" (dirty lines evicted).
+    pub(crate) dram_by: BTreeMap<&'static str, u64>,
 }
 
 /// Instructions and ray-node tests of the timed rays of one stream kind.
@@ -56,12 +67,13 @@ impl Work {
 }
 
 impl Acc {
-    /// The sums' per-ray figures on machine `m` (chip figures: all its cores).
-    pub(crate) fn per_ray(&self, m: &sim::MachineConfig) -> sim::PerRay {
-        sim::PerRay::of(self.cycles, self.dram, self.rays, m.clock_ghz, m.cores)
+    /// The sums' per-ray figures on the sample's machine (chip figures: all
+    /// its cores and threads).
+    pub(crate) fn per_ray(&self, m: &Sample) -> sim::PerRay {
+        sim::PerRay::of(self.cycles, self.dram, self.rays, m.m.clock_ghz, m.chip_units())
     }
     /// Chip Mray/s and its 95% CI over the tiles (ratio rays / cycles).
-    pub(crate) fn chip_mray_ci(&self, m: &sim::MachineConfig) -> (f64, Option<f64>) {
+    pub(crate) fn chip_mray_ci(&self, m: &Sample) -> (f64, Option<f64>) {
         let pairs: Vec<(f64, f64)> = self
             .tiles
             .iter()
@@ -71,7 +83,7 @@ impl Acc {
         (chip_mray(m, self.cycles, self.rays), ci)
     }
     /// Chip s/Gray and its 95% CI over the tiles (ratio cycles / rays).
-    pub(crate) fn chip_sgray_ci(&self, m: &sim::MachineConfig) -> (f64, Option<f64>) {
+    pub(crate) fn chip_sgray_ci(&self, m: &Sample) -> (f64, Option<f64>) {
         let pairs: Vec<(f64, f64)> = self
             .tiles
             .iter()
@@ -82,6 +94,38 @@ impl Acc {
     }
 }
 
+/// Bytes of the renderer's frame buffer per pixel and frame: an RGBA f32
+/// accumulator read and written once a frame (the 16 samples of a pixel
+/// accumulate in cache while its tile renders).
+const FRAME_BUFFER_BYTES_PER_PIXEL: f64 = 2.0 * 16.0;
+
+/// DRAM bytes per ray by the data structure that moved them (rows of
+/// `row`, keyed `structure`), then the frame buffer's share, computed (not
+/// simulated: the renderer's accumulation is not traced) from the timed
+/// rays per pixel; and ray-leaf tests per ray (each fetches a triangle
+/// block).
+pub(crate) fn structure_rows(ac: &Acc, smp: &Sample, row: &dyn Fn(&str, f64) -> Row) -> Vec<Row> {
+    let rays = ac.rays.max(1) as f64;
+    let mut rows: Vec<Row> = ac
+        .dram_by
+        .iter()
+        .filter(|(_, &b)| b > 0)
+        .map(|(k, &b)| {
+            row("bytes_per_ray", b as f64 / rays)
+                .key("structure", k)
+                .unit("B/ray")
+        })
+        .collect();
+    let pixels = (ac.tiles.len() as u64 * u64::from(smp.size * smp.size)) as f64;
+    rows.push(
+        row("bytes_per_ray", FRAME_BUFFER_BYTES_PER_PIXEL * pixels / rays)
+            .key("structure", "frame-buffer (computed)")
+            .unit("B/ray"),
+    );
+    rows.push(row("leaf_tests_per_ray", ac.leaf_tests as f64 / rays));
+    rows
+}
+
 /// Speedup of `a` over `b` on the same tiles (their cycles, b over a) and
 /// its paired 95% CI: the methods trace the same rays.
 pub(crate) fn paired_speedup(a: &Acc, b: &Acc) -> (f64, Option<f64>) {
@@ -89,15 +133,15 @@ pub(crate) fn paired_speedup(a: &Acc, b: &Acc) -> (f64, Option<f64>) {
     paired_ratio(&cycles(b), &cycles(a))
 }
 
-/// Chip Mray/s of `rays` in `cycles` of one core (the paper ran one
-/// thread per core: the rate times the cores).
-pub(crate) fn chip_mray(m: &sim::MachineConfig, cycles: u64, rays: u64) -> f64 {
-    sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).mray_per_s_chip
+/// Chip Mray/s of `rays` in `cycles` of one hardware thread (every thread
+/// of every core runs at once: the rate times the threads).
+pub(crate) fn chip_mray(m: &Sample, cycles: u64, rays: u64) -> f64 {
+    sim::PerRay::of(cycles, 0, rays, m.m.clock_ghz, m.chip_units()).mray_per_s_chip
 }
 
-/// Chip s/Gray of `rays` in `cycles` of one core.
-pub(crate) fn chip_sgray(m: &sim::MachineConfig, cycles: u64, rays: u64) -> f64 {
-    sim::PerRay::of(cycles, 0, rays, m.clock_ghz, m.cores).s_per_gray_chip
+/// Chip s/Gray of `rays` in `cycles` of one hardware thread.
+pub(crate) fn chip_sgray(m: &Sample, cycles: u64, rays: u64) -> f64 {
+    sim::PerRay::of(cycles, 0, rays, m.m.clock_ghz, m.chip_units()).s_per_gray_chip
 }
 
 /// The machine and tile sample of a reproduce run.
@@ -117,6 +161,41 @@ pub(crate) struct Sample {
     pub(crate) block: u32,
     /// The run's progress bar: a unit per stream recorded or warmed.
     pub(crate) progress: repro::progress::Progress,
+    /// Hardware threads used per core (out-of-order machines; SMT).
+    pub(crate) threads: u32,
+}
+
+/// Threads per core of the DRS reports unless `--threads-per-core` says
+/// otherwise: every hardware thread, as the paper's renderer (Embree's
+/// example path tracer, one render thread per logical CPU) ran on the
+/// i7-4750HQ's 8 (papers/drs/README.md, "Threads").
+pub(crate) fn default_threads(m: &sim::MachineConfig) -> u32 {
+    m.core.threads
+}
+
+impl Sample {
+    /// Units a frame round places at once: every hardware thread of every
+    /// core (out-of-order), the cores (in-order, whose threads share a
+    /// core's time).
+    pub(crate) fn round_slots(&self) -> usize {
+        (self.m.cores * self.threads) as usize
+    }
+    /// What a unit's own cycles are multiplied by for the chip's rate.
+    pub(crate) fn chip_units(&self) -> u32 {
+        self.m.cores * self.threads
+    }
+    /// A fresh session of the machine with the sample's threads per core.
+    pub(crate) fn session(&self) -> AppResult<sim::Session> {
+        if self.m.core.kind == sim::CoreKind::OutOfOrder {
+            sim::Session::with_threads(&self.m, self.threads as usize).map_err(AppError)
+        } else {
+            Ok(sim::Session::new(&self.m))
+        }
+    }
+    /// "4 cores x 2 threads" for notes and the sample's design.
+    pub(crate) fn layout(&self) -> String {
+        format!("{} cores x {} thread(s)", self.m.cores, self.threads)
+    }
 }
 
 pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
@@ -149,7 +228,25 @@ pub(crate) fn sample(a: &ReproduceArgs) -> AppResult<Sample> {
         }
         spp = n;
     }
+    let threads = match (m.core.kind, a.threads_per_core) {
+        (sim::CoreKind::InOrder, Some(_)) => {
+            return Err(AppError(format!(
+                "--threads-per-core: {} is an in-order machine; its hardware threads share a core's time and every run uses them",
+                m.name
+            )))
+        }
+        (sim::CoreKind::InOrder, None) => 1,
+        (_, Some(n)) if n == 0 || n > m.core.threads => {
+            return Err(AppError(format!(
+                "--threads-per-core: {n} is not 1 to {} ({} has {} hardware thread(s) per core, core.threads)",
+                m.core.threads, m.name, m.core.threads
+            )))
+        }
+        (_, Some(n)) => n,
+        (_, None) => default_threads(&m),
+    };
     Ok(Sample {
+        threads,
         m,
         fl,
         ntiles,
@@ -319,7 +416,7 @@ pub(crate) fn frame_plan(
     let cam = &ld.scene.config.camera;
     let size = smp.size;
     let (tw, th) = (cam.width / size, cam.height / size);
-    let cores = smp.m.cores.max(1) as usize;
+    let cores = smp.round_slots().max(1);
     let n_tiles = (tw * th) as usize;
     let tile_at = |i: usize| Tile {
         x: (i % tw as usize) as u32,
@@ -460,6 +557,18 @@ fn frame_steps<'a>(
     (steps, slots)
 }
 
+/// Keep the kinds of `t`'s memory regions (by id; a later unit's regions
+/// replace an earlier one's of the same id).
+fn note_kinds(kinds: &mut Vec<isa::MemKind>, t: &isa::Trace) {
+    for r in &t.regions {
+        let i = r.id.0 as usize;
+        if kinds.len() <= i {
+            kinds.resize(i + 1, isa::MemKind::Other);
+        }
+        kinds[i] = r.kind;
+    }
+}
+
 /// The stream kind's name in the report.
 fn kind_name(k: StreamKind) -> &'static str {
     match k {
@@ -472,6 +581,8 @@ fn kind_name(k: StreamKind) -> &'static str {
 /// One method's running sums over a frame plan.
 struct Measuring {
     session: sim::Session,
+    /// The kind of each memory region by id, as the traces so far declare them.
+    kinds: Vec<isa::MemKind>,
     ac: Acc,
     ops_total: u64,
     /// Per (sampled group, core): the observations of the confidence interval.
@@ -503,7 +614,8 @@ pub(crate) fn measure_kernel(
     prog.packet_tile = Some((smp.size, smp.spp));
     prog.shared = Some(shared);
     let st = std::cell::RefCell::new(Measuring {
-        session: sim::Session::new(&smp.m),
+        session: smp.session()?,
+        kinds: Vec::new(),
         ac: Acc::default(),
         ops_total: 0,
         group_sums: BTreeMap::new(),
@@ -528,13 +640,19 @@ pub(crate) fn measure_kernel(
             m.next += 1;
             check(m, slot, &u.unit, &hits);
             m.ops_total += t.ops.len() as u64;
+            note_kinds(&mut m.kinds, &t);
             m.session.warm(&[(slot.core, &t)]).map_err(AppError)?;
             isa::trace::recycle(t);
             Ok(())
         },
         |units, rxs| {
             let m = &mut *st.borrow_mut();
-            let mut chunks: Vec<_> = rxs.iter_mut().map(|rx| rx.iter()).collect();
+            let mut chunks: Vec<_> = rxs.iter_mut().map(|rx| rx.iter().peekable()).collect();
+            for c in &mut chunks {
+                if let Some(t) = c.peek() {
+                    note_kinds(&mut m.kinds, t);
+                }
+            }
             let mut step: Vec<(usize, sim::session::Chunks<'_>)> = units
                 .iter()
                 .zip(&mut chunks)
@@ -551,6 +669,18 @@ pub(crate) fn measure_kernel(
             m.ac.core_cycles += s.region_cycles[Region::CoreLoop as usize];
             m.ac.core_ops += s.region_ops[Region::CoreLoop as usize];
             m.ac.dram += s.dram_read + s.dram_written;
+            for (id, &bytes) in s.dram_read_by_region.iter().enumerate() {
+                let kind = m.kinds.get(id).copied().unwrap_or_default();
+                *m.ac.dram_by.entry(kind.name()).or_default() += bytes;
+            }
+            *m.ac.dram_by.entry("written-back").or_default() += s.dram_written;
+            let cores = smp.m.cores.max(1) as usize;
+            let mut busy = vec![0u64; cores];
+            for (u, t) in units.iter().zip(own.iter()) {
+                let c = u.thread % cores;
+                busy[c] = busy[c].max(t.cycles);
+            }
+            m.ac.core_time += busy.iter().sum::<u64>();
             for ((u, (hits, tests)), tally) in units.iter().zip(outs).zip(own) {
                 let slot = &slots[m.next];
                 m.next += 1;
@@ -559,6 +689,7 @@ pub(crate) fn measure_kernel(
                 let c = tally.cycles;
                 m.ac.core_tests += tests.core_loop;
                 m.ac.node_tests += tests.node_tests();
+                m.ac.leaf_tests += tests.leaf;
                 let rays = u.unit.len() as u64;
                 let work = Work {
                     rays,
@@ -613,8 +744,8 @@ pub(crate) fn finish(
     sample.insert(
         "design".into(),
         serde_json::json!(format!(
-            "each scene camera's whole frame in render order, one {}x{} tile per core on {} cores; {} seeded round(s) of tiles timed in full detail, each after functional warming (caches, prefetchers, predictors) of its own tiles (as the previous frame left them) and then of the {} round(s) rendered before it; state carried from unit to unit, scene laid out once per method (rtsim fidelity --frame measures this design, 'recall', against full detail)",
-            smp.size, smp.size, smp.m.cores, smp.ntiles, smp.warm
+            "each scene camera's whole frame in render order, one {}x{} tile per hardware thread on {}; {} seeded round(s) of tiles timed in full detail, each after functional warming (caches, prefetchers, predictors) of its own tiles (as the previous frame left them) and then of the {} round(s) rendered before it; state carried from unit to unit, scene laid out once per method (rtsim fidelity --frame measures this design, 'recall', against full detail)",
+            smp.size, smp.size, smp.layout(), smp.ntiles, smp.warm
         )),
     );
     sample.insert("warm_rounds".into(), serde_json::json!(smp.warm));

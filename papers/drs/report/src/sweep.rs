@@ -309,6 +309,7 @@ impl SweepCli {
                 tiles: self.tiles,
                 res: self.res,
                 spp: self.spp,
+                threads_per_core: None,
                 seed: self.seed,
                 format: self.format,
                 out: None,

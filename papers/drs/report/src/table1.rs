@@ -27,7 +27,7 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
-    let mray = |cycles: u64, rays: u64| chip_mray(m, cycles, rays);
+    let mray = |cycles: u64, rays: u64| chip_mray(&smp, cycles, rays);
     let scenes = LoadAhead::over(PAPER_TABLE1.map(|s| s.0));
     for ((scene_name, paper, paper_trav, paper_share), ld) in PAPER_TABLE1.into_iter().zip(scenes) {
         let ld = ld?;
@@ -47,14 +47,15 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("scene", scene_name)
                     .key("method", k.name())
             };
-            let (rate, ci) = ac.chip_mray_ci(m);
+            let (rate, ci) = ac.chip_mray_ci(&smp);
             let mut r = row("mray_per_s", rate).unit("Mray/s");
             r.paper = Some(paper[ki].0);
             r.ci95 = ci;
             rows.push(r);
-            let mut r = row("bytes_per_ray", ac.per_ray(m).bytes_per_ray).unit("B/ray");
+            let mut r = row("bytes_per_ray", ac.per_ray(&smp).bytes_per_ray).unit("B/ray");
             r.paper = Some(paper[ki].1);
             rows.push(r);
+            rows.extend(structure_rows(ac, &smp, &row));
             rows.push(row("hit_mismatches", ac.bad as f64));
             for (kind, &(r, c)) in &ac.kinds {
                 rows.push(
@@ -115,10 +116,10 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
         if unseparated.is_empty() { "none".to_string() } else { unseparated.join(", ") }
     ));
     notes.push("packets are formed as the paper's ISPC packet renderer forms them: 8 lanes = 4 x 2 pixels at one sample index, a path keeps its lane through its bounces and shadow rays, dead paths leave lanes empty; the paper's packet rows also pay for a vectorized ISPC renderer that we do not model, and ours time ray queries only".into());
-    notes.push("conditions: the stand-ins have the paper's triangle counts (rtsim list scenes); each method renders sampled rounds of the 1280x1024 frame in render order on the 4 simulated cores (one tile per core, shared L3 and eDRAM), its scene laid out once and caches, prefetchers and predictors carried from tile to tile, each sampled round after functional warming of its own tiles (as the previous frame left them) and of the round rendered before it (on a dragon frame window this design is within about 2% of full detail in cycles per ray, where warming only the round before is 41% above it: rtsim fidelity --frame); B/ray counts ray-query DRAM traffic only (no shading, textures or frame buffer)".into());
+    notes.push(format!("conditions: the stand-ins have the paper's triangle counts (rtsim list scenes); each method renders sampled rounds of the 1280x1024 frame in render order on {} (one tile per hardware thread, shared L3 and eDRAM), its scene laid out once and caches, prefetchers and predictors carried from tile to tile, each sampled round after functional warming of its own tiles (as the previous frame left them) and of the round rendered before it (on a dragon frame window this design is within about 2% of full detail in cycles per ray, where warming only the round before is 41% above it: rtsim fidelity --frame)", smp.layout()));
     let input = format!(
-        "Our BVH2/BVH4, Single BVH2/BVH4, Packet BVH2/BVH4, Hybrid BVH4 on crown, bentley, dragon, sanmiguel stand-ins; Mray/s for {} cores at {} GHz, ray queries only (closest-hit and shadow rays)",
-        m.cores, m.clock_ghz
+        "Our BVH2/BVH4, Single BVH2/BVH4, Packet BVH2/BVH4, Hybrid BVH4 on crown, bentley, dragon, sanmiguel stand-ins; Mray/s for {} at {} GHz, ray queries only (closest-hit and shadow rays)",
+        smp.layout(), m.clock_ghz
     );
     finish(
         a,

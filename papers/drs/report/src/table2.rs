@@ -27,9 +27,9 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             &mut ops_total,
         )?;
         drop(ld);
-        // s/Gray for the whole chip: per-core seconds per ray over the cores
-        // (the paper measured 4 threads on 4 cores).
-        let sgray = |cycles: u64, rays: u64| chip_sgray(m, cycles, rays);
+        // s/Gray for the whole chip: per-thread seconds per ray over the
+        // hardware threads tracing at once.
+        let sgray = |cycles: u64, rays: u64| chip_sgray(&smp, cycles, rays);
         for (ki, &k) in kernels.iter().enumerate() {
             let ac = &acc[ki];
             let row = |metric: &str, v: f64| {
@@ -37,23 +37,32 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
                     .key("scene", scene_name)
                     .key("method", k.name())
             };
-            let (sg, ci) = ac.chip_sgray_ci(m);
+            let (sg, ci) = ac.chip_sgray_ci(&smp);
             let (pc, ps) = if k == Kernel::SingleBvh4 {
                 (paper[0], paper[1])
             } else {
                 (paper[2], paper[3])
             };
+            // CPI per hardware thread, as VTune reports it per logical CPU.
             let mut r = row("cpi", ac.cycles as f64 / ac.ops.max(1) as f64);
             r.paper = Some(pc);
             rows.push(r);
+            rows.push(row("core_cpi", ac.core_time as f64 / ac.ops.max(1) as f64));
             let mut r = row("s_per_gray", sg).unit("s/Gray");
             r.paper = Some(ps);
             r.ci95 = ci;
             rows.push(r);
-            rows.push(row("bytes_per_ray", ac.per_ray(m).bytes_per_ray).unit("B/ray"));
+            rows.push(row("bytes_per_ray", ac.per_ray(&smp).bytes_per_ray).unit("B/ray"));
+            rows.extend(structure_rows(ac, &smp, &row));
             let mut r = row("instructions_per_ray", per_ray(ac.ops, ac.rays));
-            r.paper = Some(paper_instructions(m, ps, pc));
+            r.paper = Some(paper_instructions(smp.chip_units(), m, ps, pc));
             rows.push(r);
+            for threads in READINGS {
+                rows.push(
+                    row("paper_instructions_per_ray", paper_instructions(threads, m, ps, pc))
+                        .key("reading", &reading(threads)),
+                );
+            }
             rows.push(row("node_tests_per_ray", per_ray(ac.node_tests, ac.rays)));
             rows.push(row("rays", ac.rays as f64));
             rows.push(row("hit_mismatches", ac.bad as f64));
@@ -84,8 +93,18 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
                 );
                 let mut r = row("instructions_per_ray", per_ray(ac.core_ops, ac.rays))
                     .key("region", "core-loop");
-                r.paper = Some(paper_instructions(m, paper[5], paper[4]));
+                r.paper = Some(paper_instructions(smp.chip_units(), m, paper[5], paper[4]));
                 rows.push(r);
+                for threads in READINGS {
+                    rows.push(
+                        row(
+                            "paper_instructions_per_ray",
+                            paper_instructions(threads, m, paper[5], paper[4]),
+                        )
+                        .key("region", "core-loop")
+                        .key("reading", &reading(threads)),
+                    );
+                }
                 rows.push(
                     row("node_tests_per_ray", per_ray(ac.core_tests, ac.rays))
                         .key("region", "core-loop"),
@@ -124,7 +143,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
         r.paper = Some(paper[3] / paper[1]);
         r.ci95 = ci;
         rows.push(r);
-        notes.push(decomposition(m, scene_name, &acc, &paper));
+        notes.push(decomposition(&smp, scene_name, &acc, &paper));
         notes.push(format!(
             "{scene_name}: Our BVH4 {:+.0}% ray-query time against Single BVH4 (paper {:+.0}%){}; ray-node tests {} vs {}",
             100.0 * (s2 / s1 - 1.0),
@@ -134,12 +153,12 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             acc[0].node_tests
         ));
     }
-    notes.push("instructions_per_ray's paper column is derived from the paper's Table 2: its s/Gray times 4 cores times 2.8 GHz is cycles per ray, over its CPI; ours counts the simulated instructions of the timed rays".into());
-    notes.push("why absolute figures differ: the scenes are stand-ins at the paper's triangle counts (rtsim list scenes); sampled rounds of the frame run on the 4 simulated cores sharing L3 and eDRAM, warmed by their own tiles' previous pass and the round before (rtsim fidelity --frame: within about 2% of full detail on a dragon window), without the shading code the paper's threads ran between ray queries; s/Gray is the cores' summed simulated time over the 4 cores, as the paper ran 4 threads".into());
+    notes.push(format!("instructions_per_ray's paper column is derived from the paper's Table 2 under this run's reading ({}): its s/Gray times the {} hardware threads tracing at once times 2.8 GHz is one thread's cycles per ray, over its CPI (VTune's CPI is per logical thread); paper_instructions_per_ray gives it under both readings, 4 cores x 1 thread and 4 cores x 2 threads (--threads-per-core 1|2); ours counts the simulated instructions of the timed rays", smp.layout(), smp.chip_units()));
+    notes.push(format!("why absolute figures differ: the scenes are stand-ins at the paper's triangle counts (rtsim list scenes); sampled rounds of the frame run on {} (SMT: two threads of a core share its ports, scheduler and caches and take turns at dispatch and retirement, sim/src/smt.rs) sharing L3 and eDRAM, warmed by their own tiles' previous pass and the round before, without the shading code the paper's threads ran between ray queries; s/Gray is the threads' summed simulated time over the {} threads; cpi is per hardware thread (as VTune's), core_cpi per core", smp.layout(), smp.chip_units()));
     notes.push("Single BVH4 culls popped stack entries farther than its hit (no test), Our BVH4 re-tests those rays in the core loop, which can make its ray-node test count the larger (per-scene counts above, Our BVH4 first); it wins by testing them at lower CPI and fetching each node once per stream. Per stream kind, `rtsim run --kernel single-bvh4|drs-bvh4 --scene S --stream primary|bounce|shadow` times one tile of one kind".into());
     let input = format!(
-        "Single BVH4 vs Our BVH4 (DRS) on crown, bentley, dragon, sanmiguel stand-ins; s/Gray is chip time over {} cores at {} GHz, ray queries only (the paper's Table 2 likewise times only the ray query kernels)",
-        m.cores, m.clock_ghz
+        "Single BVH4 vs Our BVH4 (DRS) on crown, bentley, dragon, sanmiguel stand-ins; s/Gray is chip time over {} at {} GHz, ray queries only (the paper's Table 2 likewise times only the ray query kernels)",
+        smp.layout(), m.clock_ghz
     );
     finish(
         a,
@@ -159,23 +178,34 @@ fn per_ray(n: u64, rays: u64) -> f64 {
     n as f64 / rays.max(1) as f64
 }
 
+/// The two readings of how many threads the paper's renderer ran on the
+/// i7-4750HQ: one per core, or one per hardware thread (4 cores x 2).
+const READINGS: [u32; 2] = [4, 8];
+
+/// A reading's name.
+fn reading(threads: u32) -> String {
+    format!("{threads} threads")
+}
+
 /// Instructions per ray of a (s/Gray, CPI) pair of the paper's Table 2 on
-/// machine `m`: s/Gray x cores x GHz is cycles per ray, over the CPI.
-fn paper_instructions(m: &sim::MachineConfig, s_per_gray: f64, cpi: f64) -> f64 {
-    s_per_gray * f64::from(m.cores) * m.clock_ghz / cpi
+/// machine `m` with `threads` hardware threads tracing at once: s/Gray x
+/// threads x GHz is one thread's cycles per ray, over its CPI.
+fn paper_instructions(threads: u32, m: &sim::MachineConfig, s_per_gray: f64, cpi: f64) -> f64 {
+    s_per_gray * f64::from(threads) * m.clock_ghz / cpi
 }
 
 /// Our BVH4's time over Single BVH4's as instruction ratio x CPI ratio,
 /// ours against the paper's (from its Table 2), and where the instructions go.
-fn decomposition(m: &sim::MachineConfig, scene: &str, acc: &[Acc], paper: &[f64; 7]) -> String {
+fn decomposition(smp: &Sample, scene: &str, acc: &[Acc], paper: &[f64; 7]) -> String {
+    let (m, threads) = (&smp.m, smp.chip_units());
     let (single, ours) = (&acc[0], &acc[1]);
     let cpi = |a: &Acc| a.cycles as f64 / a.ops.max(1) as f64;
     let ins = |a: &Acc| per_ray(a.ops, a.rays);
     let (pi_single, pi_ours) = (
-        paper_instructions(m, paper[1], paper[0]),
-        paper_instructions(m, paper[3], paper[2]),
+        paper_instructions(threads, m, paper[1], paper[0]),
+        paper_instructions(threads, m, paper[3], paper[2]),
     );
-    let pi_core = paper_instructions(m, paper[5], paper[4]);
+    let pi_core = paper_instructions(threads, m, paper[5], paper[4]);
     format!(
         "{scene}: time ratio = instructions x CPI: ours {:.2} x {:.2}, the paper's {:.2} x {:.2}; instructions per ray Single BVH4 {:.0} (paper {:.0}), Our BVH4 {:.0} (paper {:.0}), its core loop {:.0} (paper {:.0}) in {:.1} node tests per ray at {:.1} instructions each (Single BVH4: {:.1} node tests per ray)",
         ins(ours) / ins(single),

@@ -30,6 +30,13 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
         "the same report on 1 and 2 host threads"
     );
     assert_eq!(j["machine"], "haswell-i7-4750hq");
+    assert!(
+        j["sample"]["design"]
+            .as_str()
+            .unwrap()
+            .contains("4 cores x 2 thread(s)"),
+        "the paper's machine as it ran: two threads per core"
+    );
     assert_eq!(j["sample"]["rounds_per_scene"], 1);
     assert_eq!(j["sample"]["warm_rounds"], 1);
     let rows = j["rows"].as_array().unwrap();
@@ -61,6 +68,20 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
                 "{scene} {method}: CPI >= 1/(2 x width)"
             );
         }
+        for method in ["single-bvh4", "drs-bvh4"] {
+            // Two threads share each core: the core retires more than
+            // either thread.
+            assert!(
+                get(scene, method, "core_cpi") < get(scene, method, "cpi"),
+                "{scene} {method}: per-core CPI under per-thread CPI"
+            );
+            assert!(
+                rows.iter().any(|r| r["scene"] == scene
+                    && r["method"] == method
+                    && r["structure"] == "frame-buffer (computed)"),
+                "{scene} {method}: B/ray by structure"
+            );
+        }
         let share = get(scene, "drs-bvh4", "core_loop_share");
         assert!(share > 0.0 && share <= 1.0, "{scene}: {share}");
         assert!(
@@ -88,6 +109,7 @@ fn reproduce_drs_table1_computes_all_seven_rows() {
         Given {
             tiles: Some(1),
             spp: Some(1),
+            threads_per_core: Some(1),
             ..Given::default()
         },
     );
@@ -155,6 +177,7 @@ fn reproduce_drs_figures_write_their_table_and_plot() {
             quick: true,
             tiles: Some(1),
             spp: Some(1),
+            threads_per_core: Some(1),
             out: Some(dir.clone()),
             ..Given::default()
         },
@@ -176,6 +199,7 @@ fn reproduce_drs_figures_write_their_table_and_plot() {
             quick: true,
             tiles: Some(1),
             spp: Some(1),
+            threads_per_core: Some(1),
             out: Some(dir.clone()),
             ..Given::default()
         },

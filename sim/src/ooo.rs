@@ -777,36 +777,29 @@ impl OooCore {
         let classes = std::mem::take(&mut self.classes);
         let narrow = std::mem::take(&mut self.narrow);
         let timeline = self.timeline.is_some();
+        // Each thread's (next dispatch cycle, last dispatch cycle, index):
+        // only the thread that ran changes its own.
+        let mut keys: Vec<(u64, u64, usize)> = ops
+            .iter()
+            .map(|o| {
+                let th = if o.thread == self.cur {
+                    &self.th
+                } else {
+                    &self.parked.iter().find(|p| p.0 == o.thread).expect("a thread of this core").1
+                };
+                (self.next_dispatch(th), th.d, o.thread)
+            })
+            .collect();
         let done = loop {
             if let Some(k) = ops.iter().position(|o| o.pos >= o.end) {
                 break k;
             }
-            let pick = (0..ops.len())
-                .min_by_key(|&k| {
-                    let th = if ops[k].thread == self.cur {
-                        &self.th
-                    } else {
-                        &self
-                            .parked
-                            .iter()
-                            .find(|p| p.0 == ops[k].thread)
-                            .expect("a thread")
-                            .1
-                    };
-                    (self.next_dispatch(th), th.d, ops[k].thread)
-                })
-                .expect("some thread's ops");
+            let pick = (0..keys.len()).min_by_key(|&k| keys[k]).expect("some thread's ops");
             self.switch(ops[pick].thread);
             let o = &mut ops[pick];
-            self.step(
-                o.trace,
-                (o.pos, o.end),
-                (&classes, &narrow),
-                mem,
-                s,
-                (0, timeline),
-            );
+            self.step(o.trace, (o.pos, o.end), (&classes, &narrow), mem, s, (0, timeline));
             o.pos += 1;
+            keys[pick] = (self.next_dispatch(&self.th), self.th.d, o.thread);
         };
         self.classes = classes;
         self.narrow = narrow;

@@ -144,6 +144,7 @@ pub fn simulate(m: &MachineConfig, traces: &[&Trace], opt: &SimOptions) -> Resul
     s.dram_read = mem.dram_read;
     s.dram_written = mem.dram_written;
     s.dram_read_by_region = mem.dram_read_by_region.clone();
+    s.dram_prefetched_by_region = mem.dram_prefetched_by_region.clone();
     Ok(s)
 }
 

@@ -203,6 +203,9 @@ pub struct Hierarchy {
     pub dram_written: u64,
     /// DRAM bytes read per memory region (demand misses and their prefetches).
     pub dram_read_by_region: Vec<u64>,
+    /// Of those, the prefetcher's (by the region of the access that
+    /// triggered the prefetch).
+    pub dram_prefetched_by_region: Vec<u64>,
     /// Per core: (last missed line, stream head: last line prefetched) of the stream prefetcher.
     streams: Vec<(u64, u64)>,
     /// Functional warming: accesses change cache contents only, not the
@@ -242,6 +245,7 @@ impl Hierarchy {
             dram_read: 0,
             dram_written: 0,
             dram_read_by_region: Vec::new(),
+            dram_prefetched_by_region: Vec::new(),
             streams: vec![(u64::MAX - 1, 0); cores],
             functional: false,
         }
@@ -280,6 +284,7 @@ impl Hierarchy {
         self.dram_read = 0;
         self.dram_written = 0;
         self.dram_read_by_region.clear();
+        self.dram_prefetched_by_region.clear();
     }
 
     /// Cache levels (a served level equal to this is DRAM).
@@ -527,6 +532,11 @@ impl Hierarchy {
         let found = (level + 1..n).any(|l| self.cache(core, l).contains(line));
         if !found {
             self.dram(now, region);
+            let i = region.0 as usize;
+            if self.dram_prefetched_by_region.len() <= i {
+                self.dram_prefetched_by_region.resize(i + 1, 0);
+            }
+            self.dram_prefetched_by_region[i] += self.line_bytes();
             for l in level + 1..n {
                 self.fill(core, l, line, false);
             }

@@ -142,6 +142,9 @@ pub struct Stats {
     pub dram_written: u64,
     /// DRAM bytes read per memory region.
     pub dram_read_by_region: Vec<u64>,
+    /// Of those, the bytes the prefetcher read (by the region of the access
+    /// that triggered it).
+    pub dram_prefetched_by_region: Vec<u64>,
     /// The pipeline timeline of the ops [`crate::SimOptions::timeline`]
     /// asked for (out-of-order cores; empty otherwise).
     pub timeline: Vec<OpTimes>,

@@ -44,6 +44,9 @@ pub(crate) struct Acc {
     /// reads by the kind of memory region missed in ([`isa::MemKind`]'s
     /// names), and "written-back" (dirty lines evicted).
     pub(crate) dram_by: BTreeMap<&'static str, u64>,
+    /// Of the reads, the prefetcher's, by the kind of region whose access
+    /// triggered them.
+    pub(crate) prefetched_by: BTreeMap<&'static str, u64>,
 }
 
 /// Instructions and ray-node tests of the timed rays of one stream kind.
@@ -100,7 +103,8 @@ impl Acc {
 const FRAME_BUFFER_BYTES_PER_PIXEL: f64 = 2.0 * 16.0;
 
 /// DRAM bytes per ray by the data structure that moved them (rows of
-/// `row`, keyed `structure`), then the frame buffer's share, computed (not
+/// `row`, keyed `structure`), the prefetcher's part of each, then the
+/// frame buffer's share, computed (not
 /// simulated: the renderer's accumulation is not traced) from the timed
 /// rays per pixel; and ray-leaf tests per ray (each fetches a triangle
 /// block).
@@ -116,6 +120,11 @@ pub(crate) fn structure_rows(ac: &Acc, smp: &Sample, row: &dyn Fn(&str, f64) -> 
                 .unit("B/ray")
         })
         .collect();
+    rows.extend(ac.prefetched_by.iter().filter(|(_, &b)| b > 0).map(|(k, &b)| {
+        row("prefetched_bytes_per_ray", b as f64 / rays)
+            .key("structure", k)
+            .unit("B/ray")
+    }));
     let pixels = (ac.tiles.len() as u64 * u64::from(smp.size * smp.size)) as f64;
     rows.push(
         row("bytes_per_ray", FRAME_BUFFER_BYTES_PER_PIXEL * pixels / rays)
@@ -674,6 +683,10 @@ pub(crate) fn measure_kernel(
                 *m.ac.dram_by.entry(kind.name()).or_default() += bytes;
             }
             *m.ac.dram_by.entry("written-back").or_default() += s.dram_written;
+            for (id, &bytes) in s.dram_prefetched_by_region.iter().enumerate() {
+                let kind = m.kinds.get(id).copied().unwrap_or_default();
+                *m.ac.prefetched_by.entry(kind.name()).or_default() += bytes;
+            }
             let cores = smp.m.cores.max(1) as usize;
             let mut busy = vec![0u64; cores];
             for (u, t) in units.iter().zip(own.iter()) {

@@ -785,7 +785,12 @@ impl OooCore {
                 let th = if o.thread == self.cur {
                     &self.th
                 } else {
-                    &self.parked.iter().find(|p| p.0 == o.thread).expect("a thread of this core").1
+                    &self
+                        .parked
+                        .iter()
+                        .find(|p| p.0 == o.thread)
+                        .expect("a thread of this core")
+                        .1
                 };
                 (self.next_dispatch(th), th.d, o.thread)
             })
@@ -794,10 +799,19 @@ impl OooCore {
             if let Some(k) = ops.iter().position(|o| o.pos >= o.end) {
                 break k;
             }
-            let pick = (0..keys.len()).min_by_key(|&k| keys[k]).expect("some thread's ops");
+            let pick = (0..keys.len())
+                .min_by_key(|&k| keys[k])
+                .expect("some thread's ops");
             self.switch(ops[pick].thread);
             let o = &mut ops[pick];
-            self.step(o.trace, (o.pos, o.end), (&classes, &narrow), mem, s, (0, timeline));
+            self.step(
+                o.trace,
+                (o.pos, o.end),
+                (&classes, &narrow),
+                mem,
+                s,
+                (0, timeline),
+            );
             o.pos += 1;
             keys[pick] = (self.next_dispatch(&self.th), self.th.d, o.thread);
         };

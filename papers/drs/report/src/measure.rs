@@ -73,7 +73,13 @@ impl Acc {
     /// The sums' per-ray figures on the sample's machine (chip figures: all
     /// its cores and threads).
     pub(crate) fn per_ray(&self, m: &Sample) -> sim::PerRay {
-        sim::PerRay::of(self.cycles, self.dram, self.rays, m.m.clock_ghz, m.chip_units())
+        sim::PerRay::of(
+            self.cycles,
+            self.dram,
+            self.rays,
+            m.m.clock_ghz,
+            m.chip_units(),
+        )
     }
     /// Chip Mray/s and its 95% CI over the tiles (ratio rays / cycles).
     pub(crate) fn chip_mray_ci(&self, m: &Sample) -> (f64, Option<f64>) {
@@ -120,16 +126,24 @@ pub(crate) fn structure_rows(ac: &Acc, smp: &Sample, row: &dyn Fn(&str, f64) -> 
                 .unit("B/ray")
         })
         .collect();
-    rows.extend(ac.prefetched_by.iter().filter(|(_, &b)| b > 0).map(|(k, &b)| {
-        row("prefetched_bytes_per_ray", b as f64 / rays)
-            .key("structure", k)
-            .unit("B/ray")
-    }));
+    rows.extend(
+        ac.prefetched_by
+            .iter()
+            .filter(|(_, &b)| b > 0)
+            .map(|(k, &b)| {
+                row("prefetched_bytes_per_ray", b as f64 / rays)
+                    .key("structure", k)
+                    .unit("B/ray")
+            }),
+    );
     let pixels = (ac.tiles.len() as u64 * u64::from(smp.size * smp.size)) as f64;
     rows.push(
-        row("bytes_per_ray", FRAME_BUFFER_BYTES_PER_PIXEL * pixels / rays)
-            .key("structure", "frame-buffer (computed)")
-            .unit("B/ray"),
+        row(
+            "bytes_per_ray",
+            FRAME_BUFFER_BYTES_PER_PIXEL * pixels / rays,
+        )
+        .key("structure", "frame-buffer (computed)")
+        .unit("B/ray"),
     );
     rows.push(row("leaf_tests_per_ray", ac.leaf_tests as f64 / rays));
     rows

@@ -59,8 +59,11 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(r);
             for threads in READINGS {
                 rows.push(
-                    row("paper_instructions_per_ray", paper_instructions(threads, m, ps, pc))
-                        .key("reading", &reading(threads)),
+                    row(
+                        "paper_instructions_per_ray",
+                        paper_instructions(threads, m, ps, pc),
+                    )
+                    .key("reading", reading(threads)),
                 );
             }
             rows.push(row("node_tests_per_ray", per_ray(ac.node_tests, ac.rays)));
@@ -102,7 +105,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
                             paper_instructions(threads, m, paper[5], paper[4]),
                         )
                         .key("region", "core-loop")
-                        .key("reading", &reading(threads)),
+                        .key("reading", reading(threads)),
                     );
                 }
                 rows.push(

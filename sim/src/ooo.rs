@@ -217,6 +217,9 @@ pub(crate) struct Pool {
     held: usize,
     /// Every uop issuing at or before this cycle has left.
     cursor: u64,
+    /// Issue cycles of held uops a whole ring or more past `cursor` (a uop
+    /// waiting on a long queue of misses), kept apart from the ring.
+    far: Vec<u64>,
 }
 
 impl Pool {
@@ -229,6 +232,7 @@ impl Pool {
                 .expect("WINDOW entries"),
             held: 0,
             cursor: 0,
+            far: Vec::new(),
         }
     }
 
@@ -238,10 +242,16 @@ impl Pool {
         if to <= self.cursor {
             return;
         }
-        if self.held == 0 || to - self.cursor >= WINDOW {
-            if self.held > 0 {
+        if !self.far.is_empty() {
+            let before = self.far.len();
+            self.far.retain(|&c| c > to);
+            self.held -= before - self.far.len();
+        }
+        let in_ring = self.held - self.far.len();
+        if in_ring == 0 || to - self.cursor >= WINDOW {
+            if in_ring > 0 {
                 self.count.fill(0);
-                self.held = 0;
+                self.held = self.far.len();
             }
             self.cursor = to;
             return;
@@ -277,9 +287,12 @@ impl Pool {
         if c <= self.cursor {
             return;
         }
-        debug_assert!(c - self.cursor < WINDOW);
-        self.count[(c & (WINDOW - 1)) as usize] += 1;
         self.held += 1;
+        if c - self.cursor >= WINDOW {
+            self.far.push(c);
+            return;
+        }
+        self.count[(c & (WINDOW - 1)) as usize] += 1;
     }
 }
 
@@ -1454,6 +1467,18 @@ mod tests {
                 c += 1;
             }
         }
+    }
+
+    #[test]
+    fn a_scheduler_entry_held_past_the_ring_is_freed_when_it_issues() {
+        let mut p = Pool::new(2);
+        p.hold(5);
+        p.hold(WINDOW + 10);
+        // One free entry after the uop issuing at 5 leaves.
+        assert_eq!(p.room_for(1, 1), Some(5));
+        // Both free only when the far one issues, a ring later.
+        assert_eq!(p.room_for(2, 6), Some(WINDOW + 10));
+        assert_eq!(p.room_for(2, WINDOW + 11), None);
     }
 
     #[test]

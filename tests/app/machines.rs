@@ -484,7 +484,11 @@ fn run_times_the_traversal_kernels_and_checks_their_hits() {
                 .collect::<Vec<f64>>()
         };
         let (cpi, stack) = (of("cpi")[0], of("cpi_stack"));
-        assert_eq!(stack.len(), sim::Stall::COUNT, "{region}: one entry per reason");
+        assert_eq!(
+            stack.len(),
+            sim::Stall::COUNT,
+            "{region}: one entry per reason"
+        );
         let sum: f64 = stack.iter().sum();
         assert!(
             (sum - cpi).abs() < 1e-9 * cpi.max(1.0),

@@ -353,17 +353,7 @@ mod tests {
 
     #[test]
     fn a_history_swapped_out_and_back_leaves_the_predictor_as_it_was() {
-        let c = TageConfig {
-            tables: 6,
-            table_bits: 10,
-            tag_bits: 9,
-            min_history: 4,
-            max_history: 200,
-        };
-        for mut p in [
-            Predictor::new(12, 14, None),
-            Predictor::new(12, 14, Some(&c)),
-        ] {
+        for mut p in [Predictor::new(12, 14, None), tage()] {
             let mut other = p.clone();
             let mut h = p.history();
             for i in 0..300u32 {

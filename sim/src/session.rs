@@ -192,12 +192,18 @@ impl Session {
             if units[..i].iter().any(|u| u.0 == slot) {
                 return Err(format!("two units on slot {slot} in one step"));
             }
-            if t.flavour != self.m.flavour() {
-                return Err(format!(
-                    "the trace is {} code but machine {} runs {} code",
-                    t.flavour, self.m.name, self.m.isa
-                ));
-            }
+            self.check_flavour("the trace", t)?;
+        }
+        Ok(())
+    }
+
+    /// Whether `t` (`what`, for the error) is the machine's code.
+    fn check_flavour(&self, what: &str, t: &Trace) -> Result<(), String> {
+        if t.flavour != self.m.flavour() {
+            return Err(format!(
+                "{what} is {} code but machine {} runs {} code",
+                t.flavour, self.m.name, self.m.isa
+            ));
         }
         Ok(())
     }
@@ -405,15 +411,7 @@ impl Session {
                     u.1 = it.next();
                     u.2 = 0;
                     if let Some(n) = &u.1 {
-                        if !len.is_multiple_of(PIECE) {
-                            return Err(format!("a chunk of {len} ops is followed by another: chunks but the last hold a multiple of {PIECE} ops"));
-                        }
-                        if n.flavour != self.m.flavour() {
-                            return Err(format!(
-                                "a chunk is {} code but machine {} runs {} code",
-                                n.flavour, self.m.name, self.m.isa
-                            ));
-                        }
+                        self.check_next_chunk(len, n)?;
                     }
                 }
             }
@@ -542,15 +540,7 @@ impl Session {
         while r.live && r.pos >= r.ops.ops.len() {
             let len = r.ops.ops.len();
             if let Some(n) = more(r.unit) {
-                if !len.is_multiple_of(PIECE) {
-                    return Err(format!("a chunk of {len} ops is followed by another: chunks but the last hold a multiple of {PIECE} ops"));
-                }
-                if n.flavour != self.m.flavour() {
-                    return Err(format!(
-                        "a chunk is {} code but machine {} runs {} code",
-                        n.flavour, self.m.name, self.m.isa
-                    ));
-                }
+                self.check_next_chunk(len, &n)?;
                 (r.ops, r.pos) = (Held::Chunk(n), 0);
                 continue;
             }
@@ -565,6 +555,15 @@ impl Session {
             }
         }
         Ok(())
+    }
+
+    /// Whether chunk `n` may follow a chunk of `len` ops: that one held
+    /// whole pieces, and `n` is the machine's code.
+    fn check_next_chunk(&self, len: usize, n: &Trace) -> Result<(), String> {
+        if !len.is_multiple_of(PIECE) {
+            return Err(format!("a chunk of {len} ops is followed by another: chunks but the last hold a multiple of {PIECE} ops"));
+        }
+        self.check_flavour("a chunk", n)
     }
 
     /// Functional warming of `units` (slot, trace): caches, prefetchers and
@@ -931,27 +930,32 @@ mod tests {
         assert_eq!(&d[..13], &[0, 0, 0, 0, 2, 2, 2, 2, 3, 3, 3, 3, 4]);
     }
 
+    /// 200 ops of `class` on one thread alone and on both threads of core 0.
+    fn alone_and_paired(class: OpClass, chain: bool) -> (Vec<u64>, Vec<u64>) {
+        let t = ops(class, 200, chain);
+        (smt_run(1, &[(0, &t)]).0, smt_run(2, &[(0, &t), (4, &t)]).0)
+    }
+
     #[test]
     fn two_dependent_chains_interleave() {
         // Chains of one-cycle ops: each needs one dispatch a cycle and
         // gets two on average, so two threads finish as one does, give or
         // take their retirement turns.
-        let t = ops(OpClass::Alu, 200, true);
-        let (alone, _) = smt_run(1, &[(0, &t)]);
-        let (both, _) = smt_run(2, &[(0, &t), (4, &t)]);
-        assert_eq!(alone, vec![201]);
-        assert_eq!(both, vec![202, 203]);
+        assert_eq!(
+            alone_and_paired(OpClass::Alu, true),
+            (vec![201], vec![202, 203])
+        );
     }
 
     #[test]
     fn a_throughput_bound_pair_halves() {
-        // Independent adds on port 1 only: one a cycle for the core.
-        let t = ops(OpClass::VAdd, 200, false);
-        let (alone, _) = smt_run(1, &[(0, &t)]);
-        let (both, _) = smt_run(2, &[(0, &t), (4, &t)]);
-        assert_eq!(alone, vec![203]);
-        // The 400 adds take the port 400 cycles; the threads share it.
-        assert_eq!(both, vec![400, 403], "each thread at half the rate");
+        // Independent adds on port 1 only: one a cycle for the core. The
+        // 400 adds take the port 400 cycles; the threads share it.
+        assert_eq!(
+            alone_and_paired(OpClass::VAdd, false),
+            (vec![203], vec![400, 403]),
+            "each thread at half the rate"
+        );
     }
 
     #[test]

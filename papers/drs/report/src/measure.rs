@@ -116,26 +116,18 @@ const FRAME_BUFFER_BYTES_PER_PIXEL: f64 = 2.0 * 16.0;
 /// block).
 pub(crate) fn structure_rows(ac: &Acc, smp: &Sample, row: &dyn Fn(&str, f64) -> Row) -> Vec<Row> {
     let rays = ac.rays.max(1) as f64;
-    let mut rows: Vec<Row> = ac
-        .dram_by
-        .iter()
-        .filter(|(_, &b)| b > 0)
-        .map(|(k, &b)| {
-            row("bytes_per_ray", b as f64 / rays)
-                .key("structure", k)
-                .unit("B/ray")
-        })
-        .collect();
-    rows.extend(
-        ac.prefetched_by
-            .iter()
+    let per_structure = |metric: &'static str, by: &BTreeMap<&'static str, u64>| {
+        by.iter()
             .filter(|(_, &b)| b > 0)
             .map(|(k, &b)| {
-                row("prefetched_bytes_per_ray", b as f64 / rays)
+                row(metric, b as f64 / rays)
                     .key("structure", k)
                     .unit("B/ray")
-            }),
-    );
+            })
+            .collect::<Vec<Row>>()
+    };
+    let mut rows = per_structure("bytes_per_ray", &ac.dram_by);
+    rows.extend(per_structure("prefetched_bytes_per_ray", &ac.prefetched_by));
     let pixels = (ac.tiles.len() as u64 * u64::from(smp.size * smp.size)) as f64;
     rows.push(
         row(
@@ -201,7 +193,7 @@ impl Sample {
     /// core (out-of-order), the cores (in-order, whose threads share a
     /// core's time).
     pub(crate) fn round_slots(&self) -> usize {
-        (self.m.cores * self.threads) as usize
+        self.chip_units() as usize
     }
     /// What a unit's own cycles are multiplied by for the chip's rate.
     pub(crate) fn chip_units(&self) -> u32 {

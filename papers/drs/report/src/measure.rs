@@ -141,6 +141,35 @@ pub(crate) fn structure_rows(ac: &Acc, smp: &Sample, row: &dyn Fn(&str, f64) -> 
     rows
 }
 
+/// Where Our BVH4 (`ours`) moves more DRAM bytes per ray than Single BVH4
+/// (`single`), a note naming the data structure with the largest
+/// difference and how much of each method's bytes the prefetcher read;
+/// `None` where it moves no more (the paper's claim holds).
+pub(crate) fn bytes_note(scene: &str, single: &Acc, ours: &Acc) -> Option<String> {
+    let per_ray = |a: &Acc, b: u64| b as f64 / a.rays.max(1) as f64;
+    let total = |a: &Acc| per_ray(a, a.dram_by.values().sum());
+    if total(ours) <= total(single) {
+        return None;
+    }
+    let of = |a: &Acc, k: &str| per_ray(a, a.dram_by.get(k).copied().unwrap_or(0));
+    let (worst, diff) = ours
+        .dram_by
+        .keys()
+        .map(|k| (*k, of(ours, k) - of(single, k)))
+        .max_by(|x, y| x.1.total_cmp(&y.1))?;
+    let prefetched = |a: &Acc| {
+        100.0 * a.prefetched_by.values().sum::<u64>() as f64
+            / a.dram_by.values().sum::<u64>().max(1) as f64
+    };
+    Some(format!(
+        "{scene}: Our BVH4 moves {:.1} B/ray against Single BVH4's {:.1}, most of the difference in {worst} (+{diff:.1} B/ray); the prefetcher read {:.0}% of Our BVH4's bytes and {:.0}% of Single BVH4's (prefetched_bytes_per_ray; the bytes without it: --set prefetch=None; papers/drs/README.md, B/ray by structure)",
+        total(ours),
+        total(single),
+        prefetched(ours),
+        prefetched(single),
+    ))
+}
+
 /// Speedup of `a` over `b` on the same tiles (their cycles, b over a) and
 /// its paired 95% CI: the methods trace the same rays.
 pub(crate) fn paired_speedup(a: &Acc, b: &Acc) -> (f64, Option<f64>) {

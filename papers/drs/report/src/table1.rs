@@ -101,6 +101,7 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
                 kernels[best_other].name()
             ));
         }
+        notes.extend(bytes_note(scene_name, &acc[3], &acc[1]));
         notes.push(format!(
             "{scene_name}: Our BVH4 {:.1} Mray/s against the best of single, packet and hybrid ({} {:.1}); per stream kind, Our BVH4 vs it: {by_kind} Mray/s; primary rays are {:.0}% of the rays traced; the paper's Mray/s include shading and the render loop (ray queries were {paper_share:.0}% of its render time with Single BVH4), ours time ray queries only",
             rate(1),

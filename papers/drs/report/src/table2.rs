@@ -147,6 +147,7 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
         r.ci95 = ci;
         rows.push(r);
         notes.push(decomposition(&smp, scene_name, &acc, &paper));
+        notes.extend(bytes_note(scene_name, &acc[0], &acc[1]));
         notes.push(format!(
             "{scene_name}: Our BVH4 {:+.0}% ray-query time against Single BVH4 (paper {:+.0}%){}; ray-node tests {} vs {}",
             100.0 * (s2 / s1 - 1.0),

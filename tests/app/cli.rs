@@ -337,9 +337,34 @@ fn every_report_is_listed_and_reached_through_the_cli_with_its_options_checked()
         let e = err(&rtsim(&["reproduce", name, "--res", "100"]));
         assert!(e.contains("--res"), "{name}: {e}");
     }
+    // Hardware threads per core: the machine's, checked before computing.
+    let e = err(&rtsim(&[
+        "reproduce",
+        "drs-table2",
+        "--threads-per-core",
+        "3",
+    ]));
+    assert!(
+        e.contains("--threads-per-core: 3 is not 1 to 2") && e.contains("core.threads"),
+        "{e}"
+    );
+    let e = err(&rtsim(&[
+        "reproduce",
+        "drs-table2",
+        "--threads-per-core",
+        "2",
+        "--machine",
+        "core2-q6600",
+    ]));
+    assert!(e.contains("is not 1 to 1"), "{e}");
     for name in REPORTS.iter().filter(|n| n.starts_with("mft")) {
         let e = err(&rtsim(&["reproduce", name, "--spp", "4"]));
         assert!(e.contains("--spp: ") && e.contains("does not use"), "{e}");
+        let e = err(&rtsim(&["reproduce", name, "--threads-per-core", "2"]));
+        assert!(
+            e.contains("--threads-per-core: ") && e.contains("does not use"),
+            "{e}"
+        );
         let e = err(&rtsim(&[
             "reproduce",
             name,

@@ -31,6 +31,16 @@ pub struct TransferFile {
     pub points: Vec<Point>,
 }
 
+impl TransferFile {
+    /// Parse a transfer function file (RON) without checking its points.
+    ///
+    /// # Errors
+    /// A parse error, with its line.
+    pub fn parse(text: &str) -> Result<TransferFile, String> {
+        ron::from_str(text).map_err(|e| format!("line {}: {}", e.position.line, e.code))
+    }
+}
+
 /// A transfer function: 256 entries and its preintegrated table.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Transfer {
@@ -48,9 +58,7 @@ impl Transfer {
     /// A parse error (with its line), no points, values out of 0..=255 or
     /// not increasing, colours outside 0..=1 or not finite.
     pub fn parse(text: &str) -> Result<Transfer, String> {
-        let f: TransferFile =
-            ron::from_str(text).map_err(|e| format!("line {}: {}", e.position.line, e.code))?;
-        Transfer::new(&f.points)
+        Transfer::new(&TransferFile::parse(text)?.points)
     }
 
     /// From control points.

@@ -236,30 +236,43 @@ impl Volume {
     /// multi-octave noise over the whole volume, 1..=255.
     #[must_use]
     pub fn noisy(n: u32, seed: u64) -> Volume {
+        Volume::noisy_box([n; 3], seed)
+    }
+
+    /// [`Volume::noisy`] over a `dims` box (the noise's scale set by the
+    /// largest side, so a cube gives the same bytes as `noisy`).
+    #[must_use]
+    pub fn noisy_box(dims: [u32; 3], seed: u64) -> Volume {
         let noise = Noise::new(seed);
-        Volume::sample(n, |x, y, z| {
+        Volume::sample_box(dims, |x, y, z| {
             128.0 + 127.0 * noise.fbm(6.0 * x, 6.0 * y, 6.0 * z, 6).clamp(-1.0, 1.0)
         })
     }
 
     /// `n`^3 voxels of `f` over the unit cube at voxel centres, rounded.
-    /// Slices are filled in parallel (each voxel depends only on its
-    /// position: the same bytes for any number of threads).
     fn sample(n: u32, f: impl Fn(f64, f64, f64) -> f64 + Sync) -> Volume {
+        Volume::sample_box([n; 3], f)
+    }
+
+    /// `dims` voxels of `f` at voxel centres, the largest side spanning
+    /// 0..1, rounded. Slices are filled in parallel (each voxel depends
+    /// only on its position: the same bytes for any number of threads).
+    fn sample_box(dims: [u32; 3], f: impl Fn(f64, f64, f64) -> f64 + Sync) -> Volume {
         use rayon::prelude::*;
+        let n = dims.iter().copied().max().unwrap_or(1).max(1);
         let c = |i: u32| (f64::from(i) + 0.5) / f64::from(n);
-        let side = n as usize;
-        let mut data = vec![0u8; side.pow(3)];
-        data.par_chunks_mut(side * side)
+        let (w, h) = (dims[0] as usize, dims[1] as usize);
+        let mut data = vec![0u8; w * h * dims[2] as usize];
+        data.par_chunks_mut((w * h).max(1))
             .enumerate()
             .for_each(|(z, slice)| {
                 for (k, v) in slice.iter_mut().enumerate() {
-                    let (x, y) = ((k % side) as u32, (k / side) as u32);
+                    let (x, y) = ((k % w) as u32, (k / w) as u32);
                     *v = f(c(x), c(y), c(z as u32)).round().clamp(0.0, 255.0) as u8;
                 }
             });
         Volume {
-            dims: [n; 3],
+            dims,
             spacing: [1.0; 3],
             data,
             range: (0.0, 255.0),

@@ -156,14 +156,45 @@ fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
 /// gathers through `vol` classified by `tf`.
 #[must_use]
 pub fn cast(vol: &Volume, tf: &Transfer, org: [f64; 3], dir: [f64; 3], s: &Sampling) -> [f64; 4] {
+    cast_walk(vol, tf, org, dir, s).0
+}
+
+/// How a ray's samples went: for the sampling density of a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Walk {
+    /// Sample positions visited.
+    pub samples: u64,
+    /// Voxels the visited samples' steps cover (from the entry to where
+    /// the next sample would have been).
+    pub length: f64,
+    /// Whether the ray met the volume's box.
+    pub entered: bool,
+    /// Whether it stopped by opacity (early termination) before its exit.
+    pub terminated: bool,
+}
+
+/// [`cast`], with how its samples went.
+#[must_use]
+pub fn cast_walk(
+    vol: &Volume,
+    tf: &Transfer,
+    org: [f64; 3],
+    dir: [f64; 3],
+    s: &Sampling,
+) -> ([f64; 4], Walk) {
     let dir = norm(dir);
     let Some((t_enter, t_exit)) = enter_exit(vol.dims, org, dir) else {
-        return [0.0; 4];
+        return ([0.0; 4], Walk::default());
+    };
+    let mut walk = Walk {
+        entered: true,
+        ..Walk::default()
     };
     let mut rgba = [0.0f64; 4];
     let (mut t, mut step) = (t_enter, s.dt);
     let mut last: Option<u8> = None;
     while t <= t_exit {
+        walk.samples += 1;
         let p: [f64; 3] = std::array::from_fn(|a| org[a] + t * dir[a]);
         let st = Stencil::at(vol, p);
         let base = vol.at(st.i[0], st.i[1], st.i[2]);
@@ -180,13 +211,16 @@ pub fn cast(vol: &Volume, tf: &Transfer, org: [f64; 3], dir: [f64; 3], s: &Sampl
             }
             last = Some(f);
             if rgba[3] > EARLY_TERMINATION {
+                walk.terminated = true;
+                t += step;
                 break;
             }
         }
         t += step;
         step += s.rda;
     }
-    rgba
+    walk.length = t - t_enter;
+    (rgba, walk)
 }
 
 /// Lighting of one classified sample (associated colour `c`).

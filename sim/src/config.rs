@@ -314,6 +314,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
         include_str!("../../configs/machines/nehalem-x5550.ron"),
     ),
     (
+        "nehalem-x5550-dual",
+        include_str!("../../configs/machines/nehalem-x5550-dual.ron"),
+    ),
+    (
         "nehalem-w5580",
         include_str!("../../configs/machines/nehalem-w5580.ron"),
     ),

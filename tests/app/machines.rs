@@ -5,13 +5,14 @@ use crate::common::*;
 
 use std::process::Output;
 
-const MACHINES: [&str; 13] = [
+const MACHINES: [&str; 14] = [
     "haswell-i7-4750hq",
     "haswell-e5-2650v3",
     "larrabee",
     "core2-q6600",
     "core2-penryn-2ghz",
     "nehalem-x5550",
+    "nehalem-x5550-dual",
     "nehalem-w5580",
     "dunnington-x7460",
     "zen1",

@@ -67,6 +67,19 @@ pub struct Heuristics {
     pub delta_p: f32,
     /// Eq. 7's constant-subvolume threshold delta_sv (0: never).
     pub delta_sv: f32,
+    /// Where eq. 7 is tested.
+    pub constant_at: ConstantAt,
+}
+
+/// Where the traversal tests a node for a constant subvolume (eq. 7).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ConstantAt {
+    /// At leaves and at nodes eq. 6 prunes into leaves, as the paper does
+    /// ("we can analyze a leaf", section 5.2).
+    Leaves,
+    /// At every node popped, inner ones included (a variant: large
+    /// homogeneous regions are taken whole without descending).
+    EveryNode,
 }
 
 /// One packet's buffers.
@@ -154,16 +167,11 @@ pub fn trace_packet<M: Machine>(
         let Some(first) = first_hit(m, (packlets, &frustum), (&bx, nb, nodes), (first, c)) else {
             continue;
         };
-        if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
-            constant(
-                m,
-                (packlets, &mut *states, &mut *scratch),
-                &bx,
-                first,
-                &cn,
-                (c, s),
-            );
-            continue;
+        if h.constant_at == ConstantAt::EveryNode {
+            if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
+                constant(m, (packlets, &mut *states, &mut *scratch), &bx, first, &cn, (c, s));
+                continue;
+            }
         }
         m.region(Region::Traversal);
         let child = m.s_load(nodes, At::idx(nb, 1, 28), 4, false);
@@ -177,6 +185,12 @@ pub fn trace_packet<M: Machine>(
             m.branch(site::PRUNE, prune)
         };
         if m.branch(site::LEAF, is_leaf) || pruned {
+            if h.constant_at == ConstantAt::Leaves {
+                if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
+                    constant(m, (packlets, &mut *states, &mut *scratch), &bx, first, &cn, (c, s));
+                    continue;
+                }
+            }
             leaf(
                 m,
                 (v, packlets, &mut *states, &mut *scratch),

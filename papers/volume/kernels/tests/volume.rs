@@ -7,8 +7,9 @@ use scene::transfer::Transfer;
 use scene::volume::Volume;
 use scene::volume_ref::{cast, Filter, Lighting, Sampling};
 use std::sync::Arc;
+use volume_kernels::bvh::ConstantAt;
 use volume_kernels::dvr::Counters;
-use volume_kernels::naive::GccRun;
+use volume_kernels::naive::{GccRun, Translation};
 use volume_kernels::{Prepared, Rays, Run};
 
 const TF: &str = "(points: [(value: 0.0, rgba: (0.0, 0.0, 0.0, 0.0)), (value: 70.0, rgba: (0.1, 0.2, 0.8, 0.02)), (value: 160.0, rgba: (0.9, 0.6, 0.1, 0.15)), (value: 255.0, rgba: (1.0, 1.0, 1.0, 0.6))])";
@@ -64,6 +65,7 @@ const PAPER: volume_kernels::bvh::Heuristics = volume_kernels::bvh::Heuristics {
     delta_c: 1e-3,
     delta_p: 1.5,
     delta_sv: 1e-4,
+    constant_at: ConstantAt::Leaves,
 };
 
 /// Which caster a check runs.
@@ -71,8 +73,10 @@ const PAPER: volume_kernels::bvh::Heuristics = volume_kernels::bvh::Heuristics {
 enum Caster {
     /// Listing 2 per pixel.
     Sse,
-    /// The naive scalar baseline.
+    /// The naive scalar baseline, addresses computed.
     Gcc,
+    /// The naive scalar baseline through the offset tables.
+    GccTables,
 }
 
 fn check(vol: Volume, lighting: Lighting, rda: f64) -> (f64, f64, f64) {
@@ -104,10 +108,14 @@ fn check_with(
             rays: rays.clone(),
             sampling: s,
         }),
-        Caster::Gcc => traced_equals_native(&GccRun {
+        Caster::Gcc | Caster::GccTables => traced_equals_native(&GccRun {
             prepared: pr.clone(),
             rays: rays.clone(),
             sampling: s,
+            translation: match caster {
+                Caster::Gcc => Translation::Arithmetic,
+                _ => Translation::Tables,
+            },
         }),
     };
     assert_eq!(counts.rays, rays.len() as u64);
@@ -156,6 +164,13 @@ fn the_naive_caster_and_nearest_sampling_match_the_reference() {
             Lighting::Unlit,
             0.0,
             (44.0, 0.15, 0.01),
+        ),
+        (
+            Caster::GccTables,
+            Filter::Trilinear,
+            Lighting::Unlit,
+            0.0,
+            (45.0, 0.05, 0.002),
         ),
         (
             Caster::Gcc,
@@ -254,10 +269,11 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
     for (i, &j) in order.iter().enumerate() {
         assert_eq!((packed.org[i], packed.dir[i]), (rays.org[j], rays.dir[j]));
     }
-    for (dc, dp, dsv) in [
-        (0.0, f32::INFINITY, 0.0),
-        (1e-3, 1.5, 0.0),
-        (1e-3, 1.5, 1e-4),
+    for (dc, dp, dsv, at) in [
+        (0.0, f32::INFINITY, 0.0, ConstantAt::Leaves),
+        (1e-3, 1.5, 0.0, ConstantAt::Leaves),
+        (1e-3, 1.5, 1e-4, ConstantAt::Leaves),
+        (1e-3, 1.5, 1e-4, ConstantAt::EveryNode),
     ] {
         let run = BvhRun {
             prepared: pr.clone(),
@@ -268,6 +284,7 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
                 delta_c: dc,
                 delta_p: dp,
                 delta_sv: dsv,
+                constant_at: at,
             },
         };
         let (t, (packed_img, counts)) = isa::record(&run, FlavourId::Sse4, "bvh");
@@ -286,7 +303,7 @@ fn the_bvh_caster_matches_the_reference_and_skips_work() {
         let (max, psnr, off) = compare(&img, &want);
         let (smax, spsnr, _) = compare(&sse_img, &want);
         eprintln!(
-            "bvh dc {dc} dp {dp} dsv {dsv}: max {max:.4} PSNR {psnr:.1} off {off:.4} ops {} (sse: max {smax:.4} PSNR {spsnr:.1} ops {sse_trace})",
+            "bvh dc {dc} dp {dp} dsv {dsv} {at:?}: max {max:.4} PSNR {psnr:.1} off {off:.4} ops {} (sse: max {smax:.4} PSNR {spsnr:.1} ops {sse_trace})",
             t.ops.len()
         );
         assert!(

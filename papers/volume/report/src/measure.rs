@@ -12,12 +12,12 @@ use repro::{AppError, AppResult};
 use scene::transfer::Transfer;
 use scene::volume::Volume;
 use scene::volume_bvh::MinMaxBvh;
-use scene::volume_ref::{cast, Filter, Lighting, Sampling};
+use scene::volume_ref::{cast_walk, Filter, Lighting, Sampling, Walk};
 use std::path::Path;
 use std::sync::Arc;
-use volume_kernels::bvh::Heuristics;
+use volume_kernels::bvh::{ConstantAt, Heuristics};
 use volume_kernels::layout::VolBufs;
-use volume_kernels::naive::GccRun;
+use volume_kernels::naive::{GccRun, Translation};
 use volume_kernels::{BvhRun, Prepared, Rays, Run};
 
 /// Image side (the paper's 512^2).
@@ -35,15 +35,184 @@ pub(crate) const HEURISTICS: Heuristics = Heuristics {
     delta_c: 1e-3,
     delta_p: 1.5,
     delta_sv: 1e-4,
+    constant_at: ConstantAt::Leaves,
 };
 
-/// The paper's differential sampling step growth, 2^-7 ("All approaches
-/// ... use differential sampling with an initial differential step of
-/// 2^-7 (rda in line 31 of Listing 2)"), in voxels as Listing 2 takes it.
-pub(crate) const RDA: f64 = 1.0 / 128.0;
+/// The paper's differential sampling growth, 2^-7 ("All approaches ...
+/// use differential sampling with an initial differential step of 2^-7
+/// (rda in line 31 of Listing 2)"), read as relative to the first step:
+/// each step is `RDA_PER_DT * dt` longer than the last (a named
+/// assumption, see the paper's README: in voxels, no first step gives ~2
+/// samples per voxel on a ray longer than about 64 voxels).
+pub(crate) const RDA_PER_DT: f64 = 1.0 / 128.0;
 
-/// The first step: 0.5 voxels (the paper's "~2 samples per voxel").
-pub(crate) const DT: f64 = 0.5;
+/// The sampling density the reports' first step is chosen for: the
+/// paper's "~2 samples per voxel" (section 7, Figure 6).
+pub(crate) const SAMPLES_PER_VOXEL: f64 = 2.0;
+
+/// Side of the grid of rays over the frame the first step is chosen on.
+const CALIBRATION_GRID: u32 = 32;
+
+/// Samples per voxel of a frame: the samples its rays visit over the
+/// voxels their steps cover (a ratio of sums over the rays that meet the
+/// volume, early termination included), with the rays' share that meet
+/// the box and the share of those that stop by opacity.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub(crate) struct Density {
+    pub(crate) samples_per_voxel: f64,
+    pub(crate) samples_per_ray: f64,
+    pub(crate) coverage: f64,
+    pub(crate) terminated: f64,
+}
+
+impl Density {
+    /// Over the walks of a set of rays (in a fixed order: the same sums for
+    /// any number of host threads).
+    pub(crate) fn of(walks: &[Walk]) -> Density {
+        let (mut n, mut len, mut entered, mut stopped) = (0u64, 0f64, 0usize, 0usize);
+        for w in walks {
+            n += w.samples;
+            len += w.length;
+            entered += usize::from(w.entered);
+            stopped += usize::from(w.terminated);
+        }
+        Density {
+            samples_per_voxel: n as f64 / len.max(1e-30),
+            samples_per_ray: n as f64 / walks.len().max(1) as f64,
+            coverage: entered as f64 / walks.len().max(1) as f64,
+            terminated: stopped as f64 / entered.max(1) as f64,
+        }
+    }
+}
+
+/// The reference's walks of `rays` under `s`.
+fn walks(pr: &Prepared, rays: &Rays, s: &Sampling) -> Vec<Walk> {
+    (0..rays.len())
+        .into_par_iter()
+        .map(|i| {
+            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+            cast_walk(&pr.volume, &pr.tf, o, d, s).1
+        })
+        .collect()
+}
+
+/// The first step (voxels) giving [`SAMPLES_PER_VOXEL`] on a
+/// `CALIBRATION_GRID`^2 grid of the view's rays, each step `RDA_PER_DT`
+/// of it longer than the last: bisection on its logarithm, 16 rounds.
+pub(crate) fn calibrate_dt(pr: &Prepared, eye: [f64; 3], fov: f64, s: Sampling) -> f64 {
+    let g = CALIBRATION_GRID;
+    let rays = Rays::camera(pr.volume.dims, eye, fov, (g, g));
+    let spv = |dt: f64| {
+        let s = Sampling {
+            dt,
+            rda: RDA_PER_DT * dt,
+            ..s
+        };
+        Density::of(&walks(pr, &rays, &s)).samples_per_voxel
+    };
+    let (mut lo, mut hi) = ((1.0f64 / 512.0).log2(), 1.0f64.log2());
+    for _ in 0..16 {
+        let mid = 0.5 * (lo + hi);
+        if spv(mid.exp2()) > SAMPLES_PER_VOXEL {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    (0.5 * (lo + hi)).exp2()
+}
+
+/// The vertical field of view (degrees) that just holds the volume's box
+/// seen from `eye` looking at its centre (square frames): the paper's
+/// images show the data filling the frame.
+pub(crate) fn box_fov(dims: [u32; 3], eye: [f64; 3]) -> f64 {
+    let hi = dims.map(|d| f64::from(d.max(1) - 1));
+    let centre = hi.map(|x| x / 2.0);
+    let fwd = unit(std::array::from_fn(|a| centre[a] - eye[a]));
+    let right = unit(cross(fwd, [0.0, 0.0, 1.0]));
+    let up = cross(right, fwd);
+    let mut half = 0f64;
+    for k in 0..8 {
+        let c: [f64; 3] = std::array::from_fn(|a| if k >> a & 1 == 1 { hi[a] } else { 0.0 });
+        let v: [f64; 3] = std::array::from_fn(|a| c[a] - eye[a]);
+        let z = dot(v, fwd);
+        half = half.max((dot(v, right).abs() / z).atan());
+        half = half.max((dot(v, up).abs() / z).atan());
+    }
+    2.0 * half.to_degrees() * 1.02
+}
+
+/// The share of the frame the reports' views fill with the volume: the
+/// paper's images show the data filling the frame (a named assumption,
+/// its effect measured against [`Framing::Sphere`] in `volume-fig5`).
+pub(crate) const FRAME_COVERAGE: f64 = 0.88;
+
+/// The share of a `g` x `g` grid of the view's rays that meet the box.
+fn grid_coverage(dims: [u32; 3], eye: [f64; 3], fov: f64, g: u32) -> f64 {
+    let rays = Rays::camera(dims, eye, fov, (g, g));
+    let hit = (0..rays.len())
+        .filter(|&i| {
+            let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+            scene::volume_ref::enter_exit(dims, o, d).is_some()
+        })
+        .count();
+    hit as f64 / rays.len().max(1) as f64
+}
+
+/// The field of view at which the box covers [`FRAME_COVERAGE`] of a
+/// 64x64 grid of the view's rays (bisection between 1 degree and the
+/// view holding the whole box).
+pub(crate) fn filling_fov(dims: [u32; 3], eye: [f64; 3]) -> f64 {
+    let (mut lo, mut hi) = (1.0, box_fov(dims, eye));
+    for _ in 0..24 {
+        let mid = 0.5 * (lo + hi);
+        if grid_coverage(dims, eye, mid, 64) > FRAME_COVERAGE {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    0.5 * (lo + hi)
+}
+
+/// The field of view that holds the volume's bounding sphere (the framing
+/// before issue 53, kept as the view assumption's other setting).
+pub(crate) fn sphere_fov(dims: [u32; 3], eye: [f64; 3]) -> f64 {
+    let c = dims.map(f64::from);
+    let centre = c.map(|x| (x - 1.0) / 2.0);
+    let dist = (0..3)
+        .map(|a| (eye[a] - centre[a]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let radius = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt() / 2.0;
+    2.0 * (radius / dist).asin().to_degrees()
+}
+
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn unit(a: [f64; 3]) -> [f64; 3] {
+    let l = dot(a, a).sqrt();
+    a.map(|x| x / l)
+}
+
+/// How a view frames the volume.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Framing {
+    /// The box filling [`FRAME_COVERAGE`] of the frame (the reports' view).
+    Fill,
+    /// The bounding sphere just inside the frame (the volume covers less).
+    Sphere,
+}
 
 /// A dataset made ready: its volume, transfer function, tree, view and
 /// lighting.
@@ -91,7 +260,7 @@ pub(crate) fn missing(name: &str) -> Option<String> {
 
 impl Dataset {
     /// Load dataset `name` (lighting `lit`, leaves of `leaf`^3); `quick`
-    /// makes the generated dense field 64^3 instead of 128^3. `mixingN`
+    /// makes the generated dense field [`DENSE_QUICK`] instead of [`DENSE`]. `mixingN`
     /// is the seeded mixing layer at N^3.
     pub(crate) fn load(name: &str, (lit, leaf): (char, u32), quick: bool) -> AppResult<Dataset> {
         let data = scene::scene::data_root().join("volumes");
@@ -115,7 +284,7 @@ impl Dataset {
                 include_str!("../../../../configs/transfer/skull.ron"),
             ),
             ("dense", _) => (
-                Volume::noisy(if quick { 64 } else { 128 }, 5),
+                Volume::noisy_box(if quick { DENSE_QUICK } else { DENSE }, 5),
                 include_str!("../../../../configs/transfer/dense.ron"),
             ),
             _ => {
@@ -134,37 +303,50 @@ impl Dataset {
         Ok(Dataset::new(vol, tf, (lit, leaf)))
     }
 
-    /// `vol` classified by `tf`, its tree, seen from the default view.
+    /// `vol` classified by `tf`, its tree, seen from the default view with
+    /// the box filling the frame, its first step chosen for
+    /// [`SAMPLES_PER_VOXEL`].
     pub(crate) fn new(vol: Volume, tf: Transfer, (lit, leaf): (char, u32)) -> Dataset {
+        Dataset::framed(vol, tf, (lit, leaf), Framing::Fill)
+    }
+
+    /// [`Dataset::new`] with the view framed by `framing`.
+    pub(crate) fn framed(
+        vol: Volume,
+        tf: Transfer,
+        (lit, leaf): (char, u32),
+        framing: Framing,
+    ) -> Dataset {
         let t0 = std::time::Instant::now();
         let tree = MinMaxBvh::build(&vol, leaf);
         let build_seconds = t0.elapsed().as_secs_f64();
         let c = vol.dims.map(f64::from);
         let eye = [c[0] * 1.6, -c[1] * 0.9, c[2] * 1.8];
-        // Frame the volume: its bounding sphere just inside the view, as
-        // the paper's images fill theirs.
-        let centre = c.map(|x| (x - 1.0) / 2.0);
-        let dist = (0..3)
-            .map(|a| (eye[a] - centre[a]).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let radius = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt() / 2.0;
-        let fov = 2.0 * (radius / dist).asin().to_degrees();
+        let fov = match framing {
+            Framing::Fill => filling_fov(vol.dims, eye),
+            Framing::Sphere => sphere_fov(vol.dims, eye),
+        };
         let light = [c[0] * 2.0, -c[1], c[2] * 3.0];
         let sampling = Sampling {
             filter: Filter::Trilinear,
-            dt: DT,
-            rda: RDA,
+            dt: 0.5,
+            rda: RDA_PER_DT * 0.5,
             lighting: lighting(lit),
             light,
             light_threshold: 0.01,
         };
+        let prepared = Prepared::new(vol, tf);
+        let dt = calibrate_dt(&prepared, eye, fov, sampling);
         Dataset {
             fov,
-            prepared: Arc::new(Prepared::new(vol, tf)),
+            prepared: Arc::new(prepared),
             tree: Arc::new(tree),
             eye,
-            sampling,
+            sampling: Sampling {
+                dt,
+                rda: RDA_PER_DT * dt,
+                ..sampling
+            },
             build_seconds,
             res: RES,
             heuristics: HEURISTICS,
@@ -181,7 +363,8 @@ impl Dataset {
 
     /// The same dataset rendered at `res` x `res`, the eye moved towards
     /// the volume's centre to `closer` of its distance (1: the default
-    /// view), the field of view kept.
+    /// view), the field of view kept; a new view's first step is chosen
+    /// again for [`SAMPLES_PER_VOXEL`].
     pub(crate) fn with_view(&self, res: u32, closer: f64) -> Dataset {
         let c = self
             .prepared
@@ -189,13 +372,32 @@ impl Dataset {
             .dims
             .map(|x| (f64::from(x) - 1.0) / 2.0);
         let eye = std::array::from_fn(|a| c[a] + (self.eye[a] - c[a]) * closer);
+        let mut sampling = self.sampling;
+        if closer != 1.0 {
+            let dt = calibrate_dt(&self.prepared, eye, self.fov, sampling);
+            let per_dt = sampling.rda / sampling.dt;
+            sampling.dt = dt;
+            sampling.rda = per_dt * dt;
+        }
         Dataset {
             eye,
             res,
+            sampling,
             ..self.clone()
         }
     }
+
+    /// The share of the frame's pixels whose rays meet the volume's box.
+    pub(crate) fn coverage(&self) -> f64 {
+        grid_coverage(self.prepared.volume.dims, self.eye, self.fov, self.res)
+    }
 }
+
+/// The dense stand-in's size: the paper's backpack, 512x512x373.
+pub(crate) const DENSE: [u32; 3] = [512, 512, 373];
+
+/// Its size at `--quick`: the backpack's shape at a quarter of each side.
+pub(crate) const DENSE_QUICK: [u32; 3] = [128, 128, 93];
 
 /// The seed of the generated mixing layer.
 pub(crate) const MIXING_SEED: u64 = 11;
@@ -246,6 +448,7 @@ impl UnitProgram for Units {
                 prepared: pr,
                 rays: rays.clone(),
                 sampling: s,
+                translation: Translation::Arithmetic,
             }
             .trace_on(m, &laid.0),
             Method::Sse => Run {
@@ -305,19 +508,26 @@ pub(crate) struct Cell {
     pub(crate) bad: usize,
 }
 
-/// The reference's colour for every ray of `rays`.
-fn reference(ds: &Dataset, rays: &Rays) -> Vec<[f64; 4]> {
+/// The reference's colour and walk for every ray of `rays`.
+fn reference(ds: &Dataset, rays: &Rays) -> (Vec<[f64; 4]>, Vec<Walk>) {
     (0..rays.len())
         .into_par_iter()
         .map(|i| {
             let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
-            cast(&ds.prepared.volume, &ds.prepared.tf, o, d, &ds.sampling)
+            cast_walk(&ds.prepared.volume, &ds.prepared.tf, o, d, &ds.sampling)
         })
-        .collect()
+        .unzip()
 }
 
-/// The sampled packets' rays and (timed packets) the reference's colours.
-pub(crate) type Sample = Vec<(Option<Arc<Rays>>, Arc<Rays>, Vec<[f64; 4]>)>;
+/// The sampled packets: the packet before (warming), the timed packet's
+/// rays, the reference's colours and walks for them.
+pub(crate) type Sample = Vec<(Option<Arc<Rays>>, Arc<Rays>, Vec<[f64; 4]>, Vec<Walk>)>;
+
+/// The sampling density over the timed rays of `smp`.
+pub(crate) fn density(smp: &Sample) -> Density {
+    let walks: Vec<Walk> = smp.iter().flat_map(|p| p.3.iter().copied()).collect();
+    Density::of(&walks)
+}
 
 /// Rays and reference answers of the plan's packets.
 pub(crate) fn sample(ds: &Dataset, groups: usize, seed: u64) -> Sample {
@@ -331,8 +541,8 @@ pub(crate) fn sample(ds: &Dataset, groups: usize, seed: u64) -> Sample {
         .into_iter()
         .map(|(before, k)| {
             let timed = packet(k);
-            let want = reference(ds, &timed);
-            (before.map(packet), timed, want)
+            let (want, walks) = reference(ds, &timed);
+            (before.map(packet), timed, want, walks)
         })
         .collect()
 }
@@ -350,7 +560,7 @@ pub(crate) fn measure(
         ds: ds.clone(),
     };
     let mut units = Vec::new();
-    for (g, (before, timed, _)) in smp.iter().enumerate() {
+    for (g, (before, timed, _, _)) in smp.iter().enumerate() {
         if let Some(b) = before {
             units.push((b.clone(), Detail::Warmed, None));
         }
@@ -460,7 +670,7 @@ pub(crate) fn contention(
         method,
         ds: ds.clone(),
     };
-    let placed = smp.iter().map(|(_, timed, _)| {
+    let placed = smp.iter().map(|(_, timed, _, _)| {
         (
             Placed {
                 thread: 0,

@@ -198,7 +198,7 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
 fn psnr_between(smp: &Sample, ds_b: &Dataset) -> f64 {
     let (se, n) = smp
         .par_iter()
-        .map(|(_, rays, want)| {
+        .map(|(_, rays, want, _)| {
             let mut se = 0f64;
             for (i, w) in want.iter().enumerate() {
                 let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));

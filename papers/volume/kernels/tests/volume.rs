@@ -333,7 +333,12 @@ fn the_constant_subvolume_routine_is_exact_on_a_constant_field() {
     let c = [f64::from(n); 3];
     let eye = [c[0] * 1.9, -c[1] * 0.7, c[2] * 1.4];
     let rays = corner_packets([n; 3], eye);
-    for (lighting, rda) in [(Lighting::Unlit, 0.0), (Lighting::Diffuse, 0.01)] {
+    for (lighting, rda, at) in [
+        (Lighting::Unlit, 0.0, ConstantAt::Leaves),
+        (Lighting::Diffuse, 0.01, ConstantAt::Leaves),
+        (Lighting::Unlit, 0.0, ConstantAt::EveryNode),
+        (Lighting::Diffuse, 0.01, ConstantAt::EveryNode),
+    ] {
         let s = Sampling {
             filter: Filter::Trilinear,
             dt: 0.5,
@@ -347,17 +352,25 @@ fn the_constant_subvolume_routine_is_exact_on_a_constant_field() {
             tree: tree.clone(),
             rays: rays.clone(),
             sampling: s,
-            heuristics: PAPER,
+            heuristics: volume_kernels::bvh::Heuristics {
+                constant_at: at,
+                ..PAPER
+            },
         };
         let (img, counts) = traced_equals_native(&run);
         assert!(counts.classified > 0);
         let want = reference(&pr, &rays, &s);
         assert!(want.iter().filter(|p| p[3] > 0.05).count() > 50);
         let (max, psnr, _) = compare(&img, &want);
-        eprintln!("constant field {lighting:?}: max {max:.5}, PSNR {psnr:.1} dB");
-        // Measured: unlit 60.8 dB (largest 0.006: a sample at a box exit
-        // within f32 of the boundary), diffuse 71.5 dB.
-        assert!(psnr > 55.0 && max < 0.02, "{lighting:?}: {max} {psnr}");
+        eprintln!("constant field {lighting:?} {at:?}: max {max:.5}, PSNR {psnr:.1} dB");
+        // Measured, every node (the root is constant: one box): unlit 60.8
+        // dB (largest 0.006: a sample at a box exit within f32 of the
+        // boundary), diffuse 71.5 dB. At leaves the routine runs box by
+        // box (216 leaves), and a differential step's closed form through
+        // each box can move a sample across a boundary in f32: diffuse
+        // 57.4 dB, largest 0.039 (one sample's share of the colour).
+        let largest = if at == ConstantAt::Leaves { 0.05 } else { 0.02 };
+        assert!(psnr > 55.0 && max < largest, "{lighting:?}: {max} {psnr}");
     }
 }
 

@@ -68,7 +68,7 @@ pub(crate) fn assumption_rows(
         for (j, method) in [Method::Sse, Method::Bvh].into_iter().enumerate() {
             let c = measure(m, &ds, &smp, method, &a.progress)?;
             *ops += c.ops;
-            *bad += c.bad;
+            *bad += c.mismatches();
             let fps = whole_machine(c.fps, chip);
             if i == 0 {
                 reference[j] = fps;

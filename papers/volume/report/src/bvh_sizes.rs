@@ -27,7 +27,7 @@ pub(crate) fn volume_bvh(a: &ReproduceArgs) -> AppResult<Produced> {
             let smp = sample(&ds, g, a.seed);
             let c = measure(&m, &ds, &smp, Method::Bvh, &a.progress)?;
             ops += c.ops;
-            bad += c.bad;
+            bad += c.mismatches();
             let k = |r: Row| r.key("dataset", name).key("leaf", leaf);
             let ratio = ds.tree.bytes() as f64 / ds.prepared.volume.len() as f64;
             let mut r = k(Row::new("bvh_bytes_over_volume_bytes", ratio));
@@ -40,10 +40,14 @@ pub(crate) fn volume_bvh(a: &ReproduceArgs) -> AppResult<Produced> {
             rows.push(k(Row::new("bvh_build_seconds", ds.build_seconds)).unit("host-measured"));
             rows.extend(fps_rows(k, &c, None));
             rows.push(k(Row::new("traversal_cycle_share", c.traversal_share)));
+            let d = crate::measure::density(&smp);
+            let mut r = k(Row::new("samples_per_voxel", d.samples_per_voxel));
+            r.paper = Some(crate::measure::SAMPLES_PER_VOXEL);
+            rows.push(r);
         }
     }
     let mut s = BTreeMap::new();
-    s.insert("design".into(), serde_json::json!(format!("the bvh caster as in volume-fig5, {g} sampled packets (the same for every L), one X5550 core")));
+    s.insert("design".into(), serde_json::json!(format!("the bvh caster as in volume-fig5, {g} sampled packets (the same for every L), one core of {}", m.name)));
     s.insert("seed".into(), serde_json::json!(a.seed));
     Ok(Produced {
         mismatches: bad as f64,

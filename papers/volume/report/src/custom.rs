@@ -107,13 +107,13 @@ pub fn volume(a: &VolumeArgs) -> AppResult<(Report, usize)> {
     let ds = Arc::new(Dataset::new(vol, tf, (lit, a.leaf)).with_view(a.res, 1.0));
     let smp = sample(&ds, a.packets as usize, a.seed);
     let progress = Progress::hidden();
-    let mut rows = Vec::new();
+    let mut rows = crate::reports::density_rows(|r| r, &ds, &crate::measure::density(&smp));
     let mut bad = 0usize;
     let mut ops = 0u64;
     for me in [Method::Gcc, Method::Sse, Method::Bvh] {
         let c = measure(&m, &ds, &smp, me, &progress)?;
         ops += c.ops;
-        bad += c.bad;
+        bad += c.mismatches();
         let k = |r: Row| r.key("method", me.name());
         rows.extend(fps_rows(k, &c, None));
         rows.push(k(Row::new("samples_per_ray", c.samples_per_ray)));
@@ -125,7 +125,7 @@ pub fn volume(a: &VolumeArgs) -> AppResult<(Report, usize)> {
         }
     }
     let fr = frame(None, &ds, a.res, PIXEL_TOL)?;
-    bad += fr.bad;
+    bad += fr.mismatches();
     rows.push(Row::new("frame_psnr_vs_reference", fr.psnr).unit("dB"));
     rows.push(Row::new("frame_max_difference", fr.max));
     rows.push(Row::new("frame_pixels_off_reference", fr.bad as f64));
@@ -137,8 +137,8 @@ pub fn volume(a: &VolumeArgs) -> AppResult<(Report, usize)> {
     s.insert(
         "design".into(),
         serde_json::json!(format!(
-            "{} packets of 8x8 pixels at {}^2, timed on one core after warming; the bvh frame rendered natively and compared with the f64 reference",
-            a.packets, a.res
+            "{} packets of 8x8 pixels at {}^2 from a view filling {:.0}% of the frame with the volume, the first step chosen for {} samples per voxel (each step {} of it longer than the last), timed on one core after warming; the bvh frame rendered natively and compared with the f64 reference",
+            a.packets, a.res, crate::measure::FRAME_COVERAGE * 100.0, crate::measure::SAMPLES_PER_VOXEL, crate::measure::RDA_PER_DT
         )),
     );
     s.insert("seed".into(), serde_json::json!(a.seed));

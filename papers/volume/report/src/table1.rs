@@ -69,7 +69,7 @@ pub(crate) fn volume_table1(a: &ReproduceArgs) -> AppResult<Produced> {
         let smp = sample(&ds, g, a.seed);
         let c = measure(&m, &ds, &smp, method, &a.progress)?;
         ops += c.ops;
-        bad += c.bad;
+        bad += c.mismatches();
         let mut per_stage = [0f64; 8];
         for r in Region::ALL {
             per_stage[stage(r)] += c.region_cycles[r as usize];
@@ -93,7 +93,7 @@ pub(crate) fn volume_table1(a: &ReproduceArgs) -> AppResult<Produced> {
         rows.push(r);
         let c8 = measure(&i7, &ds, &smp, method, &a.progress)?;
         ops += c8.ops;
-        bad += c8.bad;
+        bad += c8.mismatches();
         rows.push(
             k(Row::new("fps", whole_machine(c8.fps, i7_cores)))
                 .key("machine", i7.name.clone())

@@ -1,6 +1,6 @@
 //! `volume-bvh`: the implicit BVH by leaf size L = 1, 2, 4, 8: its size
 //! against the volume's, its build time, and the bvh caster's frame rate
-//! (one X5550 core, the same sampled packets for every L).
+//! (one core of the workstation, the same sampled packets for every L).
 
 use crate::measure::{measure, sample, Dataset, Method};
 use crate::paper::BVH_FOOTPRINT;

@@ -65,7 +65,7 @@ pub const REPORTS: [ReportDef; 5] = [
     },
     ReportDef {
         name: "volume-bvh",
-        about: "Volume rendering section 7.3: the implicit BVH by leaf size L = 1, 2, 4, 8 (size against the volume, build time, fps on one X5550 core)",
+        about: "Volume rendering section 7.3: the implicit BVH by leaf size L = 1, 2, 4, 8 (size against the volume, build time, fps on one core of the X5550 workstation)",
         machine: MACHINE,
         options: OPTIONS,
         run: bvh_sizes::volume_bvh,

@@ -596,7 +596,13 @@ pub(crate) fn measure(
             )
         })
         .collect();
-    let mut session = sim::Session::new(m);
+    let threads = smt_threads(m);
+    let mut session = if threads > 1 {
+        sim::Session::with_threads(m, threads).map_err(AppError)?
+    } else {
+        sim::Session::new(m)
+    };
+    let mut pending: Vec<isa::Trace> = Vec::new();
     let (mut ops, mut bad, mut next) = (0u64, 0usize, 0usize);
     let (mut cycles, mut instr) = (Vec::new(), 0f64);
     let mut regions = [0f64; isa::Region::COUNT];
@@ -633,16 +639,16 @@ pub(crate) fn measure(
             nodes += cn.nodes;
             leaf_rays += cn.leaf_rays;
             constant += cn.constant_samples;
-            let st = session.timed_queue(&[&t]).map_err(AppError)?;
-            isa::trace::recycle(t);
-            cycles.push(st.cycles as f64);
-            instr += st.ops as f64;
-            for (r, &c) in regions.iter_mut().zip(&st.region_cycles) {
-                *r += c as f64;
+            pending.push(t);
+            if pending.len() == threads {
+                time_together(&mut session, &mut pending, (&mut cycles, &mut instr, &mut regions))?;
             }
             Ok::<(), AppError>(())
         },
     )?;
+    if !pending.is_empty() {
+        time_together(&mut session, &mut pending, (&mut cycles, &mut instr, &mut regions))?;
+    }
     let hz = m.clock_ghz * 1e9;
     let packets = ((ds.res / 8) * (ds.res / 8)) as f64;
     let total: f64 = cycles.iter().sum();
@@ -668,6 +674,42 @@ pub(crate) fn measure(
         bad,
         approximate: method == Method::Bvh && ds.heuristics.delta_sv > 0.0,
     })
+}
+
+/// Hardware threads a core of `m` runs packets on: the machine's
+/// (`core.threads`: two on the X5550, whose Hyper-Threading the paper's 16
+/// threads used), one on an in-order machine. `--set core.threads=1`
+/// measures one thread per core.
+pub(crate) fn smt_threads(m: &sim::MachineConfig) -> usize {
+    if m.core.kind == sim::CoreKind::OutOfOrder {
+        m.core.threads.max(1) as usize
+    } else {
+        1
+    }
+}
+
+/// Time the pending packets' traces together, one per hardware thread of
+/// the core (as a renderer's threads take packets): each packet is charged
+/// an equal share of the step's cycles.
+fn time_together(
+    session: &mut sim::Session,
+    pending: &mut Vec<isa::Trace>,
+    (cycles, instr, regions): (&mut Vec<f64>, &mut f64, &mut [f64; isa::Region::COUNT]),
+) -> AppResult<()> {
+    let refs: Vec<&isa::Trace> = pending.iter().collect();
+    let st = session.timed_queue(&refs).map_err(AppError)?;
+    let n = pending.len();
+    for _ in 0..n {
+        cycles.push(st.cycles as f64 / n as f64);
+    }
+    *instr += st.ops as f64;
+    for (r, &c) in regions.iter_mut().zip(&st.region_cycles) {
+        *r += c as f64;
+    }
+    for t in pending.drain(..) {
+        isa::trace::recycle(t);
+    }
+    Ok(())
 }
 
 /// Cores running packets at once against one alone: the packets of `smp`

@@ -199,7 +199,7 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     s.insert("seed".into(), serde_json::json!(a.seed));
     let mut notes = skipped;
     notes.extend([
-        format!("The paper's Core i7 is two 4-core X5550 (16 threads), the machine {}; the {chip}-core rows are the simulated one-core rate times {chip} times the paper's measured 97% scaling at 8 threads; the second hardware thread per core is not used (one thread per core).", a.machine.machine),
+        format!("The paper's Core i7 is two 4-core X5550 (16 threads), the machine {}; the {chip}-core rows are the simulated one-core rate times {chip} times the paper's measured 97% scaling at 8 threads. A simulated core runs {} packets at once, one per hardware thread (simultaneous multithreading as the DRS reports model it; `--set core.threads=1` for one), each packet charged an equal share of their cycles.", a.machine.machine, crate::measure::smt_threads(&m)),
         "Each dataset's whole frame (512^2; 256^2 at --quick) is rendered by the bvh caster natively (the same code, not timed) and compared pixel by pixel with the f64 reference (frame_* rows; its pixels off count as mismatches); the PNGs are those frames.".into(),
         format!("The Core 2 column is one simulated core of {LAPTOP} (the paper's Mac mini) times its 2 cores."),
         "gcc is the naive scalar caster as gcc 4.x builds it (papers/volume/kernels/src/naive.rs): the same samples, eight address translations per stencil (nothing shared between corners), eq. 8 and 9 term by term, the spills and reloads of 16 xmm registers.".into(),

@@ -81,6 +81,16 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             &ds,
             &density(&smp),
         ));
+        for (how, spv) in ["one sequence per ray", "restarting per leaf"]
+            .into_iter()
+            .zip(restart_density(&ds))
+        {
+            rows.push(
+                Row::new("samples_per_voxel_without_termination", spv)
+                    .key("dataset", row.name)
+                    .key("differential_step", how),
+            );
+        }
         let runs = [
             (&m, Method::Gcc, chip, row.i7[0]),
             (&m, Method::Sse, chip, row.i7[1]),
@@ -204,6 +214,7 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
         format!("The Core 2 column is one simulated core of {LAPTOP} (the paper's Mac mini) times its 2 cores."),
         "gcc is the naive scalar caster as gcc 4.x builds it (papers/volume/kernels/src/naive.rs): the same samples, eight address translations per stencil (nothing shared between corners), eq. 8 and 9 term by term, the spills and reloads of 16 xmm registers.".into(),
         "The assumption rows measure the choices the paper leaves open on the engine: the view (the bounding sphere instead of the box just inside the frame, the first step chosen again) and the transfer function's opacity (every point's scaled by 0.5 and 2, the first step kept); fps_over_reports_setting is each fps over the reports' setting's.".into(),
+        "samples_per_voxel_without_termination: samples over the voxels of the chords of a 32x32 grid of the view's rays that never stop, with one differential sequence per ray from the box's entry (the reports' casters: the bvh caster only removes samples) and with the step restarted at every L^3 leaf cell, as Listing 2's per-leaf call with a fresh dt would; the same first step.".into(),
         "samples_per_voxel is the samples the timed rays' reference walks visit over the voxels their steps cover (early termination included): the paper's ~2 (section 7); frame_coverage is the share of the frame's pixels whose rays meet the volume's box; terminated_share the share of those rays that stop by opacity.".into(),
         "Datasets: the engine is the paper's; neghip is 66^3 (the paper's 64^3); the skull is a 64^3 float CT (the paper's is 256^3); the dense field is a seeded noisy 128^3 volume (64^3 at --quick) standing in for the backpack. Transfer functions are ours (configs/transfer/), smooth ramps over each histogram as the paper describes its own.".into(),
     ]);
@@ -243,6 +254,55 @@ pub(crate) fn density_rows(k: impl Fn(Row) -> Row, ds: &Dataset, d: &Density) ->
         k(Row::new("frame_coverage", ds.coverage())),
         k(Row::new("terminated_share", d.terminated)),
     ]
+}
+
+/// Samples per voxel along rays that never stop (a 32x32 grid of the
+/// view's rays, samples over the voxels of their chords through the box)
+/// when each ray keeps one differential sequence from the box's entry (the
+/// reports' casters), and when the step restarts at every leaf cell of the
+/// implicit BVH (`L`^3, Listing 2 called per leaf with a fresh `dt`).
+pub(crate) fn restart_density(ds: &Dataset) -> [f64; 2] {
+    let dims = ds.prepared.volume.dims;
+    let rays = volume_kernels::Rays::camera(dims, ds.eye, ds.fov, (32, 32));
+    let s = ds.sampling;
+    let leaf = f64::from(ds.tree.leaf);
+    // Samples of a sequence started at `from` up to `to` (included only
+    // at the ray's exit: a sample on a cell's far side belongs to the next).
+    let count = |from: f64, to: f64, last: bool| {
+        let (mut t, mut step, mut n) = (from, s.dt, 0u64);
+        while t < to || (last && t == to) {
+            n += 1;
+            t += step;
+            step += s.rda;
+        }
+        n
+    };
+    let (mut one, mut restart, mut len) = (0u64, 0u64, 0f64);
+    for i in 0..rays.len() {
+        let (o, d) = (rays.org[i].map(f64::from), rays.dir[i].map(f64::from));
+        let Some((t0, t1)) = scene::volume_ref::enter_exit(dims, o, d) else {
+            continue;
+        };
+        one += count(t0, t1, true);
+        len += t1 - t0;
+        let mut cuts = vec![t0, t1];
+        for a in (0..3).filter(|&a| d[a] != 0.0) {
+            let (lo, hi) = (o[a] + t0 * d[a], o[a] + t1 * d[a]);
+            let (k0, k1) = ((lo.min(hi) / leaf).ceil() as i64, (lo.max(hi) / leaf).floor() as i64);
+            cuts.extend(
+                (k0..=k1)
+                    .map(|k| (k as f64 * leaf - o[a]) / d[a])
+                    .filter(|&t| t > t0 && t < t1),
+            );
+        }
+        cuts.sort_by(f64::total_cmp);
+        restart += cuts
+            .windows(2)
+            .map(|w| count(w[0], w[1], w[1] == t1))
+            .sum::<u64>();
+    }
+    let len = len.max(1e-30);
+    [one as f64 / len, restart as f64 / len]
 }
 
 /// The mean over the frame's pixels of the samples a ray would visit if it

@@ -15,10 +15,10 @@ const DATASET: &str = "engine";
 /// The engine's transfer function.
 const ENGINE_TF: &str = include_str!("../../../../configs/transfer/engine.ron");
 
-/// The engine's transfer function with every control point's opacity
-/// scaled by `k` (at most 1).
-fn scaled(k: f32) -> AppResult<Transfer> {
-    let mut f = TransferFile::parse(ENGINE_TF).map_err(AppError)?;
+/// Transfer function `text` with every control point's opacity scaled by
+/// `k` (at most 1).
+pub(crate) fn scaled(text: &str, k: f32) -> AppResult<Transfer> {
+    let mut f = TransferFile::parse(text).map_err(AppError)?;
     for p in &mut f.points {
         p.rgba[3] = (p.rgba[3] * k).min(1.0);
     }
@@ -38,7 +38,7 @@ fn variants(base: &Dataset) -> AppResult<Vec<(&'static str, &'static str, Datase
     ));
     for (k, name) in [(0.5, "opacity x0.5"), (2.0, "opacity x2")] {
         // The reports' first step kept: the opacity alone changes.
-        let ds = Dataset::framed(vol(), scaled(k)?, lit, Framing::Fill).with_sampling(base.sampling);
+        let ds = Dataset::framed(vol(), scaled(ENGINE_TF, k)?, lit, Framing::Fill).with_sampling(base.sampling);
         out.push(("opacity", name, ds));
     }
     Ok(out)

@@ -294,7 +294,7 @@ impl Dataset {
                     .ok_or_else(|| AppError(format!("unknown volume dataset '{name}'")))?;
                 (
                     Volume::mixing_layer(n, MIXING_SEED),
-                    include_str!("../../../../configs/transfer/mixing.ron"),
+                    MIXING_TF,
                 )
             }
         };
@@ -398,6 +398,9 @@ pub(crate) const DENSE: [u32; 3] = [512, 512, 373];
 
 /// Its size at `--quick`: the backpack's shape at a quarter of each side.
 pub(crate) const DENSE_QUICK: [u32; 3] = [128, 128, 93];
+
+/// The mixing layer's transfer function.
+pub(crate) const MIXING_TF: &str = include_str!("../../../../configs/transfer/mixing.ron");
 
 /// The seed of the generated mixing layer.
 pub(crate) const MIXING_SEED: u64 = 11;

@@ -169,7 +169,14 @@ pub fn trace_packet<M: Machine>(
         };
         if h.constant_at == ConstantAt::EveryNode {
             if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
-                constant(m, (packlets, &mut *states, &mut *scratch), &bx, first, &cn, (c, s));
+                constant(
+                    m,
+                    (packlets, &mut *states, &mut *scratch),
+                    &bx,
+                    first,
+                    &cn,
+                    (c, s),
+                );
                 continue;
             }
         }
@@ -187,7 +194,14 @@ pub fn trace_packet<M: Machine>(
         if m.branch(site::LEAF, is_leaf) || pruned {
             if h.constant_at == ConstantAt::Leaves {
                 if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
-                    constant(m, (packlets, &mut *states, &mut *scratch), &bx, first, &cn, (c, s));
+                    constant(
+                        m,
+                        (packlets, &mut *states, &mut *scratch),
+                        &bx,
+                        first,
+                        &cn,
+                        (c, s),
+                    );
                     continue;
                 }
             }

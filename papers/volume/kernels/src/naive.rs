@@ -30,7 +30,7 @@
 use crate::dvr::Counters;
 use crate::layout::VolBufs;
 use crate::site;
-use isa::{At, BinOp, Cmp, Buf, Machine, MemKind, Program, Region, SOp};
+use isa::{At, BinOp, Buf, Cmp, Machine, MemKind, Program, Region, SOp};
 use scene::volume_bvh::BRICK;
 use scene::volume_ref::{Filter, Lighting, Sampling};
 use std::cell::Cell;
@@ -220,12 +220,12 @@ fn set_up<M: Machine>(
     let p = std::array::from_fn(|a| m.x_fma(isa::Fma::MAdd, tenter, d[a], o[a]));
     let dt = m.float(s.dt as f32);
     let rda = m.float(s.rda as f32);
-    for a in 0..3 {
-        let sdt = m.x_op(BinOp::Mul, d[a], dt);
+    for (a, &da) in d.iter().enumerate() {
+        let sdt = m.x_op(BinOp::Mul, da, dt);
         f.spill(m, slot::SDT + a, sdt);
-        let srda = m.x_op(BinOp::Mul, d[a], rda);
+        let srda = m.x_op(BinOp::Mul, da, rda);
         f.spill(m, slot::SRDA + a, srda);
-        f.spill(m, slot::DIR + a, d[a]);
+        f.spill(m, slot::DIR + a, da);
     }
     f.spill(m, slot::TEXIT, texit);
     f.spill(m, slot::RDA, rda);

@@ -38,7 +38,8 @@ fn variants(base: &Dataset) -> AppResult<Vec<(&'static str, &'static str, Datase
     ));
     for (k, name) in [(0.5, "opacity x0.5"), (2.0, "opacity x2")] {
         // The reports' first step kept: the opacity alone changes.
-        let ds = Dataset::framed(vol(), scaled(ENGINE_TF, k)?, lit, Framing::Fill).with_sampling(base.sampling);
+        let ds = Dataset::framed(vol(), scaled(ENGINE_TF, k)?, lit, Framing::Fill)
+            .with_sampling(base.sampling);
         out.push(("opacity", name, ds));
     }
     Ok(out)

@@ -292,10 +292,7 @@ impl Dataset {
                     .strip_prefix("mixing")
                     .and_then(|n| n.parse().ok())
                     .ok_or_else(|| AppError(format!("unknown volume dataset '{name}'")))?;
-                (
-                    Volume::mixing_layer(n, MIXING_SEED),
-                    MIXING_TF,
-                )
+                (Volume::mixing_layer(n, MIXING_SEED), MIXING_TF)
             }
         };
         let tf =
@@ -644,13 +641,21 @@ pub(crate) fn measure(
             constant += cn.constant_samples;
             pending.push(t);
             if pending.len() == threads {
-                time_together(&mut session, &mut pending, (&mut cycles, &mut instr, &mut regions))?;
+                time_together(
+                    &mut session,
+                    &mut pending,
+                    (&mut cycles, &mut instr, &mut regions),
+                )?;
             }
             Ok::<(), AppError>(())
         },
     )?;
     if !pending.is_empty() {
-        time_together(&mut session, &mut pending, (&mut cycles, &mut instr, &mut regions))?;
+        time_together(
+            &mut session,
+            &mut pending,
+            (&mut cycles, &mut instr, &mut regions),
+        )?;
     }
     let hz = m.clock_ghz * 1e9;
     let packets = ((ds.res / 8) * (ds.res / 8)) as f64;

@@ -4,8 +4,8 @@
 
 use crate::images::{frames, write_png, Agreement};
 use crate::measure::{
-    density, measure, missing, sample, Cell, Dataset, Density, Method, HEURISTICS, PIXEL_TOL,
-    FRAME_COVERAGE, RDA_PER_DT, RES, SAMPLES_PER_VOXEL,
+    density, measure, missing, sample, Cell, Dataset, Density, Method, FRAME_COVERAGE, HEURISTICS,
+    PIXEL_TOL, RDA_PER_DT, RES, SAMPLES_PER_VOXEL,
 };
 use crate::paper::{FIG5, SCALING_AT_8, TRAVERSAL_SHARE};
 use repro::sampling::paired_ratio_systematic;
@@ -288,7 +288,10 @@ pub(crate) fn restart_density(ds: &Dataset) -> [f64; 2] {
         let mut cuts = vec![t0, t1];
         for a in (0..3).filter(|&a| d[a] != 0.0) {
             let (lo, hi) = (o[a] + t0 * d[a], o[a] + t1 * d[a]);
-            let (k0, k1) = ((lo.min(hi) / leaf).ceil() as i64, (lo.max(hi) / leaf).floor() as i64);
+            let (k0, k1) = (
+                (lo.min(hi) / leaf).ceil() as i64,
+                (lo.max(hi) / leaf).floor() as i64,
+            );
             cuts.extend(
                 (k0..=k1)
                     .map(|k| (k as f64 * leaf - o[a]) / d[a])

@@ -88,7 +88,11 @@ pub(crate) fn volume_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
         for (view, closer) in VIEWS {
             let ds = Arc::new(base.with_view(1024, closer));
             let smp = sample(&ds, g, a.seed);
-            rows.extend(density_rows(|r| k0(r).key("view", view), &ds, &density(&smp)));
+            rows.extend(density_rows(
+                |r| k0(r).key("view", view),
+                &ds,
+                &density(&smp),
+            ));
             let paper = FIG6.iter().find(|r| r.n == n && r.view == view);
             let runs = [
                 (&m, Method::Gcc, chip, paper.map(|p| p.i7[0])),
@@ -241,7 +245,11 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         s.rda = 2f64.powi(e) * s.dt;
         let ds = Arc::new(base.with_sampling(s));
         let smp = sample(&ds, g, a.seed);
-        rows.extend(density_rows(|r| r.key("rda", format!("2^{e}")), &ds, &density(&smp)));
+        rows.extend(density_rows(
+            |r| r.key("rda", format!("2^{e}")),
+            &ds,
+            &density(&smp),
+        ));
         let c = measure(&m, &ds, &smp, Method::Bvh, &a.progress)?;
         ops += c.ops;
         bad += c.mismatches();
@@ -274,11 +282,17 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         let kf = |r: Row| k(r).key("constant_subvolumes", "off");
         rows.extend(fps_rows(kf, &cf, Some((chip, None))));
         rows.push(kf(Row::new("samples_per_ray", cf.samples_per_ray)));
-        rows.push(kf(Row::new("classified_samples_per_ray", cf.classified_per_ray)));
+        rows.push(kf(Row::new(
+            "classified_samples_per_ray",
+            cf.classified_per_ray,
+        )));
         rows.push(kf(Row::new("pixels_off_reference", cf.bad as f64)));
         rows.push(kf(Row::new("psnr_vs_reference", cf.psnr).unit("dB")));
         rows.push(k(Row::new("psnr_vs_reference", c.psnr).unit("dB")));
-        rows.push(k(Row::new("classified_samples_per_ray", c.classified_per_ray)));
+        rows.push(k(Row::new(
+            "classified_samples_per_ray",
+            c.classified_per_ray,
+        )));
         fps_full.push((e, cf.fps));
         // The same packets with the transfer function's opacity a quarter
         // of ours: rays stop later, so more of their samples depend on rda.
@@ -296,7 +310,10 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         let kt = |r: Row| k(r).key("transfer", format!("opacity x{THIN}"));
         rows.extend(fps_rows(kt, &ct, Some((chip, None))));
         rows.extend(density_rows(kt, &thin, &density(&thin_smp)));
-        rows.push(kt(Row::new("classified_samples_per_ray", ct.classified_per_ray)));
+        rows.push(kt(Row::new(
+            "classified_samples_per_ray",
+            ct.classified_per_ray,
+        )));
         fps_thin.push((e, ct.fps));
         // The paper's Figure 7 is the four images.
         let res = if a.quick { 256 } else { 512 };

@@ -4,7 +4,7 @@
 //! engine by the sse and bvh casters against the reports' settings.
 
 use crate::measure::{density, measure, sample, Dataset, Framing, Method};
-use crate::reports::{density_rows, whole_machine};
+use crate::rows::{density_rows, whole_machine};
 use repro::{AppError, AppResult, ReproduceArgs, Row};
 use scene::transfer::{Transfer, TransferFile};
 use std::sync::Arc;

@@ -4,7 +4,7 @@
 
 use crate::measure::{measure, sample, Dataset, Method};
 use crate::paper::BVH_FOOTPRINT;
-use crate::reports::fps_rows;
+use crate::rows::fps_rows;
 use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::sync::Arc;

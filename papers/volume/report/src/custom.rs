@@ -8,7 +8,7 @@
 
 use crate::images::{frame, write_png};
 use crate::measure::{measure, sample, Dataset, Method, PIXEL_TOL};
-use crate::reports::fps_rows;
+use crate::rows::fps_rows;
 use repro::progress::Progress;
 use repro::{AppError, AppResult, MachineSpec, Report, Row};
 use scene::transfer::Transfer;
@@ -107,7 +107,7 @@ pub fn volume(a: &VolumeArgs) -> AppResult<(Report, usize)> {
     let ds = Arc::new(Dataset::new(vol, tf, (lit, a.leaf)).with_view(a.res, 1.0));
     let smp = sample(&ds, a.packets as usize, a.seed);
     let progress = Progress::hidden();
-    let mut rows = crate::reports::density_rows(|r| r, &ds, &crate::measure::density(&smp));
+    let mut rows = crate::rows::density_rows(|r| r, &ds, &crate::measure::density(&smp));
     let mut bad = 0usize;
     let mut ops = 0u64;
     for me in [Method::Gcc, Method::Sse, Method::Bvh] {

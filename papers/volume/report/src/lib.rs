@@ -14,6 +14,7 @@ mod images;
 mod measure;
 pub mod paper;
 mod reports;
+mod rows;
 mod scaling;
 mod table1;
 

@@ -10,7 +10,8 @@ use crate::measure::{
     SAMPLES_PER_VOXEL,
 };
 use crate::paper::{DOUBLING_COST, FIG6, FIG7, SCALING_AT_8};
-use crate::reports::{cost_rows, density_rows, fps_rows, laptop_core, one_core, LAPTOP};
+use crate::reports::{laptop_core, one_core, LAPTOP};
+use crate::rows::{cost_rows, density_rows, fps_rows};
 use rayon::prelude::*;
 use repro::{AppError, AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::volume_ref::cast;

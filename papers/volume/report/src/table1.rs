@@ -6,7 +6,8 @@
 
 use crate::measure::{density, measure, sample, Dataset, Method, HEURISTICS};
 use crate::paper::{TABLE1, TABLE1_STAGES};
-use crate::reports::{density_rows, one_core, whole_machine, workstation_core};
+use crate::reports::{one_core, workstation_core};
+use crate::rows::{density_rows, whole_machine};
 use isa::Region;
 use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use scene::volume_ref::{Filter, Lighting};

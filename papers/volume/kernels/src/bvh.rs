@@ -167,18 +167,11 @@ pub fn trace_packet<M: Machine>(
         let Some(first) = first_hit(m, (packlets, &frustum), (&bx, nb, nodes), (first, c)) else {
             continue;
         };
-        if h.constant_at == ConstantAt::EveryNode {
-            if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
-                constant(
-                    m,
-                    (packlets, &mut *states, &mut *scratch),
-                    &bx,
-                    first,
-                    &cn,
-                    (c, s),
-                );
-                continue;
-            }
+        let bufs = (packlets, &mut *states, &mut *scratch);
+        if h.constant_at == ConstantAt::EveryNode
+            && taken_as_constant(m, v, bufs, (&bx, first), (range, alpha, dsv), (c, s))
+        {
+            continue;
         }
         m.region(Region::Traversal);
         let child = m.s_load(nodes, At::idx(nb, 1, 28), 4, false);
@@ -192,18 +185,11 @@ pub fn trace_packet<M: Machine>(
             m.branch(site::PRUNE, prune)
         };
         if m.branch(site::LEAF, is_leaf) || pruned {
-            if h.constant_at == ConstantAt::Leaves {
-                if let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) {
-                    constant(
-                        m,
-                        (packlets, &mut *states, &mut *scratch),
-                        &bx,
-                        first,
-                        &cn,
-                        (c, s),
-                    );
-                    continue;
-                }
+            let bufs = (packlets, &mut *states, &mut *scratch);
+            if h.constant_at == ConstantAt::Leaves
+                && taken_as_constant(m, v, bufs, (&bx, first), (range, alpha, dsv), (c, s))
+            {
+                continue;
             }
             leaf(
                 m,
@@ -217,6 +203,24 @@ pub fn trace_packet<M: Machine>(
         }
         push_children(m, (stack, &mut sp), (packlets, first), (range, child));
     }
+}
+
+/// Eq. 7 on a node (range word `range`, range opacity `alpha`): if it is
+/// constant within `dsv`, every packlet from `first` is integrated through
+/// its box by the constant-subvolume routine. Whether it was.
+fn taken_as_constant<M: Machine>(
+    m: &mut M,
+    v: &VolBufs,
+    bufs: (&Buf, &mut Buf, &mut Buf),
+    (bx, first): (&NodeBox<M>, M::S),
+    (range, alpha, dsv): (M::S, M::X, M::X),
+    (c, s): (&Consts<M>, &Sampling),
+) -> bool {
+    let Some(cn) = constant_node(m, v, (range, alpha), dsv, (c, s)) else {
+        return false;
+    };
+    constant(m, bufs, bx, first, &cn, (c, s));
+    true
 }
 
 /// The preintegrated opacity over a node's range word.

@@ -104,9 +104,9 @@ fn meeting_set_triangles(s: u32) -> u32 {
     112 * s - 4
 }
 
-/// The meeting room: the 20 x 6 x 14 room of `Room` (open toward +z, 10
-/// triangles) with `tables` tables on a seeded, jittered grid of up to 8 per
-/// row, each with 4 chairs (2 per long side, facing it, pulled out by a
+/// The meeting room: a closed 20 x 6 x 14 room (floor, ceiling and four
+/// walls, 12 triangles: no ray leaves it) with `tables` tables on a
+/// seeded, jittered grid of up to 8 per row, each with 4 chairs (2 per long side, facing it, pulled out by a
 /// seeded amount). Table tops and seats are boxes; table and chair legs are
 /// round (`s` sides) and chair backs curved bands of `s` segments: the
 /// detail is in the furniture's curves, as in a modelled room, and flat
@@ -118,6 +118,7 @@ pub(crate) fn meeting_room(m: &mut Mesh, seed: u64, tables: u32, s: u32) {
     quad(m, [-10.0, 0.0, -7.0], [20.0, 0.0, 0.0], [0.0, 6.0, 0.0]); // back wall
     quad(m, [-10.0, 0.0, -7.0], [0.0, 6.0, 0.0], [0.0, 0.0, 14.0]); // left
     quad(m, [10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [0.0, 6.0, 0.0]); // right
+    quad(m, [-10.0, 0.0, 7.0], [0.0, 6.0, 0.0], [20.0, 0.0, 0.0]); // front
     let cols = tables.clamp(1, 8);
     let rows = tables.div_ceil(cols).max(1);
     let (dx, dz) = (20.0 / cols as f32, 11.5 / rows as f32);
@@ -340,11 +341,37 @@ mod tests {
     use super::*;
 
     #[test]
+    fn no_ray_leaves_the_meeting_room() {
+        // Rays from inside in every direction (a seeded sphere of them,
+        // from points spread through the room) all hit something.
+        use crate::reference::{Ray, Reference};
+        let mut m = Mesh::default();
+        meeting_room(&mut m, 7, 4, 6);
+        let refi = Reference::brute(&m);
+        let mut r = Rng::new(3);
+        let mut missed = 0;
+        for _ in 0..4000 {
+            let o = [
+                f64::from(r.range(-9.9, 9.9)),
+                f64::from(r.range(0.01, 5.99)),
+                f64::from(r.range(-6.99, 6.99)),
+            ];
+            let d = [
+                f64::from(r.range(-1.0, 1.0)),
+                f64::from(r.range(-1.0, 1.0)),
+                f64::from(r.range(-1.0, 1.0)),
+            ];
+            missed += usize::from(refi.closest(&Ray::new(o, d)).is_none());
+        }
+        assert_eq!(missed, 0);
+    }
+
+    #[test]
     fn the_meeting_room_has_the_triangles_its_formula_says_and_closed_legs() {
         for (tables, s) in [(1, 3), (3, 8), (40, 62)] {
             let mut m = Mesh::default();
             meeting_room(&mut m, 7, tables, s);
-            assert_eq!(m.len() as u32, 10 + tables * meeting_set_triangles(s));
+            assert_eq!(m.len() as u32, 12 + tables * meeting_set_triangles(s));
             assert!(m
                 .tris
                 .iter()

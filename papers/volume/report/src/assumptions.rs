@@ -27,20 +27,17 @@ pub(crate) fn scaled(text: &str, k: f32) -> AppResult<Transfer> {
 
 /// One variant of the engine: its name, setting, and the dataset.
 fn variants(base: &Dataset) -> AppResult<Vec<(&'static str, &'static str, Dataset)>> {
-    let vol = || base.prepared.volume.clone();
-    let tf = base.prepared.tf.clone();
-    let lit = ('u', base.tree.leaf);
-    let mut out = vec![("reports", "reports", base.clone())];
-    out.push((
-        "view",
-        "bounding sphere framed",
-        Dataset::framed(vol(), tf, lit, Framing::Sphere),
-    ));
+    let mut out = vec![
+        ("reports", "reports", base.clone()),
+        (
+            "view",
+            "bounding sphere framed",
+            base.reframed(Framing::Sphere),
+        ),
+    ];
     for (k, name) in [(0.5, "opacity x0.5"), (2.0, "opacity x2")] {
         // The reports' first step kept: the opacity alone changes.
-        let ds = Dataset::framed(vol(), scaled(ENGINE_TF, k)?, lit, Framing::Fill)
-            .with_sampling(base.sampling);
-        out.push(("opacity", name, ds));
+        out.push(("opacity", name, base.with_transfer(scaled(ENGINE_TF, k)?)));
     }
     Ok(out)
 }

@@ -304,49 +304,58 @@ impl Dataset {
     /// the box filling the frame, its first step chosen for
     /// [`SAMPLES_PER_VOXEL`].
     pub(crate) fn new(vol: Volume, tf: Transfer, (lit, leaf): (char, u32)) -> Dataset {
-        Dataset::framed(vol, tf, (lit, leaf), Framing::Fill)
-    }
-
-    /// [`Dataset::new`] with the view framed by `framing`.
-    pub(crate) fn framed(
-        vol: Volume,
-        tf: Transfer,
-        (lit, leaf): (char, u32),
-        framing: Framing,
-    ) -> Dataset {
         let t0 = std::time::Instant::now();
         let tree = MinMaxBvh::build(&vol, leaf);
         let build_seconds = t0.elapsed().as_secs_f64();
         let c = vol.dims.map(f64::from);
-        let eye = [c[0] * 1.6, -c[1] * 0.9, c[2] * 1.8];
-        let fov = match framing {
-            Framing::Fill => filling_fov(vol.dims, eye),
-            Framing::Sphere => sphere_fov(vol.dims, eye),
-        };
-        let light = [c[0] * 2.0, -c[1], c[2] * 3.0];
         let sampling = Sampling {
             filter: Filter::Trilinear,
             dt: 0.5,
             rda: RDA_PER_DT * 0.5,
             lighting: lighting(lit),
-            light,
+            light: [c[0] * 2.0, -c[1], c[2] * 3.0],
             light_threshold: 0.01,
         };
-        let prepared = Prepared::new(vol, tf);
-        let dt = calibrate_dt(&prepared, eye, fov, sampling);
         Dataset {
-            fov,
-            prepared: Arc::new(prepared),
+            fov: 0.0,
+            prepared: Arc::new(Prepared::new(vol, tf)),
             tree: Arc::new(tree),
-            eye,
-            sampling: Sampling {
-                dt,
-                rda: RDA_PER_DT * dt,
-                ..sampling
-            },
+            eye: [c[0] * 1.6, -c[1] * 0.9, c[2] * 1.8],
+            sampling,
             build_seconds,
             res: RES,
             heuristics: HEURISTICS,
+        }
+        .reframed(Framing::Fill)
+    }
+
+    /// The same dataset with its view framed by `framing`, the first step
+    /// chosen again for [`SAMPLES_PER_VOXEL`] (the tree kept: it does not
+    /// depend on the view).
+    pub(crate) fn reframed(&self, framing: Framing) -> Dataset {
+        let dims = self.prepared.volume.dims;
+        let fov = match framing {
+            Framing::Fill => filling_fov(dims, self.eye),
+            Framing::Sphere => sphere_fov(dims, self.eye),
+        };
+        let dt = calibrate_dt(&self.prepared, self.eye, fov, self.sampling);
+        Dataset {
+            fov,
+            sampling: Sampling {
+                dt,
+                rda: RDA_PER_DT * dt,
+                ..self.sampling
+            },
+            ..self.clone()
+        }
+    }
+
+    /// The same dataset classified by `tf`, its view, sampling and tree kept
+    /// (the tree's min-max ranges do not depend on the transfer function).
+    pub(crate) fn with_transfer(&self, tf: Transfer) -> Dataset {
+        Dataset {
+            prepared: Arc::new(Prepared::new(self.prepared.volume.clone(), tf)),
+            ..self.clone()
         }
     }
 

@@ -241,6 +241,8 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
     let truth = base.with_sampling(dense);
     let (mut rows, mut ops, mut bad) = (Vec::new(), 0u64, 0usize);
     let (mut fps, mut fps_full, mut fps_thin) = (Vec::new(), Vec::new(), Vec::new());
+    let thin_base =
+        base.with_transfer(crate::assumptions::scaled(crate::measure::MIXING_TF, THIN)?);
     for (e, paper) in FIG7 {
         let mut s = base.sampling;
         s.rda = 2f64.powi(e) * s.dt;
@@ -297,13 +299,7 @@ pub(crate) fn volume_fig7(a: &ReproduceArgs) -> AppResult<Produced> {
         fps_full.push((e, cf.fps));
         // The same packets with the transfer function's opacity a quarter
         // of ours: rays stop later, so more of their samples depend on rda.
-        let thin = Arc::new(Dataset {
-            prepared: Arc::new(volume_kernels::Prepared::new(
-                ds.prepared.volume.clone(),
-                crate::assumptions::scaled(crate::measure::MIXING_TF, THIN)?,
-            )),
-            ..(*ds).clone()
-        });
+        let thin = Arc::new(thin_base.with_sampling(s));
         let thin_smp = sample(&thin, g, a.seed);
         let ct = measure(&m, &thin, &thin_smp, Method::Bvh, &a.progress)?;
         ops += ct.ops;

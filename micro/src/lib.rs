@@ -126,6 +126,8 @@ pub struct MicroParams {
     pub streams: usize,
     /// Working set in bytes (pointer chase, streaming).
     pub ws: usize,
+    /// Bytes between chased nodes (pointer chase; a multiple of 8).
+    pub stride: usize,
     /// Seed of the random cycle and branch outcomes.
     pub seed: u64,
 }
@@ -137,6 +139,7 @@ impl Default for MicroParams {
             unroll: 8,
             streams: 10,
             ws: 16 * 1024,
+            stride: CHASE_STRIDE,
             seed: 1,
         }
     }
@@ -165,10 +168,18 @@ impl MicroParams {
                 }
                 self.ws = v as usize;
             }
+            "stride" => {
+                if v < 8 || !v.is_multiple_of(8) {
+                    return Err(format!(
+                        "parameter stride must be a multiple of 8 bytes, at least 8, got {v}"
+                    ));
+                }
+                self.stride = v as usize;
+            }
             "seed" => self.seed = v,
             _ => {
                 return Err(format!(
-                    "unknown parameter '{key}' (iters, unroll, streams, ws, seed)"
+                    "unknown parameter '{key}' (iters, unroll, streams, ws, stride, seed)"
                 ))
             }
         }
@@ -288,6 +299,9 @@ impl Program for Micro {
                 v.push(("unroll".into(), p.unroll.to_string()));
             }
             Kind::BranchPredictable | Kind::BranchRandom => {}
+        }
+        if self.kind == Kind::PointerChase {
+            v.push(("stride".into(), p.stride.to_string()));
         }
         if matches!(self.kind, Kind::PointerChase | Kind::BranchRandom) {
             v.push(("seed".into(), p.seed.to_string()));
@@ -430,12 +444,15 @@ fn chains<M: Machine>(m: &mut M, op: ChainOp, streams: usize, unroll: usize, ite
     }
 }
 
-/// Bytes between chased lines: one line in two, so a next-line prefetch never
-/// helps, and consecutive chased lines fill a cache's even sets evenly.
+/// Bytes between chased lines by default: one line in two, so a next-line
+/// prefetch never helps, and consecutive chased lines fill a cache's even
+/// sets evenly. (A stride of a page and a line puts every node in a page
+/// of its own: the TLB rows of `rtsim calibrate`.)
 pub const CHASE_STRIDE: usize = 128;
 
 fn pointer_chase<M: Machine>(m: &mut M, p: &MicroParams) {
-    let nodes = (p.ws / CHASE_STRIDE).max(2);
+    let stride = p.stride;
+    let nodes = (p.ws / stride).max(2);
     // Sattolo's algorithm: a single random cycle through every node.
     let mut order: Vec<usize> = (0..nodes).collect();
     let mut r = Rng::new(p.seed);
@@ -443,11 +460,9 @@ fn pointer_chase<M: Machine>(m: &mut M, p: &MicroParams) {
         let j = r.below(i as u64) as usize;
         order.swap(i, j);
     }
-    let mut buf = m
-        .space()
-        .alloc(MemKind::Other, "chase", nodes * CHASE_STRIDE, 64);
+    let mut buf = m.space().alloc(MemKind::Other, "chase", nodes * stride, 64);
     for (i, &next) in order.iter().enumerate() {
-        buf.set_uint(i * CHASE_STRIDE, 8, (next * CHASE_STRIDE) as u64);
+        buf.set_uint(i * stride, 8, (next * stride) as u64);
     }
     let mut cur = m.int(0);
     let mut i = m.int(0);

@@ -362,7 +362,17 @@ fn issue_facts(m: &MachineConfig) -> (bool, usize, f64) {
 fn calibrate_rows(m: &MachineConfig) -> AppResult<Vec<Cal>> {
     let mut out = Vec::new();
     op_class_rows(m, &mut out)?;
-    cache_latency_rows(m, &mut out)?;
+    // The caches' and DRAM's latencies as measured with huge pages: 1 GiB
+    // pages keep every chase inside the first TLB level. The TLB rows
+    // measure translation with the machine's own pages.
+    let huge = match m.tlb {
+        Some(_) => m
+            .with_sets(&["tlb.page_kib=1048576".into()])
+            .map_err(|e| AppError(e.to_string()))?,
+        None => m.clone(),
+    };
+    cache_latency_rows(&huge, &mut out)?;
+    tlb_rows(m, &mut out)?;
     out.push(dram_stream_row(m)?);
     out.push(mispredict_row(m)?);
     Ok(out)
@@ -473,6 +483,85 @@ fn cache_latency_rows(m: &MachineConfig, out: &mut Vec<Cal>) -> AppResult<()> {
         unit: "cycles",
     });
     Ok(())
+}
+
+/// Translation cost of each TLB level past the first and of the walk: a
+/// warm chase with one node per page (a page and a line apart), over twice
+/// the pages the level before holds (each of its sets then cycles through
+/// more pages than it has ways: every lookup misses) and, for a level,
+/// no more than it holds. Expected: the level's latency (or the walk) plus
+/// the latency of the first cache level whose sets hold the chased lines.
+fn tlb_rows(m: &MachineConfig, out: &mut Vec<Cal>) -> AppResult<()> {
+    let Some(t) = &m.tlb else {
+        return Ok(());
+    };
+    let page = t.page_kib as usize * 1024;
+    let stride = page + m.caches[0].line as usize;
+    let mut cases: Vec<(String, usize, u32)> = t
+        .levels
+        .windows(2)
+        .filter(|w| 2 * w[0].entries <= w[1].entries)
+        .map(|w| (w[1].name.clone(), 2 * w[0].entries as usize, w[1].latency))
+        .collect();
+    let last = t.levels.last().expect("validated: one level or more");
+    cases.push(("walk".into(), 2 * last.entries as usize, t.walk));
+    for (name, least, cost) in cases {
+        // Twice the pages the level before holds, or more where the chased
+        // lines would half-fit a cache level.
+        let Some((pages, line_latency)) = [1, 2, 4]
+            .iter()
+            .find_map(|k| chased_line_latency(m, k * least, stride).map(|l| (k * least, l)))
+        else {
+            continue;
+        };
+        let chase = |iters: usize| {
+            micro(
+                Kind::PointerChase,
+                MicroParams {
+                    iters,
+                    ws: pages * stride,
+                    stride,
+                    unroll: 256,
+                    ..MicroParams::default()
+                },
+            )
+        };
+        let per = pages.div_ceil(256) * 256;
+        let (a, _) = run_micro(m, &chase(per), 1)?;
+        let (b, _) = run_micro(m, &chase(2 * per), 1)?;
+        out.push(Cal {
+            name: format!("pointer-chase-tlb-{name}"),
+            metric: "load_latency",
+            class: None,
+            value: (b.cycles - a.cycles) as f64 / per as f64,
+            expected: f64::from(cost + line_latency),
+            unit: "cycles",
+        });
+    }
+    Ok(())
+}
+
+/// Load-to-use latency of `nodes` lines `stride` bytes apart chased in a
+/// fixed cycle: the first cache level none of whose sets receives more of
+/// them than half its ways (half leaves room for the prefetcher's lines, as
+/// the cache rows fill each level half), every level before it receiving
+/// more than its ways in some set (such a set misses on every visit, LRU),
+/// or DRAM. None where a level lies between: its hits are not certain.
+fn chased_line_latency(m: &MachineConfig, nodes: usize, stride: usize) -> Option<u32> {
+    for c in &m.caches {
+        let sets = c.size_kib as usize * 1024 / c.line as usize / c.ways as usize;
+        let mut per_set = vec![0u32; sets];
+        for i in 0..nodes {
+            per_set[(i * stride / c.line as usize) % sets] += 1;
+        }
+        if per_set.iter().all(|&k| 2 * k <= c.ways) {
+            return Some(c.latency);
+        }
+        if per_set.iter().all(|&k| k <= c.ways) {
+            return None;
+        }
+    }
+    Some(m.dram.latency)
 }
 
 /// DRAM bandwidth of a streaming load without the prefetcher.

@@ -59,10 +59,14 @@ pub struct CoreConfig {
     /// entry, held until the store retires; loads forward from its stores.
     #[serde(default)]
     pub store_buffer: u32,
-    /// A compare followed by the branch reading it is one uop: one dispatch
-    /// slot, executed once on the branch's ports.
+    /// Where a compare followed by the branch reading it is one uop: one
+    /// dispatch slot, executed once on the branch's ports.
+    #[serde(default = "fusion_off")]
+    pub macro_fusion: MacroFusion,
+    /// The code the kernels run as (64-bit by default: x86-64 builds, as
+    /// the papers' were).
     #[serde(default)]
-    pub macro_fusion: bool,
+    pub code: CodeMode,
     /// A taken branch ends its issue group: the next op dispatches in the
     /// next cycle, however few slots the branch's cycle used (OoO; the
     /// front end delivers one taken branch's uops per cycle, as Intel's loop
@@ -96,6 +100,43 @@ pub struct CoreConfig {
     /// predictor); none: gshare alone.
     #[serde(default)]
     pub tage: Option<Tage>,
+}
+
+/// Where a core fuses a compare with the branch reading it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum MacroFusion {
+    /// Never.
+    Off,
+    /// In 32-bit code only (Core 2: not in 64-bit mode).
+    In32BitCode,
+    /// In 32- and 64-bit code (Nehalem and later, AMD).
+    On,
+}
+
+fn fusion_off() -> MacroFusion {
+    MacroFusion::Off
+}
+
+/// The mode the kernels' code runs in.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CodeMode {
+    /// 32-bit (IA-32) code.
+    Bits32,
+    /// 64-bit (x86-64) code.
+    #[default]
+    Bits64,
+}
+
+impl CoreConfig {
+    /// Whether compare-and-branch pairs fuse in the configured code mode.
+    #[must_use]
+    pub fn fuses(&self) -> bool {
+        match self.macro_fusion {
+            MacroFusion::Off => false,
+            MacroFusion::In32BitCode => self.code == CodeMode::Bits32,
+            MacroFusion::On => true,
+        }
+    }
 }
 
 /// A second scheduler: the uops that can issue only on `ports` wait in its
@@ -218,6 +259,38 @@ pub struct DramConfig {
     pub bandwidth_gbs: f64,
 }
 
+/// The data TLBs of a core: levels closest first, and the page walk
+/// (`crate::memory::Tlbs`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TlbConfig {
+    /// Page size in KiB (4: a process without huge pages).
+    pub page_kib: u32,
+    /// TLB levels, closest first.
+    pub levels: Vec<TlbLevel>,
+    /// Extra load-to-use cycles of a translation every level missed (the
+    /// page walk, its paging entries found in the caches).
+    pub walk: u32,
+}
+
+/// One TLB level.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TlbLevel {
+    /// Name (`dtlb`, `stlb`, ...).
+    pub name: String,
+    /// Entries (pages).
+    pub entries: u32,
+    /// Associativity.
+    pub ways: u32,
+    /// Extra load-to-use cycles of a translation found here (the first
+    /// level's is 0: it is looked up beside the L1).
+    pub latency: u32,
+    /// Loads only (Core 2's DTLB0): stores look up the next level.
+    #[serde(default)]
+    pub loads_only: bool,
+}
+
 /// Hardware prefetcher.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Prefetch {
@@ -257,6 +330,10 @@ pub struct MachineConfig {
     pub prefetch: Prefetch,
     /// Main memory.
     pub dram: DramConfig,
+    /// Data TLBs (none: addresses are not translated; every built-in
+    /// machine has them, `--set tlb=null` removes them).
+    #[serde(default)]
+    pub tlb: Option<TlbConfig>,
 }
 
 /// A config error: file, line if known, field, message.
@@ -481,6 +558,9 @@ impl MachineConfig {
             if d == 0 || d > 64 {
                 return e("prefetch", "Stream degree must be 1 to 64");
             }
+        }
+        if let Some(t) = &self.tlb {
+            validate_tlb(t)?;
         }
         Ok(())
     }
@@ -734,4 +814,40 @@ fn find_line(text: &str, field: &str) -> Option<usize> {
         .filter(|(_, l)| l.split("//").next().unwrap_or("").contains(&pat))
         .nth(nth)
         .map(|(i, _)| i + 1)
+}
+
+/// A TLB config's page size, levels and walk.
+fn validate_tlb(t: &TlbConfig) -> Result<(), (String, String)> {
+    let e = |f: String, m: &str| Err((f, m.to_string()));
+    if !t.page_kib.is_power_of_two() || t.page_kib > 1 << 20 {
+        return e("tlb.page_kib".into(), "must be a power of two up to 1 GiB");
+    }
+    if t.levels.is_empty() || t.levels.len() > 4 {
+        return e("tlb.levels".into(), "one to four levels");
+    }
+    for (i, l) in t.levels.iter().enumerate() {
+        let f = |x: &str| format!("tlb.levels[{i}].{x}");
+        if l.ways == 0 || l.entries == 0 || !l.entries.is_multiple_of(l.ways) || l.entries > 1 << 16 {
+            return e(f("entries"), "must be 1 to 65536 and a multiple of ways");
+        }
+        if i == 0 && l.latency != 0 {
+            return e(
+                f("latency"),
+                "the first level is looked up beside the L1: 0",
+            );
+        }
+        if l.latency > 1000 {
+            return e(f("latency"), "must be 0 to 1000");
+        }
+        if l.loads_only && i + 1 == t.levels.len() {
+            return e(
+                f("loads_only"),
+                "stores need a level after a loads-only one",
+            );
+        }
+    }
+    if t.walk == 0 || t.walk > 10_000 {
+        return e("tlb.walk".into(), "must be 1 to 10000");
+    }
+    Ok(())
 }

@@ -145,6 +145,7 @@ pub fn simulate(m: &MachineConfig, traces: &[&Trace], opt: &SimOptions) -> Resul
     s.dram_written = mem.dram_written;
     s.dram_read_by_region = mem.dram_read_by_region.clone();
     s.dram_prefetched_by_region = mem.dram_prefetched_by_region.clone();
+    s.tlb = mem.tlb_stats();
     Ok(s)
 }
 

@@ -1,9 +1,11 @@
 //! Caches and DRAM: set-associative, LRU, write-back write-allocate, any
 //! number of private and shared levels, an optional next-line prefetcher, and
 //! a DRAM with latency and a bandwidth queue. Counts hits and misses per level
-//! and per memory region, and DRAM bytes read and written.
+//! and per memory region, and DRAM bytes read and written. Data TLBs
+//! ([`Tlbs`]) translate every access first: a miss in the first level adds
+//! the level's latency, or the page walk's, before the cache lookup.
 
-use crate::config::{CacheConfig, MachineConfig, Prefetch};
+use crate::config::{CacheConfig, MachineConfig, Prefetch, TlbConfig};
 use isa::{LineAddr, MemId, Op, Trace};
 
 /// One set-associative cache with LRU replacement. Each set keeps its
@@ -34,12 +36,18 @@ impl Cache {
     #[must_use]
     pub fn new(cfg: &CacheConfig) -> Cache {
         let lines = u64::from(cfg.size_kib) * 1024 / u64::from(cfg.line);
-        let ways = cfg.ways as usize;
-        let sets = lines / ways as u64;
+        Cache::of(lines, cfg.ways)
+    }
+
+    /// An empty cache of `entries` in sets of `ways` (a TLB: its "lines"
+    /// are pages).
+    #[must_use]
+    pub fn of(entries: u64, ways: u32) -> Cache {
+        let ways = ways as usize;
         Cache {
-            sets,
+            sets: entries / ways as u64,
             ways,
-            ways_of: vec![EMPTY; lines as usize],
+            ways_of: vec![EMPTY; entries as usize],
         }
     }
 
@@ -109,6 +117,90 @@ impl Cache {
         set.copy_within(0..victim, 1);
         set[0] = k;
         (evicted & 1 == 1).then(|| LineAddr((evicted >> 1) - 1))
+    }
+}
+
+/// Translations counted per TLB level.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct TlbStats {
+    /// Per level: translations found there.
+    pub hits: Vec<u64>,
+    /// Per level: translations looked up there and not found.
+    pub misses: Vec<u64>,
+    /// Page walks (every level missed).
+    pub walks: u64,
+}
+
+/// The data TLBs of every core: per core, one LRU set-associative array of
+/// pages per level. A translation found at level `l` costs that level's
+/// latency and fills the levels before it; one every level misses costs the
+/// walk and fills them all. Stores start at the first level that takes
+/// them (Core 2's DTLB0 is for loads).
+#[derive(Clone, Debug)]
+pub struct Tlbs {
+    cfg: TlbConfig,
+    page_shift: u32,
+    /// Per core and level (`core * levels + level`).
+    arrays: Vec<Cache>,
+    /// Counters, over every core.
+    pub stats: TlbStats,
+}
+
+impl Tlbs {
+    /// Empty TLBs of `cfg` for `cores` cores.
+    #[must_use]
+    pub fn new(cfg: &TlbConfig, cores: usize) -> Tlbs {
+        let n = cfg.levels.len();
+        let arrays = (0..cores * n)
+            .map(|i| {
+                let l = &cfg.levels[i % n];
+                Cache::of(u64::from(l.entries), l.ways)
+            })
+            .collect();
+        Tlbs {
+            cfg: cfg.clone(),
+            page_shift: (u64::from(cfg.page_kib) * 1024).trailing_zeros(),
+            arrays,
+            stats: TlbStats {
+                hits: vec![0; n],
+                misses: vec![0; n],
+                walks: 0,
+            },
+        }
+    }
+
+    /// Translate `addr` for `core`: the extra load-to-use cycles (0 on a
+    /// first-level hit), the arrays updated.
+    pub fn translate(&mut self, core: usize, addr: u64, write: bool) -> u64 {
+        let n = self.cfg.levels.len();
+        let page = LineAddr(addr >> self.page_shift);
+        let first = usize::from(write && self.cfg.levels[0].loads_only);
+        let base = core * n;
+        for l in first..n {
+            if self.arrays[base + l].lookup(page, false) {
+                self.stats.hits[l] += 1;
+                for k in first..l {
+                    self.arrays[base + k].insert(page, false);
+                }
+                return u64::from(self.cfg.levels[l].latency);
+            }
+            self.stats.misses[l] += 1;
+        }
+        self.stats.walks += 1;
+        for k in first..n {
+            self.arrays[base + k].insert(page, false);
+        }
+        u64::from(self.cfg.walk)
+    }
+
+    /// Zero the counters, keeping the arrays.
+    pub fn reset_counters(&mut self) {
+        let n = self.cfg.levels.len();
+        self.stats = TlbStats {
+            hits: vec![0; n],
+            misses: vec![0; n],
+            walks: 0,
+        };
     }
 }
 
@@ -211,6 +303,8 @@ pub struct Hierarchy {
     /// Functional warming: accesses change cache contents only, not the
     /// DRAM queue's timeline (untimed accesses would pile up in it).
     pub functional: bool,
+    /// The data TLBs, where the machine has them.
+    pub tlbs: Option<Tlbs>,
 }
 
 impl Hierarchy {
@@ -248,6 +342,7 @@ impl Hierarchy {
             dram_prefetched_by_region: Vec::new(),
             streams: vec![(u64::MAX - 1, 0); cores],
             functional: false,
+            tlbs: m.tlb.as_ref().map(|t| Tlbs::new(t, cores)),
         }
     }
 
@@ -285,6 +380,24 @@ impl Hierarchy {
         self.dram_written = 0;
         self.dram_read_by_region.clear();
         self.dram_prefetched_by_region.clear();
+        if let Some(t) = &mut self.tlbs {
+            t.reset_counters();
+        }
+    }
+
+    /// Extra cycles to translate `addr` for `core` (0 without TLBs).
+    #[inline]
+    fn translate(&mut self, core: usize, addr: u64, write: bool) -> u64 {
+        match &mut self.tlbs {
+            Some(t) => t.translate(core, addr, write),
+            None => 0,
+        }
+    }
+
+    /// The TLB counters (none without TLBs).
+    #[must_use]
+    pub fn tlb_stats(&self) -> Option<TlbStats> {
+        self.tlbs.as_ref().map(|t| t.stats.clone())
     }
 
     /// Cache levels (a served level equal to this is DRAM).
@@ -358,6 +471,7 @@ impl Hierarchy {
         at: u64,
         mshrs: &mut Mshrs,
     ) -> (u64, usize) {
+        let at = at + self.translate(core, addr, false);
         let line = self.line_of(addr);
         if self.l1(core, line, false, region, at) {
             return (at + u64::from(self.cfg[0].latency), 0);
@@ -426,14 +540,17 @@ impl Hierarchy {
         region: MemId,
         now: u64,
     ) -> Served {
+        let tr = self.translate(core, addr, write);
         let line = self.line_of(addr);
-        if self.l1(core, line, write, region, now) {
+        if self.l1(core, line, write, region, now + tr) {
             return Served {
                 level: 0,
-                latency: u64::from(self.cfg[0].latency),
+                latency: tr + u64::from(self.cfg[0].latency),
             };
         }
-        self.below_l1(core, line, write, region, now)
+        let mut sv = self.below_l1(core, line, write, region, now + tr);
+        sv.latency += tr;
+        sv
     }
 
     /// An access's L1 step: the lookup, its counter, and on a hit the

@@ -659,7 +659,7 @@ impl OooCore {
             sf_latency: u64::from(c.store_forward_latency),
             sf_fail: u64::from(c.store_forward_fail_penalty),
             sf_same_start: c.store_forward_wide_same_start,
-            macro_fusion: c.macro_fusion,
+            macro_fusion: c.fuses(),
             penalty: u64::from(c.mispredict_penalty),
             cal: Calendar::new(c.ports as usize),
             pools: [

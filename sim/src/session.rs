@@ -590,6 +590,7 @@ impl Session {
         s.dram_written = self.mem.dram_written;
         s.dram_read_by_region = self.mem.dram_read_by_region.clone();
         s.dram_prefetched_by_region = self.mem.dram_prefetched_by_region.clone();
+        s.tlb = self.mem.tlb_stats();
     }
 }
 

@@ -145,6 +145,8 @@ pub struct Stats {
     /// Of those, the bytes the prefetcher read (by the region of the access
     /// that triggered it).
     pub dram_prefetched_by_region: Vec<u64>,
+    /// TLB counters (none on a machine without TLBs).
+    pub tlb: Option<crate::memory::TlbStats>,
     /// The pipeline timeline of the ops [`crate::SimOptions::timeline`]
     /// asked for (out-of-order cores; empty otherwise).
     pub timeline: Vec<OpTimes>,

@@ -49,7 +49,7 @@ fn a_port_conflict_serialises() {
 
 #[test]
 fn every_cache_level_hit_latency() {
-    let m = hsw();
+    let m = hsw_untranslated();
     let mut h = Hierarchy::new(&m, 1);
     let line = 1000u64;
     let at = |l: u64| Addr(l * 64).0;
@@ -78,7 +78,7 @@ fn every_cache_level_hit_latency() {
 
 #[test]
 fn an_access_wider_than_a_line_touches_every_line_it_spans() {
-    let m = hsw();
+    let m = hsw_untranslated();
     let mut h = Hierarchy::new(&m, 1);
     let r = MemId(1);
     let base = 2000 * 64;
@@ -146,7 +146,7 @@ fn a_full_rob_stalls_dispatch() {
 #[test]
 fn the_outstanding_miss_limit_queues_misses() {
     let fast = |mshrs: u32| {
-        hsw()
+        hsw_untranslated()
             .with_sets(&[
                 format!("mshrs={mshrs}"),
                 "dram.bandwidth_gbs=1000000".into(),
@@ -400,9 +400,7 @@ fn a_macro_fused_compare_and_branch_is_one_uop() {
         body.push_str(&format!("%{k} = cmp\nbranch %{k} site={k} not-taken\n"));
     }
     let fused = hsw();
-    let plain = hsw()
-        .with_sets(&["core.macro_fusion=false".into()])
-        .unwrap();
+    let plain = hsw().with_sets(&["core.macro_fusion=Off".into()]).unwrap();
     let s = |m: &MachineConfig| {
         let t = trace(&m.isa, &body);
         simulate(m, &[&t], &SimOptions::default()).unwrap()
@@ -686,7 +684,7 @@ fn late_ops_are_charged_to_operands_or_ports() {
 #[test]
 fn a_missing_load_is_charged_to_the_level_that_served_it() {
     use sim::Stall::{MemoryDram, MemoryL2, MemoryL3};
-    let m = hsw();
+    let m = hsw_untranslated();
     // Cold: DRAM (196 cycles; issue at 1, done 197).
     let s = stall_cycles(&m, "%1 = load @d+0x0:8\n");
     assert_eq!(s[MemoryDram as usize], 197);
@@ -787,4 +785,131 @@ fn zen4_runs_a_512_bit_op_on_its_pipe_for_two_cycles() {
     let ymm = MachineConfig::load("zen4").unwrap();
     assert_eq!(cycles(&m, &adds), cycles(&ymm, &adds) + 2);
     assert_eq!(cycles(&m, "%1 = vadd\n%2 = vadd %1\n"), 1 + 3 + 3);
+}
+
+/// Haswell without its TLBs: the cache-level latencies alone.
+fn hsw_untranslated() -> MachineConfig {
+    hsw().with_sets(&["tlb=null".into()]).unwrap()
+}
+
+#[test]
+fn a_translation_costs_its_tlb_level_or_the_walk() {
+    // Haswell: DTLB 64 entries 4-way (16 sets), STLB 1024 8-way (128
+    // sets), an STLB hit 8 cycles, a walk 20 (configs/machines).
+    let m = hsw();
+    let mut h = Hierarchy::new(&m, 1);
+    let page = |p: u64| p * 4096;
+    let r = MemId(1);
+    // Cold page and line: the walk, then DRAM.
+    assert_eq!(h.access(0, page(1000), false, r, 0).latency, 20 + 196);
+    // The same line: a DTLB hit adds nothing.
+    assert_eq!(h.access(0, page(1000), false, r, 0).latency, 4);
+    // Another line of the same page, once the DRAM queue has drained: no
+    // translation cost, the line's own.
+    assert_eq!(h.access(0, page(1000) + 64, false, r, 10_000).latency, 196);
+    // Four more pages in the page's DTLB set (16 sets) push it out of the
+    // DTLB; the STLB (128 sets) still holds it. (Each touches another L1
+    // set, so the page's line stays in the L1.)
+    for k in 1..=4 {
+        h.access(0, page(1000 + 16 * k) + 64 * k, false, r, 0);
+    }
+    assert_eq!(
+        h.access(0, page(1000), false, r, 0).latency,
+        8 + 4,
+        "STLB hit, L1 hit"
+    );
+    assert_eq!(
+        h.access(0, page(1000), false, r, 0).latency,
+        4,
+        "back in the DTLB"
+    );
+    // Eight more pages in its STLB set (and DTLB set) push it out of both.
+    for k in 1..=8 {
+        h.access(0, page(1000 + 128 * k) + 64 * (4 + k), false, r, 0);
+    }
+    assert_eq!(
+        h.access(0, page(1000), false, r, 0).latency,
+        20 + 4,
+        "walk, L1 hit"
+    );
+    let t = h.tlb_stats().unwrap();
+    assert_eq!((t.hits[1], t.walks), (1, 1 + 4 + 8 + 1));
+    // Without TLBs the same cold access is DRAM alone.
+    let mut plain = Hierarchy::new(&hsw_untranslated(), 1);
+    assert_eq!(plain.access(0, page(1000), false, r, 0).latency, 196);
+}
+
+#[test]
+fn core2_stores_skip_the_loads_only_dtlb0() {
+    // Core 2: DTLB0 16 entries 4-way (4 sets) for loads, DTLB1 256 4-way
+    // (64 sets) +2 cycles, walk 25.
+    let m = MachineConfig::load("core2-q6600").unwrap();
+    let mut h = Hierarchy::new(&m, 1);
+    let r = MemId(1);
+    let l1 = u64::from(m.caches[0].latency);
+    // A store walks and fills DTLB1 only; a load of the page then misses
+    // DTLB0 and finds it in DTLB1.
+    h.access(0, 7 * 4096, true, r, 0);
+    assert_eq!(h.access(0, 7 * 4096, false, r, 0).latency, 2 + l1);
+    assert_eq!(h.access(0, 7 * 4096, false, r, 0).latency, l1);
+    let t = h.tlb_stats().unwrap();
+    // The store looked up DTLB1 alone (a miss there); the load missed DTLB0.
+    assert_eq!((t.hits, t.misses, t.walks), (vec![1, 1], vec![1, 1], 1));
+}
+
+#[test]
+fn a_dependent_load_chain_pays_each_walk_once() {
+    // Two dependent loads in two cold pages, then the same two again: each
+    // page's first load walks (20) and misses to DRAM (196); the repeats
+    // hit the DTLB and the L1 (4 each). Issue at 1: 1 + 216 + 216 + 4 + 4.
+    let m = hsw();
+    let body = "%1 = load @d+0x0:8\n%2 = load @d+0x2000:8 %1\n%3 = load @d+0x0:8 %2\n%4 = load @d+0x2000:8 %3\n";
+    assert_eq!(cycles(&m, body), 1 + 2 * (20 + 196) + 2 * 4);
+    assert_eq!(cycles(&hsw_untranslated(), body), 1 + 2 * 196 + 2 * 4);
+}
+
+#[test]
+fn core2_fuses_compare_and_branch_in_32_bit_code_only() {
+    let mut body = String::new();
+    for k in 1..=8 {
+        body.push_str(&format!("%{k} = cmp\nbranch %{k} site={k} not-taken\n"));
+    }
+    let uops = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let m = MachineConfig::load("core2-q6600")
+            .unwrap()
+            .with_sets(&sets)
+            .unwrap();
+        let t = trace(&m.isa, &body);
+        simulate(&m, &[&t], &SimOptions::default()).unwrap().uops
+    };
+    assert_eq!(uops(&[]), 16, "64-bit code (the default): no fusion");
+    assert_eq!(uops(&["core.code=Bits32"]), 8, "32-bit code fuses");
+    assert_eq!(uops(&["core.macro_fusion=On"]), 8);
+}
+
+#[test]
+fn every_built_in_machine_translates_and_states_its_fusion_mode() {
+    for (name, _) in sim::config::BUILTIN {
+        let m = MachineConfig::load(name).unwrap();
+        let t = m
+            .tlb
+            .as_ref()
+            .unwrap_or_else(|| panic!("{name} has no TLB"));
+        assert_eq!(t.levels[0].latency, 0, "{name}");
+        assert!(t.walk > t.levels.last().unwrap().latency, "{name}");
+        // Core 2 (Merom, Penryn) fuses in 32-bit code only; the kernels run as 64-bit.
+        let core2 = name.starts_with("core2") || name.starts_with("dunnington");
+        if core2 {
+            assert_eq!(m.core.macro_fusion, sim::config::MacroFusion::In32BitCode);
+            assert!(!m.core.fuses(), "{name}");
+        }
+    }
+    let bad = MachineConfig::load("core2-q6600")
+        .unwrap()
+        .with_sets(&["tlb.levels.0.latency=3".into()]);
+    assert!(bad
+        .unwrap_err()
+        .to_string()
+        .contains("tlb.levels[0].latency"));
 }

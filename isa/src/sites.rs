@@ -62,9 +62,11 @@ pub const MBVH_PACKET: SiteBlock = SiteBlock::new("mbvh_kernels::packet", 150, 2
 pub const MULTIHIT: SiteBlock = SiteBlock::new("multihit_kernels", 170, 20);
 /// Volume ray casting (`volume_kernels`).
 pub const VOLUME: SiteBlock = SiteBlock::new("volume_kernels", 190, 40);
+/// Large packets with interval culling over an MBVH (`mbvh_kernels::large_packet`).
+pub const MBVH_LARGE: SiteBlock = SiteBlock::new("mbvh_kernels::large_packet", 230, 20);
 
 /// Every block, in order.
-pub const PLAN: [SiteBlock; 12] = [
+pub const PLAN: [SiteBlock; 13] = [
     MICRO,
     BOXTEST,
     SINGLE,
@@ -77,6 +79,7 @@ pub const PLAN: [SiteBlock; 12] = [
     MBVH_PACKET,
     MULTIHIT,
     VOLUME,
+    MBVH_LARGE,
 ];
 
 #[cfg(test)]

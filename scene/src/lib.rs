@@ -10,6 +10,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod agreement;
+mod boardroom;
 pub mod bvh;
 pub mod bvh_cache;
 pub mod hit;

@@ -44,6 +44,10 @@ pub enum Source {
     /// of a round part. Its triangles are in the furniture's curves; the
     /// shell and table tops stay a few large triangles.
     Meeting(u64, u32, u32),
+    /// A boardroom of long tables and swivel office chairs (Conference):
+    /// seed, tables (in rows of up to five, six chairs each and one at
+    /// each row's end), segments of the curves (a multiple of 4, 8 to 256).
+    Boardroom(u64, u32, u32),
     /// A cab-over cargo truck with its interior on a ground plane (the
     /// multi-hit paper's truck): seed, crates and drums in its cargo body,
     /// sides of a round part.
@@ -697,6 +701,14 @@ pub fn build_source(s: &Source) -> Result<Mesh, String> {
                 ));
             }
             crate::shapes::meeting_room(&mut m, seed, tables, segments);
+        }
+        Source::Boardroom(seed, tables, segments) => {
+            if !(8..=256).contains(&segments) || !segments.is_multiple_of(4) || tables > 10_000 {
+                return Err(format!(
+                    "Boardroom({seed}, {tables}, {segments}): segments a multiple of 4 from 8 to 256, at most 10000 tables"
+                ));
+            }
+            crate::boardroom::boardroom(&mut m, seed, tables, segments);
         }
         Source::Truck(seed, cargo, segments) => {
             if !(8..=4096).contains(&segments) || cargo > 100_000 {

@@ -38,7 +38,7 @@ pub(crate) fn cuboid(m: &mut Mesh, lo: [f32; 3], hi: [f32; 3]) {
 
 /// A closed round leg: an upright prism of `s` sides (2s side triangles,
 /// two fans of s - 2) on the base centre `c`.
-fn cylinder(m: &mut Mesh, c: [f32; 3], radius: f32, height: f32, s: u32) {
+pub(crate) fn cylinder(m: &mut Mesh, c: [f32; 3], radius: f32, height: f32, s: u32) {
     let b = m.positions.len() as u32;
     for k in 0..s {
         let a = std::f32::consts::TAU * k as f32 / s as f32;
@@ -211,7 +211,11 @@ pub(crate) fn water(m: &mut Mesh, seed: u64, cells: u32, half: f32, amp: f32) {
 
 /// Append the shape `make` builds, its positions mapped by `map` (a
 /// rotation: the upright `cylinder` laid along x).
-fn mapped(m: &mut Mesh, make: impl FnOnce(&mut Mesh), map: impl Fn([f32; 3]) -> [f32; 3]) {
+pub(crate) fn mapped(
+    m: &mut Mesh,
+    make: impl FnOnce(&mut Mesh),
+    map: impl Fn([f32; 3]) -> [f32; 3],
+) {
     let mut part = Mesh::default();
     make(&mut part);
     let b = m.positions.len() as u32;

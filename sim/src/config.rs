@@ -827,7 +827,8 @@ fn validate_tlb(t: &TlbConfig) -> Result<(), (String, String)> {
     }
     for (i, l) in t.levels.iter().enumerate() {
         let f = |x: &str| format!("tlb.levels[{i}].{x}");
-        if l.ways == 0 || l.entries == 0 || !l.entries.is_multiple_of(l.ways) || l.entries > 1 << 16 {
+        if l.ways == 0 || l.entries == 0 || !l.entries.is_multiple_of(l.ways) || l.entries > 1 << 16
+        {
             return e(f("entries"), "must be 1 to 65536 and a multiple of ways");
         }
         if i == 0 && l.latency != 0 {

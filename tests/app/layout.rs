@@ -171,7 +171,7 @@ fn the_app_is_thin_and_every_library_warns_on_missing_docs() {
 #[test]
 fn branch_sites_are_unique_and_inside_their_modules_block() {
     use isa::sites;
-    let modules: [(&[isa::Site], sites::SiteBlock); 12] = [
+    let modules: [(&[isa::Site], sites::SiteBlock); 13] = [
         (&micro::SITES, sites::MICRO),
         (&rt::boxtest::SITES, sites::BOXTEST),
         (&rt::single::site::ALL, sites::SINGLE),
@@ -184,6 +184,7 @@ fn branch_sites_are_unique_and_inside_their_modules_block() {
         (&mbvh_kernels::packet::site::ALL, sites::MBVH_PACKET),
         (&multihit_kernels::site::ALL, sites::MULTIHIT),
         (&volume_kernels::site::ALL, sites::VOLUME),
+        (&mbvh_kernels::large_packet::site::ALL, sites::MBVH_LARGE),
     ];
     let mut seen = BTreeSet::new();
     for (all, block) in modules {

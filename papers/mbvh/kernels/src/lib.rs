@@ -12,6 +12,7 @@
 #![warn(missing_docs)]
 #![allow(clippy::needless_range_loop)]
 
+pub mod large_packet;
 pub mod layout;
 pub mod packet;
 mod shared;
@@ -48,6 +49,9 @@ pub enum Kernel {
     Single,
     /// `W`-wide packets over the MBVH.
     Packet,
+    /// Packets of this many rays (groups of `W`) with first-hit and
+    /// interval culling (Boulos et al. 2007), over the MBVH.
+    LargePacket(usize),
 }
 
 impl Kernel {
@@ -58,6 +62,7 @@ impl Kernel {
             Kernel::Stream(_) => "MBVH RS",
             Kernel::Single => "MBVH",
             Kernel::Packet => "packets",
+            Kernel::LargePacket(_) => "large packets",
         }
     }
 }
@@ -134,6 +139,11 @@ impl Run {
             Kernel::Packet => {
                 let mut b = packet::PacketBufs::new(m, tree, rays);
                 packet::trace(m, tree, &mut b, policy, &mut c);
+                (0..n).map(|i| b.hit(i)).collect()
+            }
+            Kernel::LargePacket(size) => {
+                let mut b = large_packet::LargeBufs::new(m, tree, rays, size);
+                large_packet::trace(m, tree, &mut b, policy, &mut c);
                 (0..n).map(|i| b.hit(i)).collect()
             }
         };

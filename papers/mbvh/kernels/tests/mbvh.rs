@@ -44,6 +44,8 @@ fn kernels() -> Vec<Kernel> {
         }),
         Kernel::Single,
         Kernel::Packet,
+        Kernel::LargePacket(mbvh_kernels::large_packet::DEFAULT_PACKET),
+        Kernel::LargePacket(16),
     ]
 }
 

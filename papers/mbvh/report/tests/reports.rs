@@ -57,6 +57,21 @@ fn figures_4_to_6_count_every_method_and_stream_rs_fetching_least() {
         }
     }
     assert!(seen >= 8, "{seen} cells");
+    // The large-packet baseline (every method's hits are checked: the
+    // report's hit_mismatches) tests fewer boxes per primary ray than MBVH
+    // RS, and the report says by how much.
+    let tests = |m: &str| {
+        value(
+            &j,
+            &[("method", m), ("bounce", "0"), ("rays", "primary")],
+            "box_tests_per_ray",
+        )
+        .unwrap()
+    };
+    assert!(tests("large packets") < tests("MBVH RS"));
+    assert!(tests("large packets 256") < tests("MBVH RS"));
+    assert_eq!(value(&j, &[], "hit_mismatches"), Some(0.0));
+    assert!(j["notes"].to_string().contains("box tests per primary ray"));
     let paper = j["rows"]
         .as_array()
         .unwrap()

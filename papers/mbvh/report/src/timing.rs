@@ -101,6 +101,34 @@ fn plan(n_tiles: usize, groups: usize, per: usize, seed: u64) -> Vec<(Vec<usize>
         .collect()
 }
 
+/// The timed streams of a run, as the core's hardware threads take them:
+/// one thread, each stream alone; two (hyper-threading), each stream
+/// beside the next one of the same kind (the same stream of the run's next
+/// tile: two threads rendering a tile each, stream by stream), a stream
+/// with no partner alone. Indices into `timed`, in order of first.
+fn hardware_thread_sets(timed: &[((u32, bool), u64, usize)], threads: usize) -> Vec<Vec<usize>> {
+    let mut used = vec![false; timed.len()];
+    let mut sets = Vec::new();
+    for i in 0..timed.len() {
+        if used[i] {
+            continue;
+        }
+        used[i] = true;
+        let mut set = vec![i];
+        for j in i + 1..timed.len() {
+            if set.len() == threads {
+                break;
+            }
+            if !used[j] && timed[j].0 == timed[i].0 {
+                used[j] = true;
+                set.push(j);
+            }
+        }
+        sets.push(set);
+    }
+    sets
+}
+
 /// The smallest bounce depth whose frame traces the stream of key
 /// ([`kind_key`]) `(d, shadow)`: primary rays 1, bounce d's rays d, the
 /// shadow rays from bounce d's hits d + 1.
@@ -123,7 +151,7 @@ pub(crate) fn frame_rates(
     m: &sim::MachineConfig,
     pr: &Prepared,
     kernel: Kernel,
-    (bounces, groups, per): (u32, usize, usize),
+    (bounces, groups, per, threads): (u32, usize, usize, usize),
     (seed, progress): (u64, &Progress),
 ) -> AppResult<Vec<Rate>> {
     let per_row = pr.res / TILE;
@@ -186,7 +214,7 @@ pub(crate) fn frame_rates(
         kernel,
         trees: pr.trees.clone(),
     };
-    let mut session = sim::Session::new(m);
+    let mut session = sim::Session::with_threads(m, threads).map_err(AppError)?;
     let (mut ops, mut bad) = (0u64, 0usize);
     let depths = bounces as usize;
     // Per depth, per group: (cycles, rays) of the frame to that depth.
@@ -218,9 +246,13 @@ pub(crate) fn frame_rates(
         }
         if last {
             let mut per = vec![(0.0, 0.0); depths];
-            for (t, &(key, rays, misses)) in timed.iter().zip(&timed_of) {
+            for set in hardware_thread_sets(&timed_of, threads) {
+                let key = timed_of[set[0]].0;
+                let rays: u64 = set.iter().map(|&i| timed_of[i].1).sum();
+                let misses: usize = set.iter().map(|&i| timed_of[i].2).sum();
                 let d = frame_depth(key);
-                let st = session.timed_queue(&[t]).map_err(AppError)?;
+                let refs: Vec<&isa::Trace> = set.iter().map(|&i| &timed[i]).collect();
+                let st = session.timed_queue(&refs).map_err(AppError)?;
                 let k = by_kind.entry(key).or_default();
                 k.0 += st.cycles as f64;
                 k.1 += rays as f64;
@@ -281,6 +313,20 @@ pub(crate) fn frame_rates(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn hyper_threads_pair_the_same_stream_of_two_tiles() {
+        let k = |d: u32, s: bool| ((d, s), 1u64, 0usize);
+        let run = [k(0, false), k(0, true), k(1, false), k(0, false), k(0, true)];
+        assert_eq!(
+            hardware_thread_sets(&run, 2),
+            vec![vec![0, 3], vec![1, 4], vec![2]]
+        );
+        assert_eq!(
+            hardware_thread_sets(&run, 1),
+            (0..5).map(|i| vec![i]).collect::<Vec<_>>()
+        );
+    }
 
     #[test]
     fn runs_fall_in_their_strata_and_stay_in_the_frame() {

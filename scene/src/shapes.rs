@@ -98,6 +98,17 @@ fn arc_band(
     }
 }
 
+/// A closed 20 x 6 x 14 m room centred on x = z = 0, floor at y = 0:
+/// floor, ceiling and four walls facing in (12 triangles).
+pub(crate) fn closed_room(m: &mut Mesh) {
+    quad(m, [-10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [20.0, 0.0, 0.0]); // floor
+    quad(m, [-10.0, 6.0, -7.0], [20.0, 0.0, 0.0], [0.0, 0.0, 14.0]); // ceiling
+    quad(m, [-10.0, 0.0, -7.0], [20.0, 0.0, 0.0], [0.0, 6.0, 0.0]); // back wall
+    quad(m, [-10.0, 0.0, -7.0], [0.0, 6.0, 0.0], [0.0, 0.0, 14.0]); // left
+    quad(m, [10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [0.0, 6.0, 0.0]); // right
+    quad(m, [-10.0, 0.0, 7.0], [0.0, 6.0, 0.0], [20.0, 0.0, 0.0]); // front
+}
+
 /// Triangles of one table with its 4 chairs at `s` segments.
 #[cfg(test)]
 fn meeting_set_triangles(s: u32) -> u32 {
@@ -113,12 +124,7 @@ fn meeting_set_triangles(s: u32) -> u32 {
 /// surfaces stay large triangles.
 pub(crate) fn meeting_room(m: &mut Mesh, seed: u64, tables: u32, s: u32) {
     let mut r = Rng::new(seed);
-    quad(m, [-10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [20.0, 0.0, 0.0]); // floor
-    quad(m, [-10.0, 6.0, -7.0], [20.0, 0.0, 0.0], [0.0, 0.0, 14.0]); // ceiling
-    quad(m, [-10.0, 0.0, -7.0], [20.0, 0.0, 0.0], [0.0, 6.0, 0.0]); // back wall
-    quad(m, [-10.0, 0.0, -7.0], [0.0, 6.0, 0.0], [0.0, 0.0, 14.0]); // left
-    quad(m, [10.0, 0.0, -7.0], [0.0, 0.0, 14.0], [0.0, 6.0, 0.0]); // right
-    quad(m, [-10.0, 0.0, 7.0], [0.0, 6.0, 0.0], [20.0, 0.0, 0.0]); // front
+    closed_room(m);
     let cols = tables.clamp(1, 8);
     let rows = tables.div_ceil(cols).max(1);
     let (dx, dz) = (20.0 / cols as f32, 11.5 / rows as f32);
@@ -340,34 +346,39 @@ fn cargo_body(m: &mut Mesh, r: &mut Rng, n: u32, s: u32) {
     }
 }
 
+/// Of 4000 seeded rays from points spread through the 20 x 6 x 14 room in
+/// every direction, how many hit nothing (a closed room: none).
+#[cfg(test)]
+pub(crate) fn escaping_rays(m: &Mesh) -> usize {
+    use crate::reference::{Ray, Reference};
+    let refi = Reference::brute(m);
+    let mut r = Rng::new(3);
+    let mut missed = 0;
+    for _ in 0..4000 {
+        let o = [
+            f64::from(r.range(-9.9, 9.9)),
+            f64::from(r.range(0.01, 5.99)),
+            f64::from(r.range(-6.99, 6.99)),
+        ];
+        let d = [
+            f64::from(r.range(-1.0, 1.0)),
+            f64::from(r.range(-1.0, 1.0)),
+            f64::from(r.range(-1.0, 1.0)),
+        ];
+        missed += usize::from(refi.closest(&Ray::new(o, d)).is_none());
+    }
+    missed
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn no_ray_leaves_the_meeting_room() {
-        // Rays from inside in every direction (a seeded sphere of them,
-        // from points spread through the room) all hit something.
-        use crate::reference::{Ray, Reference};
         let mut m = Mesh::default();
         meeting_room(&mut m, 7, 4, 6);
-        let refi = Reference::brute(&m);
-        let mut r = Rng::new(3);
-        let mut missed = 0;
-        for _ in 0..4000 {
-            let o = [
-                f64::from(r.range(-9.9, 9.9)),
-                f64::from(r.range(0.01, 5.99)),
-                f64::from(r.range(-6.99, 6.99)),
-            ];
-            let d = [
-                f64::from(r.range(-1.0, 1.0)),
-                f64::from(r.range(-1.0, 1.0)),
-                f64::from(r.range(-1.0, 1.0)),
-            ];
-            missed += usize::from(refi.closest(&Ray::new(o, d)).is_none());
-        }
-        assert_eq!(missed, 0);
+        assert_eq!(escaping_rays(&m), 0);
     }
 
     #[test]

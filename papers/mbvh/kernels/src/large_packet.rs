@@ -19,7 +19,10 @@
 //! bounds) where an SSE version would pack the axes into lanes.
 
 use crate::layout::{node_bytes, MbvhBufs};
-use crate::shared::{broadcast_triangle, leaf_blocks, slab_axis, slab_hits, sort_farthest_first};
+use crate::shared::{
+    broadcast_triangle, leaf_blocks, row, slab_axis, slab_hits, soa_hit, soa_records,
+    sort_farthest_first,
+};
 use crate::stats::Counters;
 use isa::{At, BinOp, Buf, Cmp, Machine, MemKind, Region, Shift};
 use rt::single::moller;
@@ -73,18 +76,6 @@ pub mod site {
 /// assumption, its sensitivity measured in papers/mbvh/README.md).
 pub const DEFAULT_PACKET: usize = 64;
 
-/// Rows of a group record (each `W` f32).
-mod row {
-    pub const ORG: usize = 0;
-    pub const DIR: usize = 3;
-    pub const IDIR: usize = 6;
-    pub const TFAR: usize = 9;
-    pub const PRIM: usize = 10;
-    pub const U: usize = 11;
-    pub const V: usize = 12;
-    pub const ROWS: usize = 16;
-}
-
 /// The kernel's buffers for one stream.
 pub struct LargeBufs {
     /// SoA group records, `groups` per packet.
@@ -111,30 +102,23 @@ impl LargeBufs {
         packet: usize,
     ) -> LargeBufs {
         let w = M::LANES;
-        assert!(packet >= w && packet.is_multiple_of(w), "packet of {packet} rays");
+        assert!(
+            packet >= w && packet.is_multiple_of(w),
+            "packet of {packet} rays"
+        );
         let groups = packet / w;
         let np = org.len().div_ceil(packet).max(1);
-        let mut v = vec![0f32; np * groups * row::ROWS * w];
-        for i in 0..np * packet {
-            let (g, l) = (i / w, i % w);
-            let at = |r: usize| g * row::ROWS * w + r * w + l;
-            // Padding copies the packet's first ray (its bounds unchanged).
+        // Padding copies the packet's first ray (its bounds unchanged).
+        let v = soa_records(w, np * packet, |i| {
             let head = i - i % packet;
-            let (o, d, tf) = if i < org.len() {
+            if i < org.len() {
                 (org[i], dir[i], tfar[i])
             } else if head < org.len() {
                 (org[head], dir[head], -1.0)
             } else {
                 ([0.0; 3], [1.0; 3], -1.0)
-            };
-            for a in 0..3 {
-                v[at(row::ORG + a)] = o[a];
-                v[at(row::DIR + a)] = d[a];
-                v[at(row::IDIR + a)] = 1.0 / d[a];
             }
-            v[at(row::TFAR)] = tf;
-            v[at(row::PRIM)] = f32::from_bits(u32::MAX);
-        }
+        });
         let entries = 4 * w * (tree.depth + 2);
         let sp = m.space();
         LargeBufs {
@@ -150,12 +134,7 @@ impl LargeBufs {
     /// Ray `i`'s answer.
     #[must_use]
     pub fn hit(&self, i: usize) -> Hit {
-        let (w, g, l) = (self.w, i / self.w, i % self.w);
-        let at = |r: usize| 4 * (g * row::ROWS * w + r * w + l);
-        Hit::from_record(
-            self.records.f32_at(at(row::TFAR)),
-            self.records.u32_at(at(row::PRIM)),
-        )
+        soa_hit(&self.records, self.w, i)
     }
 }
 

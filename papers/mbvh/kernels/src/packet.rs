@@ -13,7 +13,10 @@
 //! machine's width, the paper's "4-wide packets" on SSE.
 
 use crate::layout::{node_bytes, MbvhBufs};
-use crate::shared::{broadcast_triangle, leaf_blocks, slab_axis, slab_hits, sort_farthest_first};
+use crate::shared::{
+    broadcast_triangle, leaf_blocks, row, slab_axis, slab_hits, soa_hit, soa_records,
+    sort_farthest_first,
+};
 use crate::stats::Counters;
 use isa::{At, BinOp, Buf, Cmp, Machine, MemKind, Region, Shift};
 use rt::single::moller;
@@ -52,18 +55,6 @@ pub mod site {
     ];
 }
 
-/// Rows of a packet record (each `W` f32).
-mod row {
-    pub const ORG: usize = 0;
-    pub const DIR: usize = 3;
-    pub const IDIR: usize = 6;
-    pub const TFAR: usize = 9;
-    pub const PRIM: usize = 10;
-    pub const U: usize = 11;
-    pub const V: usize = 12;
-    pub const ROWS: usize = 16;
-}
-
 /// The kernel's buffers for one stream.
 pub struct PacketBufs {
     /// SoA packet records.
@@ -85,23 +76,13 @@ impl PacketBufs {
     ) -> PacketBufs {
         let w = M::LANES;
         let np = org.len().div_ceil(w).max(1);
-        let mut v = vec![0f32; np * row::ROWS * w];
-        for i in 0..np * w {
-            let (p, l) = (i / w, i % w);
-            let at = |r: usize| p * row::ROWS * w + r * w + l;
-            let (o, d, tf) = if i < org.len() {
+        let v = soa_records(w, np * w, |i| {
+            if i < org.len() {
                 (org[i], dir[i], tfar[i])
             } else {
                 ([0.0; 3], [1.0; 3], -1.0)
-            };
-            for a in 0..3 {
-                v[at(row::ORG + a)] = o[a];
-                v[at(row::DIR + a)] = d[a];
-                v[at(row::IDIR + a)] = 1.0 / d[a];
             }
-            v[at(row::TFAR)] = tf;
-            v[at(row::PRIM)] = f32::from_bits(u32::MAX);
-        }
+        });
         let entries = w * (tree.depth + 2);
         let sp = m.space();
         PacketBufs {
@@ -117,12 +98,7 @@ impl PacketBufs {
     /// Ray `i`'s answer.
     #[must_use]
     pub fn hit(&self, i: usize) -> Hit {
-        let (w, p, l) = (self.w, i / self.w, i % self.w);
-        let at = |r: usize| 4 * (p * row::ROWS * w + r * w + l);
-        Hit::from_record(
-            self.packets.f32_at(at(row::TFAR)),
-            self.packets.u32_at(at(row::PRIM)),
-        )
+        soa_hit(&self.packets, self.w, i)
     }
 }
 

@@ -6,6 +6,50 @@ use crate::layout::{block_bytes, LEAF_COUNT_MASK, LEAF_FIRST_SHIFT};
 use isa::{At, Buf, Cmp, Machine, SOp, Shift, Site};
 use rt::single::Block;
 use scene::bvh::LEAF;
+use scene::Hit;
+
+/// Rows of an SoA packet record (each `W` f32), as the packet kernels
+/// keep their rays.
+pub(crate) mod row {
+    pub const ORG: usize = 0;
+    pub const DIR: usize = 3;
+    pub const IDIR: usize = 6;
+    pub const TFAR: usize = 9;
+    pub const PRIM: usize = 10;
+    pub const U: usize = 11;
+    pub const V: usize = 12;
+    pub const ROWS: usize = 16;
+}
+
+/// `slots` rays in SoA records of `w` lanes: slot `i` holds `ray(i)`'s
+/// origin, direction, inverse direction and t_far, and no hit yet.
+pub(crate) fn soa_records(
+    w: usize,
+    slots: usize,
+    ray: impl Fn(usize) -> ([f32; 3], [f32; 3], f32),
+) -> Vec<f32> {
+    let mut v = vec![0f32; slots.div_ceil(w) * row::ROWS * w];
+    for i in 0..slots {
+        let (p, l) = (i / w, i % w);
+        let at = |r: usize| p * row::ROWS * w + r * w + l;
+        let (o, d, tf) = ray(i);
+        for a in 0..3 {
+            v[at(row::ORG + a)] = o[a];
+            v[at(row::DIR + a)] = d[a];
+            v[at(row::IDIR + a)] = 1.0 / d[a];
+        }
+        v[at(row::TFAR)] = tf;
+        v[at(row::PRIM)] = f32::from_bits(u32::MAX);
+    }
+    v
+}
+
+/// Slot `i`'s answer in SoA records of `w` lanes.
+pub(crate) fn soa_hit(records: &Buf, w: usize, i: usize) -> Hit {
+    let (p, l) = (i / w, i % w);
+    let at = |r: usize| 4 * (p * row::ROWS * w + r * w + l);
+    Hit::from_record(records.f32_at(at(row::TFAR)), records.u32_at(at(row::PRIM)))
+}
 
 /// A leaf ref's first block as a byte offset into the triangle blocks, and
 /// its triangle count.

@@ -317,8 +317,13 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
         .par_iter()
         .map(|&scene| {
             let pr = Prepared::new(scene, res)?;
-            let rates =
-                frame_rates(&m, &pr, rs, (TABLE_BOUNCES, g, per, 1), (a.seed, &a.progress))?;
+            let rates = frame_rates(
+                &m,
+                &pr,
+                rs,
+                (TABLE_BOUNCES, g, per, 1),
+                (a.seed, &a.progress),
+            )?;
             Ok((pr.scene.mesh.len(), rates))
         })
         .collect::<AppResult<Vec<_>>>()?;

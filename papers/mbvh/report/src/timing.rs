@@ -317,7 +317,13 @@ mod tests {
     #[test]
     fn hyper_threads_pair_the_same_stream_of_two_tiles() {
         let k = |d: u32, s: bool| ((d, s), 1u64, 0usize);
-        let run = [k(0, false), k(0, true), k(1, false), k(0, false), k(0, true)];
+        let run = [
+            k(0, false),
+            k(0, true),
+            k(1, false),
+            k(0, false),
+            k(0, true),
+        ];
         assert_eq!(
             hardware_thread_sets(&run, 2),
             vec![vec![0, 3], vec![1, 4], vec![2]]

@@ -1,8 +1,11 @@
 //! The two multi-hit intersection filters, each for single rays (scalar
 //! code, Listing 1) and packets (the same code in SPMD form over the lanes,
 //! as the paper's ispc modules: a lane's loop runs while its condition
-//! holds, the packet's while any lane's does; per-lane entries are gathered
-//! and scattered), and the buffer set-up each needs before traversal.
+//! holds, the packet's while any lane's does), and the buffer set-up each
+//! needs before traversal. Node culling's packet insertion reads and moves
+//! one SoA row per step (every lane still moving holds the same entry
+//! index), as a programmer writes it for an 8-wide call; the form that
+//! gathers and scatters per lane is kept as a variant ([`Insertion`]).
 
 use crate::buffers::HitBufs;
 use crate::site;
@@ -10,12 +13,30 @@ use crate::{at, each, FILTER_REGION};
 use isa::{At, Cmp, IOp, Machine, Region, SOp};
 use rt::filter::{Candidate1, CandidateK, Filter};
 
+/// How node culling's packet filter moves entries.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Insertion {
+    /// One row per step: the lanes still moving all hold entry index k
+    /// (they start at N_query and step down together, and a lane that
+    /// stops never restarts), so entry k - 1's row is one vector load and
+    /// the move one masked row store; a lane that stops is placed by a
+    /// masked store at the row it stopped at.
+    #[default]
+    Rows,
+    /// Per-lane indices: each step gathers the entry below and scatters it
+    /// up, and one final scatter places every lane (ispc's code for a
+    /// `varying` index it cannot prove uniform).
+    GatherScatter,
+}
+
 /// Listing 1's node-culling filter over N_query + 1 entries per ray.
 pub struct NodeCulling {
     /// The rays' buffers.
     pub bufs: HitBufs,
     /// N_query.
     pub n_query: u32,
+    /// How the packet filter moves entries.
+    pub insertion: Insertion,
     /// Candidates judged.
     pub candidates: u64,
     /// Candidates accepted with t_far = the N_query-th hit.
@@ -32,6 +53,7 @@ impl NodeCulling {
         NodeCulling {
             bufs,
             n_query,
+            insertion: Insertion::default(),
             candidates: 0,
             accepted: 0,
             moves: 0,
@@ -71,6 +93,85 @@ impl NodeCulling {
                 ptr = m.s_addi(ptr, 8 * w as i64);
             });
         });
+    }
+}
+
+impl NodeCulling {
+    /// [`Insertion::Rows`]: from entry N_query down, one row at a time.
+    fn insert_rows<M: Machine>(&mut self, m: &mut M, c: &CandidateK<M>, base: M::S) {
+        let (w, n) = (M::LANES, self.n_query as i64);
+        let e = &mut self.bufs.entries;
+        let row = 8 * w as i64;
+        let prim = c.prim;
+        let zero = m.int(0);
+        let mut k = m.int(n);
+        // Entry k's t row (its triangle row is 4W bytes on).
+        let mut ptr = m.s_addi(base, 4 * w as i64 + row * n);
+        let mut active = c.valid;
+        let mut reached_zero = true;
+        loop {
+            if !m.branch_if(site::CULL_PK_ROW, Cmp::Gt, k, zero) {
+                break;
+            }
+            let prev = m.s_addi(ptr, -row);
+            let pt = m.load(e, at(prev, 0));
+            let closer = m.cmp(Cmp::Lt, c.t, pt);
+            // Lanes not nearer than entry k - 1 go at entry k.
+            let stays = m.knot(closer);
+            let place = m.kand(active, stays);
+            m.store_masked(place, e, at(ptr, 0), c.t);
+            m.store_masked(place, e, at(ptr, 4 * w), prim);
+            active = m.kand(active, closer);
+            let any = m.any(active);
+            if !m.branch(site::CULL_PK_SHIFT, any) {
+                reached_zero = false;
+                break;
+            }
+            self.moves += u64::from(m.bits(active).count_ones());
+            let pp = m.load(e, at(prev, 4 * w));
+            m.store_masked(active, e, at(ptr, 0), pt);
+            m.store_masked(active, e, at(ptr, 4 * w), pp);
+            ptr = prev;
+            k = m.s_addi(k, -1);
+        }
+        if reached_zero {
+            // Nearer than every entry held: entry 0.
+            m.store_masked(active, e, at(ptr, 0), c.t);
+            m.store_masked(active, e, at(ptr, 4 * w), prim);
+        }
+    }
+
+    /// [`Insertion::GatherScatter`]: per-lane indices, gathered and scattered.
+    fn insert_gathered<M: Machine>(&mut self, m: &mut M, c: &CandidateK<M>, base: M::S) {
+        let (w, n) = (M::LANES, self.n_query as usize);
+        let e = &mut self.bufs.entries;
+        let ix = EntryIndex::new(m);
+        let (one, zero_i) = (m.splat_i(1), m.splat_i(0));
+        let inf = m.splat(f32::INFINITY);
+        let mut idx = m.splat_i(n as i32);
+        let mut active = c.valid;
+        loop {
+            let pos = m.icmp(Cmp::Gt, idx, zero_i);
+            active = m.kand(active, pos);
+            let below = m.iop(IOp::Sub, idx, one);
+            let from = ix.t(m, below);
+            let pt = m.gather(active, inf, e, at(base, 0), from, 4);
+            let closer = m.cmp(Cmp::Lt, c.t, pt);
+            active = m.kand(active, closer);
+            let any = m.any(active);
+            if !m.branch(site::CULL_PK_SHIFT, any) {
+                break;
+            }
+            self.moves += u64::from(m.bits(active).count_ones());
+            let pp = m.gather(active, inf, e, at(base, 4 * w), from, 4);
+            let to = ix.t(m, idx);
+            m.scatter(active, e, at(base, 0), to, 4, pt);
+            m.scatter(active, e, at(base, 4 * w), to, 4, pp);
+            idx = m.iselect(active, below, idx);
+        }
+        let to = ix.t(m, idx);
+        m.scatter(c.valid, e, at(base, 0), to, 4, c.t);
+        m.scatter(c.valid, e, at(base, 4 * w), to, 4, c.prim);
     }
 }
 
@@ -127,35 +228,13 @@ impl<M: Machine> Filter<M> for NodeCulling {
         let (w, n) = (M::LANES, self.n_query as usize);
         self.candidates += u64::from(m.bits(c.valid).count_ones());
         let pbytes = m.int(self.bufs.packet_bytes() as i64);
-        let e = &mut self.bufs.entries;
         let base = m.s_op(SOp::Mul, c.packet, pbytes);
-        let ix = EntryIndex::new(m);
-        let (one, zero_i) = (m.splat_i(1), m.splat_i(0));
-        let inf = m.splat(f32::INFINITY);
-        let mut idx = m.splat_i(n as i32);
-        let mut active = c.valid;
-        loop {
-            let pos = m.icmp(Cmp::Gt, idx, zero_i);
-            active = m.kand(active, pos);
-            let below = m.iop(IOp::Sub, idx, one);
-            let from = ix.t(m, below);
-            let pt = m.gather(active, inf, e, at(base, 0), from, 4);
-            let closer = m.cmp(Cmp::Lt, c.t, pt);
-            active = m.kand(active, closer);
-            let any = m.any(active);
-            if !m.branch(site::CULL_PK_SHIFT, any) {
-                break;
-            }
-            self.moves += u64::from(m.bits(active).count_ones());
-            let pp = m.gather(active, inf, e, at(base, 4 * w), from, 4);
-            let to = ix.t(m, idx);
-            m.scatter(active, e, at(base, 0), to, 4, pt);
-            m.scatter(active, e, at(base, 4 * w), to, 4, pp);
-            idx = m.iselect(active, below, idx);
+        match self.insertion {
+            Insertion::Rows => self.insert_rows(m, &c, base),
+            Insertion::GatherScatter => self.insert_gathered(m, &c, base),
         }
-        let to = ix.t(m, idx);
-        m.scatter(c.valid, e, at(base, 0), to, 4, c.t);
-        m.scatter(c.valid, e, at(base, 4 * w), to, 4, c.prim);
+        let e = &mut self.bufs.entries;
+        let one = m.splat_i(1);
         // nhits += nhits < N_query, in the lanes that hit.
         let held_f = m.load(e, at(base, 0));
         let held = m.bits_to_i(held_f);

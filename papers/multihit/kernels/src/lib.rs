@@ -68,9 +68,11 @@ pub mod site {
     pub const SORT_PK_I: Site = isa::sites::MULTIHIT.at(13);
     /// Sort, packets: any lane with another entry to compare?
     pub const SORT_PK_J: Site = isa::sites::MULTIHIT.at(14);
+    /// Node culling, packets (row insertion): entry index k > 0?
+    pub const CULL_PK_ROW: Site = isa::sites::MULTIHIT.at(15);
 
     /// Every site of the crate (checked for duplicates by the layout test).
-    pub const ALL: [Site; 15] = [
+    pub const ALL: [Site; 16] = [
         CULL_IDX,
         CULL_CLOSER,
         CULL_HELD,
@@ -86,6 +88,7 @@ pub mod site {
         SORT_PACKET,
         SORT_PK_I,
         SORT_PK_J,
+        CULL_PK_ROW,
     ];
 }
 
@@ -215,6 +218,8 @@ pub struct Run {
     /// Packets: per lane slot the ray in it (`scene::workload::packet_slots`);
     /// `None`: consecutive rays fill each packet.
     pub slots: Option<Arc<Vec<u32>>>,
+    /// How node culling's packet filter moves entries (rows by default).
+    pub insertion: filters::Insertion,
 }
 
 impl Program for Run {
@@ -308,6 +313,7 @@ impl Run {
         let lists = match self.kernel.method {
             Method::NodeCulling => {
                 let mut f = filters::NodeCulling::new(bufs, self.n_query);
+                f.insertion = self.insertion;
                 f.init_packets(m, np);
                 rt::packet::trace_bvh4_filtered(m, s, &mut pb, &mut f);
                 c.candidates = f.candidates;

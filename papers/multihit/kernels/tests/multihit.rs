@@ -3,6 +3,7 @@
 //! node culling culls; the naive kernels judge every hit.
 
 use isa::FlavourId;
+use multihit_kernels::filters::Insertion;
 use multihit_kernels::{Counters, Kernel, Method, Run, Traversal, Tree, NAIVE_CAPACITY};
 use scene::multi_agreement::list_mismatches;
 use scene::reference::{Ray, Reference};
@@ -44,7 +45,17 @@ fn check(
     let mut out = Vec::new();
     for &fl in flavours {
         let slots = Arc::new(packet_slots(&rays, size, 1, fl.lanes()));
-        for kernel in Kernel::ALL {
+        // Node culling's packet filter in both insertion forms.
+        let variants = Kernel::ALL.into_iter().flat_map(|k| {
+            let both = k == Kernel::new(Traversal::Packet, Method::NodeCulling);
+            let forms = if both {
+                vec![Insertion::Rows, Insertion::GatherScatter]
+            } else {
+                vec![Insertion::Rows]
+            };
+            forms.into_iter().map(move |f| (k, f))
+        });
+        for (kernel, insertion) in variants {
             for &n_query in queries.iter().chain([&max]) {
                 let run = Run {
                     kernel,
@@ -53,8 +64,9 @@ fn check(
                     tree: tree.clone(),
                     rays: rays.clone(),
                     slots: Some(slots.clone()),
+                    insertion,
                 };
-                let label = format!("{name} {} {fl}", kernel.name());
+                let label = format!("{name} {} {insertion:?} {fl}", kernel.name());
                 let (lists, c) = isa::record(&run, fl, kernel.name()).1;
                 assert_eq!(
                     (lists.clone(), c),

@@ -8,6 +8,7 @@
 
 use crate::paper::{HEIGHT, WIDTH};
 use isa::{Detail, Machine, Placed, UnitProgram};
+use multihit_kernels::filters::Insertion;
 use multihit_kernels::{Counters, Kernel, Method, Run, Traversal, Tree, BVH, NAIVE_CAPACITY};
 use rayon::prelude::*;
 use repro::progress::Progress;
@@ -220,6 +221,7 @@ impl Prepared {
 struct Units {
     kernel: Kernel,
     n_query: u32,
+    insertion: Insertion,
     tree: Arc<Tree>,
 }
 
@@ -240,6 +242,7 @@ impl UnitProgram for Units {
             tree: self.tree.clone(),
             rays: u.0.clone(),
             slots: Some(u.1.clone()),
+            insertion: self.insertion,
         };
         run.trace_on(m, laid)
     }
@@ -273,13 +276,14 @@ pub(crate) struct Cell {
 pub(crate) fn measure(
     m: &sim::MachineConfig,
     pr: &Prepared,
-    (method, n_query): (Method, u32),
+    (method, n_query, insertion): (Method, u32, Insertion),
     progress: &Progress,
 ) -> AppResult<Cell> {
     let kernel = Kernel::new(Traversal::Packet, method);
     let prog = Units {
         kernel,
         n_query,
+        insertion,
         tree: pr.tree.clone(),
     };
     let mut units = Vec::new();

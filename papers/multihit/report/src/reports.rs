@@ -4,6 +4,7 @@
 
 use crate::measure::{measure, Cell, Prepared, SCENES};
 use crate::paper::{CROSSOVER_FRACTION, SOCKETS, SPEEDUP_AT_ONE};
+use multihit_kernels::filters::Insertion;
 use multihit_kernels::Method;
 use rayon::prelude::*;
 use repro::plot::{Panel, Series};
@@ -44,7 +45,7 @@ fn measure_all(a: &ReproduceArgs, m: &sim::MachineConfig) -> AppResult<Vec<Scene
         .collect();
     let cells: Vec<Cell> = jobs
         .par_iter()
-        .map(|&(i, n, me)| measure(m, &prepared[i], (me, n), &a.progress))
+        .map(|&(i, n, me)| measure(m, &prepared[i], (me, n, Insertion::Rows), &a.progress))
         .collect::<AppResult<_>>()?;
     let mut it = cells.into_iter();
     Ok(prepared
@@ -140,6 +141,48 @@ fn scene_rows(sc: &SceneCells) -> Vec<Row> {
     rows
 }
 
+/// The scene and N_query at which node culling's two insertion forms are
+/// compared (the layers scene's deep lists; N_query at most its most hits).
+const INSERTION_SCENE: (&str, u32) = ("layers", 64);
+
+/// Node culling's packet insertion as rows (the report's) and as per-lane
+/// gathers and scatters, on [`INSERTION_SCENE`]: instructions per ray,
+/// Mhit/s and the filter's share of the cycles of each.
+fn insertion_rows(
+    a: &ReproduceArgs,
+    m: &sim::MachineConfig,
+    scenes: &[SceneCells],
+) -> AppResult<Vec<Row>> {
+    let (name, want) = INSERTION_SCENE;
+    let Some(sc) = scenes.iter().find(|sc| sc.pr.name == name) else {
+        return Ok(Vec::new());
+    };
+    let n = want.min(sc.pr.max_hits);
+    let Some((_, _, rows_cell)) = sc.cells.iter().find(|c| c.0 == n) else {
+        return Ok(Vec::new());
+    };
+    let gathered = measure(
+        m,
+        &sc.pr,
+        (Method::NodeCulling, n, Insertion::GatherScatter),
+        &a.progress,
+    )?;
+    let mut out = Vec::new();
+    for (form, c) in [("rows", rows_cell), ("gather/scatter", &gathered)] {
+        let k = |r: Row| {
+            r.key("scene", name)
+                .key("method", "node culling")
+                .key("n_query", n)
+                .key("insertion", form)
+        };
+        out.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
+        out.push(k(Row::new("mhits_per_second", c.mhits).unit("Mhit/s")));
+        out.push(k(Row::new("filter_and_sort_cycle_share", c.filter_share)));
+        out.push(k(Row::new("hit_mismatches", c.bad as f64)));
+    }
+    Ok(out)
+}
+
 /// `multihit-fig2`.
 pub(crate) fn multihit_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
     let start = Instant::now();
@@ -179,6 +222,7 @@ pub(crate) fn multihit_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
         }
     }
     rows.extend(embree_rows(&scenes));
+    rows.extend(insertion_rows(a, &m, &scenes)?);
     plot_fig2(a, &scenes)?;
     let notes = vec![
         format!("The paper's machine is two 10-core E5-2650 v3 (40 threads); the {chip}-core rows are the simulated one-core rate times {chip}: tiles are independent, and the assumption leaves out shared-L3 and DRAM contention and the second hardware thread per core."),

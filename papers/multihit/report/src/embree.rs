@@ -30,7 +30,9 @@ struct Context {
 // SAFETY: `#[repr(C)]`, the IntersectContext first.
 unsafe impl embree_peer::Context for Context {}
 
-struct State {
+/// A method's per-ray buffers for one run of `n` rays: allocated once,
+/// reset before each timed pass (outside it), read after it.
+pub(crate) struct State {
     method: Method,
     n_query: u32,
     cap: usize,
@@ -91,22 +93,55 @@ impl State {
         }
     }
 
-    /// Each ray's N_query nearest, nearest first (naive: a selection of the
-    /// N_query nearest after traversal, as the paper's naive module).
-    fn lists(&mut self, n_rays: usize) -> Vec<Vec<Hit>> {
-        (0..n_rays)
+    /// Buffers for `n` rays of `method` at `n_query` (naive: the capacity
+    /// its kernels have; node culling: N_query + 1 entries).
+    pub(crate) fn new((method, n_query): (Method, u32), n: usize) -> State {
+        let cap = match method {
+            Method::Naive => multihit_kernels::NAIVE_CAPACITY.max(n_query) as usize,
+            Method::NodeCulling => n_query as usize + 1,
+        };
+        State {
+            method,
+            n_query,
+            cap,
+            entries: vec![(f32::INFINITY, INVALID_ID); n * cap],
+            counts: vec![0; n],
+        }
+    }
+
+    /// Before a pass: no hits held, every entry's t +inf (as the kernels'
+    /// set-up; untimed here, in place).
+    pub(crate) fn reset(&mut self) {
+        self.entries.fill((f32::INFINITY, INVALID_ID));
+        self.counts.fill(0);
+    }
+
+    /// After traversal, naive's selection of each ray's N_query nearest into
+    /// its first places (the paper's post-traversal sort, part of the
+    /// method's time); node culling's lists are in order already.
+    pub(crate) fn finish(&mut self) {
+        if self.method != Method::Naive {
+            return;
+        }
+        for r in 0..self.counts.len() {
+            let e = &mut self.entries[r * self.cap..(r + 1) * self.cap];
+            let count = (self.counts[r] as usize).min(self.cap);
+            for i in 0..count.min(self.n_query as usize) {
+                let best = (i..count)
+                    .min_by(|&x, &y| e[x].0.total_cmp(&e[y].0))
+                    .expect("a place");
+                e.swap(i, best);
+            }
+        }
+    }
+
+    /// Each ray's N_query nearest, nearest first (after [`State::finish`]).
+    pub(crate) fn lists(&self) -> Vec<Vec<Hit>> {
+        (0..self.counts.len())
             .map(|r| {
-                let e = &mut self.entries[r * self.cap..(r + 1) * self.cap];
+                let e = &self.entries[r * self.cap..(r + 1) * self.cap];
                 let count = (self.counts[r] as usize).min(self.cap);
                 let k = count.min(self.n_query as usize);
-                if self.method == Method::Naive {
-                    for i in 0..k {
-                        let best = (i..count)
-                            .min_by(|&x, &y| e[x].0.total_cmp(&e[y].0))
-                            .expect("a place");
-                        e.swap(i, best);
-                    }
-                }
                 e[..k]
                     .iter()
                     .map(|&(t, p)| Hit { t, prim: Some(p) })
@@ -136,6 +171,7 @@ impl Embree {
 
     /// Trace `rays` with `call` and the filter of `method` at `n_query`;
     /// `slots` place rays in the lanes of `rtcIntersect8` (u32::MAX: empty).
+    /// Each ray's list, nearest first.
     pub(crate) fn trace(
         &self,
         rays: &RayStream,
@@ -143,27 +179,24 @@ impl Embree {
         call: Call,
         slots: &[u32],
     ) -> Vec<Vec<Hit>> {
-        let n = rays.len();
-        let cap = match method {
-            Method::Naive => multihit_kernels::NAIVE_CAPACITY.max(n_query) as usize,
-            Method::NodeCulling => n_query as usize + 1,
-        };
-        let mut st = State {
-            method,
-            n_query,
-            cap,
-            entries: vec![(f32::INFINITY, INVALID_ID); n * cap],
-            counts: vec![0; n],
-        };
+        let mut st = State::new((method, n_query), rays.len());
+        self.pass(&mut st, rays, call, slots);
+        st.lists()
+    }
+
+    /// The timed part of a native run: the Embree calls over `rays` with the
+    /// filter on `st` (reset by the caller), then naive's sort in place. It
+    /// allocates nothing (a test holds it to that).
+    pub(crate) fn pass(&self, st: &mut State, rays: &RayStream, call: Call, slots: &[u32]) {
         let mut ctx = Context {
             base: IntersectContext::new(false),
-            state: &raw mut st,
+            state: st,
         };
         match call {
-            Call::One => (0..n).for_each(|i| self.one(&mut ctx, rays, i)),
+            Call::One => (0..rays.len()).for_each(|i| self.one(&mut ctx, rays, i)),
             Call::Eight => slots.chunks(8).for_each(|c| self.eight(&mut ctx, rays, c)),
         }
-        st.lists(n)
+        st.finish();
     }
 
     fn one(&self, ctx: &mut Context, rays: &RayStream, i: usize) {
@@ -180,5 +213,59 @@ impl Embree {
             rh.set(l, rays.org[i], rays.dir[i], rays.tmax[i], r);
         }
         self.0.intersect8(&valid, ctx, &mut rh);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::alloc::{GlobalAlloc, Layout, System};
+    use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
+    /// Counts allocations while `ON` is set (this test binary's allocator).
+    struct Counting;
+    static ON: AtomicBool = AtomicBool::new(false);
+    static ALLOCS: AtomicUsize = AtomicUsize::new(0);
+
+    // SAFETY: forwards to the system allocator.
+    unsafe impl GlobalAlloc for Counting {
+        unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+            if ON.load(Ordering::Relaxed) {
+                ALLOCS.fetch_add(1, Ordering::Relaxed);
+            }
+            // SAFETY: the caller's layout, passed on.
+            unsafe { System.alloc(l) }
+        }
+        unsafe fn dealloc(&self, p: *mut u8, l: Layout) {
+            // SAFETY: a pointer this allocator (the system's) returned.
+            unsafe { System.dealloc(p, l) }
+        }
+    }
+
+    #[global_allocator]
+    static A: Counting = Counting;
+
+    #[test]
+    fn the_timed_pass_allocates_nothing() {
+        let scene = scene::scene::Scene::load("sphere").unwrap();
+        let e = Embree::new(&scene.mesh).unwrap();
+        let cam = &scene.config.camera;
+        let rays = scene::workload::primary_tile(cam, cam.width / 32, cam.height / 32, 16, 1, 7);
+        let slots: Vec<u32> = (0..rays.len() as u32).collect();
+        for method in [Method::Naive, Method::NodeCulling] {
+            for call in [Call::One, Call::Eight] {
+                let mut st = State::new((method, 4), rays.len());
+                st.reset();
+                ALLOCS.store(0, Ordering::Relaxed);
+                ON.store(true, Ordering::Relaxed);
+                e.pass(&mut st, &rays, call, &slots);
+                ON.store(false, Ordering::Relaxed);
+                assert_eq!(ALLOCS.load(Ordering::Relaxed), 0, "{method:?} {call:?}");
+                assert!(
+                    st.lists().iter().any(|l| !l.is_empty()),
+                    "the sphere is hit"
+                );
+            }
+        }
     }
 }

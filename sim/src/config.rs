@@ -260,7 +260,7 @@ pub struct DramConfig {
 }
 
 /// The data TLBs of a core: levels closest first, and the page walk
-/// (`crate::memory::Tlbs`).
+/// (the memory model's `Tlbs`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TlbConfig {

@@ -162,7 +162,11 @@ fn load_group<M: Machine>(m: &mut M, b: &LargeBufs, gb: M::S, policy: HitPolicy)
     let org = [ld(row::ORG), ld(row::ORG + 1), ld(row::ORG + 2)];
     let idir = [ld(row::IDIR), ld(row::IDIR + 1), ld(row::IDIR + 2)];
     let tfar = ld(row::TFAR);
-    let live = live_lanes(m, b, gb, tfar, policy);
+    let prim = |m: &mut M| {
+        let pf = m.load(&b.records, At::idx(gb, 1, 4 * w * row::PRIM));
+        m.bits_to_i(pf)
+    };
+    let live = live_lanes(m, tfar, prim, policy);
     Group {
         org,
         idir,
@@ -172,12 +176,11 @@ fn load_group<M: Machine>(m: &mut M, b: &LargeBufs, gb: M::S, policy: HitPolicy)
 }
 
 /// Lanes still looking for a hit: t_far not negative, and for an any-hit
-/// (shadow) ray no hit yet.
+/// (shadow) ray no hit yet (its triangle row from `prim`, read only then).
 fn live_lanes<M: Machine>(
     m: &mut M,
-    b: &LargeBufs,
-    gb: M::S,
     tfar: M::F,
+    prim: impl FnOnce(&mut M) -> M::I,
     policy: HitPolicy,
 ) -> M::K {
     let zero = m.splat(0.0);
@@ -185,8 +188,7 @@ fn live_lanes<M: Machine>(
     if !policy.is_any() {
         return open;
     }
-    let pf = m.load(&b.records, At::idx(gb, 1, 4 * M::LANES * row::PRIM));
-    let prim = m.bits_to_i(pf);
+    let prim = prim(m);
     let none = m.splat_i(-1);
     let unhit = m.icmp(Cmp::Eq, prim, none);
     m.kand(open, unhit)
@@ -488,7 +490,7 @@ fn leaf<M: Machine>(
         let mut prim = m.bits_to_i(pf);
         let mut u = ld(m, row::U);
         let mut v = ld(m, row::V);
-        let mut act = live_lanes(m, b, gb, tfar, policy);
+        let mut act = live_lanes(m, tfar, |_| prim, policy);
         let mut ti = m.int(0);
         let mut t = 0;
         loop {

@@ -234,6 +234,10 @@ pub const BUILTIN: &[(&str, &str)] = &[
     ("fairy", include_str!("../../configs/scenes/fairy.ron")),
     ("layers", include_str!("../../configs/scenes/layers.ron")),
     ("truck", include_str!("../../configs/scenes/truck.ron")),
+    (
+        "courtyard",
+        include_str!("../../configs/scenes/courtyard.ron"),
+    ),
     ("sphere", include_str!("../../configs/scenes/sphere.ron")),
 ];
 

@@ -9,11 +9,13 @@
 
 #![warn(missing_docs)]
 
+mod crossover;
 #[cfg(feature = "embree")]
 mod embree;
 mod measure;
 pub mod paper;
 mod reports;
+mod scenes;
 
 use repro::{Opt, ReportDef};
 

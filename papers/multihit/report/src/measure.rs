@@ -7,6 +7,7 @@
 //! against the f64 reference's.
 
 use crate::paper::{HEIGHT, WIDTH};
+use crate::scenes::Stand;
 use isa::{Detail, Machine, Placed, UnitProgram};
 use multihit_kernels::filters::Insertion;
 use multihit_kernels::{Counters, Kernel, Method, Run, Traversal, Tree, BVH, NAIVE_CAPACITY};
@@ -24,28 +25,14 @@ use std::sync::Arc;
 /// Pixels per side of a tile.
 pub(crate) const TILE: u32 = 16;
 
-/// The eight scenes (see the paper's README for what each stands for).
-pub(crate) const SCENES: [&str; 8] = [
-    "truck",
-    "layers",
-    "conference",
-    "fern",
-    "fairy",
-    "trex",
-    "saloon",
-    "ferrari",
-];
-
 /// A scene made ready: its trees, camera at 1024x768, hit statistics and
 /// the sampled tiles with their reference answers.
 pub(crate) struct Prepared {
+    pub(crate) stand: Stand,
     pub(crate) name: String,
     pub(crate) tree: Arc<Tree>,
-    /// Mean and largest hits per ray over the frame's pixel grid sample.
-    pub(crate) mean_hits: f64,
-    pub(crate) max_hits: u32,
-    /// Rays the hit statistics came from.
-    pub(crate) stat_rays: usize,
+    /// Hits per ray over every pixel of the frame.
+    pub(crate) hits: HitStats,
     /// Per sampled run: the warmed tile before (if any) and the timed tile.
     tiles: Vec<(Option<TileRays>, TileRays)>,
     /// Embree's scene of the same mesh.
@@ -89,13 +76,63 @@ fn plan(groups: usize, seed: u64) -> Vec<(Option<usize>, usize)> {
     strata_with_previous((tw * th) as usize, groups, seed)
 }
 
+/// Hits per pixel-centre ray (every hit the f64 reference finds) over
+/// every pixel of the frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct HitStats {
+    /// Mean hits per ray.
+    pub(crate) mean: f64,
+    /// The 95th percentile (nearest rank).
+    pub(crate) p95: u32,
+    /// The most hits of any ray ("the maximum number of valid
+    /// ray/primitive intersections").
+    pub(crate) max: u32,
+    /// Rays counted (every pixel).
+    pub(crate) rays: usize,
+}
+
+impl HitStats {
+    /// The statistics of per-ray hit counts.
+    pub(crate) fn of(mut counts: Vec<u32>) -> HitStats {
+        counts.sort_unstable();
+        let n = counts.len();
+        let mean = counts.iter().map(|&c| f64::from(c)).sum::<f64>() / n.max(1) as f64;
+        // Nearest rank: the smallest count at or above 95% of the rays.
+        let rank = (0.95 * n as f64).ceil() as usize;
+        HitStats {
+            mean,
+            p95: counts.get(rank.max(1) - 1).copied().unwrap_or(0),
+            max: counts.last().copied().unwrap_or(0),
+            rays: n,
+        }
+    }
+
+    /// Count every pixel's hits with the reference.
+    fn over_every_pixel(cam: &Camera, refi: &Reference) -> HitStats {
+        let counts: Vec<u32> = (0..HEIGHT)
+            .into_par_iter()
+            .flat_map_iter(|y| {
+                (0..WIDTH).map(move |x| {
+                    let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
+                    let ray = Ray::new(o.map(|c| c as f32 as f64), d.map(|c| c as f32 as f64));
+                    refi.all(&ray).len() as u32
+                })
+            })
+            .collect();
+        HitStats::of(counts)
+    }
+}
+
 impl Prepared {
-    /// Load `name` at 1024x768 with its trees, sample its hit statistics on
-    /// every `stat_step`-th pixel in each direction, and plan `groups` runs.
-    pub(crate) fn new(name: &str, stat_step: u32, groups: usize, seed: u64) -> AppResult<Prepared> {
-        let mut scene = Scene::load(name)?;
-        scene.config.camera.width = WIDTH;
-        scene.config.camera.height = HEIGHT;
+    /// Load `stand`'s scene at 1024x768 from its viewpoint with its trees,
+    /// count every pixel's hits, and plan `groups` runs.
+    pub(crate) fn new(stand: Stand, groups: usize, seed: u64) -> AppResult<Prepared> {
+        let mut scene = Scene::load(stand.scene)?;
+        let cam = &mut scene.config.camera;
+        if let Some(v) = stand.view {
+            (cam.eye, cam.target, cam.fov) = (v.eye, v.target, v.fov);
+        }
+        (cam.width, cam.height) = (WIDTH, HEIGHT);
         let (b2, _) = scene::bvh_cache::build(&scene.mesh, &BVH).map_err(AppError)?;
         let b4 = scene::bvh::Bvh4::collapse(&b2);
         let tree = Arc::new(Tree {
@@ -105,17 +142,7 @@ impl Prepared {
         });
         let cam = scene.config.camera.clone();
         let refi = Reference::with_bvh(&tree.mesh, &tree.b2);
-        let pixels: Vec<(u32, u32)> = (0..HEIGHT / stat_step)
-            .flat_map(|y| (0..WIDTH / stat_step).map(move |x| (x * stat_step, y * stat_step)))
-            .collect();
-        let counts: Vec<usize> = pixels
-            .par_iter()
-            .map(|&(x, y)| {
-                let (o, d) = cam.ray(f64::from(x) + 0.5, f64::from(y) + 0.5);
-                let ray = Ray::new(o.map(|c| c as f32 as f64), d.map(|c| c as f32 as f64));
-                refi.all(&ray).len()
-            })
-            .collect();
+        let hits = HitStats::over_every_pixel(&cam, &refi);
         let with = |k: usize, timed: bool| {
             let rays = tile_rays(&cam, k);
             let slots = packet_slots(&rays, TILE, 1, 8);
@@ -137,22 +164,20 @@ impl Prepared {
             .into_iter()
             .map(|(before, k)| (before.map(|b| with(b, false)), with(k, true)))
             .collect();
-        // Rays the timed tiles hold more hits than the grid saw count too.
-        let tile_max = tiles
-            .iter()
-            .flat_map(|t| t.1.all.iter().map(Vec::len))
-            .max();
-        let max_hits = counts.iter().copied().chain(tile_max).max().unwrap_or(0) as u32;
         Ok(Prepared {
             #[cfg(feature = "embree")]
             embree: crate::embree::Embree::new(&tree.mesh).map_err(AppError)?,
-            name: name.into(),
+            stand,
+            name: stand.name.into(),
             tree,
-            mean_hits: counts.iter().sum::<usize>() as f64 / counts.len().max(1) as f64,
-            max_hits: max_hits.max(1),
-            stat_rays: counts.len(),
+            hits,
             tiles,
         })
+    }
+
+    /// The most hits, at least 1.
+    pub(crate) fn max_hits(&self) -> u32 {
+        self.hits.max.max(1)
     }
 
     /// The rays of the timed tiles, with their packet slots.
@@ -206,15 +231,24 @@ impl Prepared {
         bad
     }
 
-    /// N_query values: 1, 2, 4, ... below the scene's most hits, then all.
+    /// N_query values: 1, 2, 4 and every 10% of the scene's most hits
+    /// (rounded to the nearest, at least 1), in order, each once.
     pub(crate) fn queries(&self) -> Vec<u32> {
-        let mut q: Vec<u32> = (0..)
-            .map(|i| 1u32 << i)
-            .take_while(|&n| n < self.max_hits)
-            .collect();
-        q.push(self.max_hits);
-        q
+        queries(self.max_hits())
     }
+}
+
+/// [`Prepared::queries`] for a scene whose most hits is `max`.
+pub(crate) fn queries(max: u32) -> Vec<u32> {
+    let tenths = (1..=10).map(|k| ((f64::from(max) * f64::from(k) / 10.0).round() as u32).max(1));
+    let mut q: Vec<u32> = [1, 2, 4]
+        .into_iter()
+        .filter(|&n| n <= max)
+        .chain(tenths)
+        .collect();
+    q.sort_unstable();
+    q.dedup();
+    q
 }
 
 /// The kernel over tiles as units: the scene laid out once.

@@ -2,13 +2,17 @@
 //! against node culling, per scene) and `multihit-summary` (node culling's
 //! speed-up against N_query as a fraction of the scene's most hits).
 
-use crate::measure::{measure, Cell, Prepared, SCENES};
+use crate::crossover::{Crossover, Point};
+use crate::measure::{measure, Cell, HitStats, Prepared};
 use crate::paper::{CROSSOVER_FRACTION, SOCKETS, SPEEDUP_AT_ONE};
+use crate::scenes::{chosen, Group};
 use multihit_kernels::filters::Insertion;
 use multihit_kernels::Method;
 use rayon::prelude::*;
 use repro::plot::{Panel, Series};
 use repro::sampling::paired_ratio_systematic;
+#[cfg(feature = "embree")]
+use repro::sampling::systematic_ratio_ci;
 use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -25,14 +29,18 @@ fn groups(a: &ReproduceArgs) -> usize {
         .map_or(if a.quick { 32 } else { 128 }, |t| t as usize)
 }
 
-/// Every scene's cells, in parallel over (scene, method, N_query); the
-/// scenes `a` asks for (all eight; `--quick`: the same eight).
+/// The scenes a run measures: the deep group; the full run adds the
+/// shallow one (`--quick` previews the deep group's verdicts).
+fn stands(a: &ReproduceArgs) -> Vec<crate::scenes::Stand> {
+    chosen(!a.quick)
+}
+
+/// Every scene's cells, in parallel over (scene, method, N_query).
 fn measure_all(a: &ReproduceArgs, m: &sim::MachineConfig) -> AppResult<Vec<SceneCells>> {
-    let step = if a.quick { 16 } else { 4 };
     let g = groups(a);
-    let prepared: Vec<Prepared> = SCENES
-        .iter()
-        .map(|s| Prepared::new(s, step, g, a.seed))
+    let prepared: Vec<Prepared> = stands(a)
+        .into_iter()
+        .map(|s| Prepared::new(s, g, a.seed))
         .collect::<AppResult<_>>()?;
     let jobs: Vec<(usize, u32, Method)> = prepared
         .iter()
@@ -75,13 +83,39 @@ fn speedup(naive: &Cell, cull: &Cell) -> (f64, Option<f64>) {
     paired_ratio_systematic(&naive.run_cycles, &cull.run_cycles)
 }
 
-/// The smallest N_query (as a fraction of the most hits) at which naive
-/// is at least as fast, if any.
-fn crossover(sc: &SceneCells) -> Option<f64> {
+/// Node culling's speed-up curve over N_query.
+fn curve(sc: &SceneCells) -> Vec<Point> {
     sc.cells
         .iter()
-        .find(|(_, nv, cu)| speedup(nv, cu).0 <= 1.0)
-        .map(|(n, _, _)| f64::from(*n) / f64::from(sc.pr.max_hits))
+        .map(|(n, nv, cu)| {
+            let (speedup, ci) = speedup(nv, cu);
+            Point {
+                n: f64::from(*n),
+                speedup,
+                ci,
+            }
+        })
+        .collect()
+}
+
+/// A crossover's rows: in N_query and as fractions of the most, mean and
+/// 95th-percentile hits, each with its 95% interval's ends; the paper's
+/// 70% beside the fraction of the most hits.
+fn crossover_rows(metric: &str, scene: &str, x: &Crossover, h: &HitStats) -> Vec<Row> {
+    let mut rows = Vec::new();
+    for (per, bounds) in x.normalised(h) {
+        for (bound, v) in bounds {
+            let mut r = Row::new(metric, v)
+                .key("scene", scene)
+                .key("per", per)
+                .key("bound", bound);
+            if per == "max_hits" && bound == "estimate" {
+                r.paper = Some(CROSSOVER_FRACTION);
+            }
+            rows.push(r);
+        }
+    }
+    rows
 }
 
 fn header(
@@ -92,8 +126,8 @@ fn header(
     let mut s = BTreeMap::new();
     let g = groups(a);
     s.insert("design".into(), serde_json::json!(format!(
-        "1024x768, one pixel-centre visibility ray per pixel; 16x16-pixel tiles of 4x2-pixel 8-wide packets on one core; {g} tiles, one at a seeded place in each of as many equal strata of the frame, each timed in full detail after functional warming with the tile before it and itself; every timed ray's hit list checked against the f64 reference; hits per ray from every {}th pixel in each direction",
-        if a.quick { 16 } else { 4 }
+        "1024x768, one pixel-centre visibility ray per pixel; 16x16-pixel tiles of 4x2-pixel 8-wide packets on one core; {g} tiles, one at a seeded place in each of as many equal strata of the frame, each timed in full detail after functional warming with the tile before it and itself; every timed ray's hit list checked against the f64 reference; hits per ray over every pixel; N_query 1, 2, 4 and every 10% of the most hits; scenes: {}",
+        if a.quick { "the deep group (the full run adds the shallow one)" } else { "the deep and the shallow group" }
     )));
     s.insert("seed".into(), serde_json::json!(a.seed));
     let ops = scenes
@@ -101,13 +135,21 @@ fn header(
         .flat_map(|sc| &sc.cells)
         .map(|c| c.1.ops + c.2.ops)
         .sum();
+    let mut notes = notes;
+    notes.extend(depth_notes(scenes));
     Report {
         report: name.into(),
         machine: Some(m.name.clone()),
         isa: Some(m.flavour().name().into()),
         fidelity: "full".into(),
         sample: Some(s),
-        input: Some(SCENES.join(", ")),
+        input: Some(
+            scenes
+                .iter()
+                .map(|sc| sc.pr.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", "),
+        ),
         ops_simulated: ops,
         host_seconds: start.elapsed().as_secs_f64(),
         rows,
@@ -123,22 +165,33 @@ fn mismatches(scenes: &[SceneCells]) -> f64 {
         .sum()
 }
 
-/// Per scene: its hit statistics and crossover.
+/// Per scene: its group, hit statistics and crossover.
 fn scene_rows(sc: &SceneCells) -> Vec<Row> {
-    let s = sc.pr.name.as_str();
+    let (s, h) = (sc.pr.name.as_str(), &sc.pr.hits);
+    let k = |r: Row| r.key("scene", s).key("group", sc.pr.stand.group.label());
     let mut rows = vec![
-        Row::new("mean_hits_per_ray", sc.pr.mean_hits).key("scene", s),
-        Row::new("max_hits_per_ray", f64::from(sc.pr.max_hits)).key("scene", s),
-        Row::new("rays_for_hit_statistics", sc.pr.stat_rays as f64).key("scene", s),
+        k(Row::new("mean_hits_per_ray", h.mean)),
+        k(Row::new("p95_hits_per_ray", f64::from(h.p95))),
+        k(Row::new("max_hits_per_ray", f64::from(h.max))),
+        k(Row::new("rays_for_hit_statistics", h.rays as f64)),
     ];
-    let mut cross = Row::new(
-        "crossover_fraction_of_max_hits",
-        crossover(sc).unwrap_or(f64::NAN),
-    )
-    .key("scene", s);
-    cross.paper = Some(CROSSOVER_FRACTION);
-    rows.push(cross);
+    let x = Crossover::of(&curve(sc));
+    rows.extend(crossover_rows("crossover", s, &x, h));
     rows
+}
+
+/// A note for each deep-group scene under 4 hits per ray on average.
+fn depth_notes(scenes: &[SceneCells]) -> Vec<String> {
+    scenes
+        .iter()
+        .filter(|sc| sc.pr.stand.group == Group::Deep && sc.pr.hits.mean < 4.0)
+        .map(|sc| {
+            format!(
+                "{} is in the deep group with {:.2} hits per ray on average (the group's rule: at least 4)",
+                sc.pr.name, sc.pr.hits.mean
+            )
+        })
+        .collect()
 }
 
 /// The scene and N_query at which node culling's two insertion forms are
@@ -157,7 +210,7 @@ fn insertion_rows(
     let Some(sc) = scenes.iter().find(|sc| sc.pr.name == name) else {
         return Ok(Vec::new());
     };
-    let n = want.min(sc.pr.max_hits);
+    let n = want.min(sc.pr.max_hits());
     let Some((_, _, rows_cell)) = sc.cells.iter().find(|c| c.0 == n) else {
         return Ok(Vec::new());
     };
@@ -227,7 +280,7 @@ pub(crate) fn multihit_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
     let notes = vec![
         format!("The paper's machine is two 10-core E5-2650 v3 (40 threads); the {chip}-core rows are the simulated one-core rate times {chip}: tiles are independent, and the assumption leaves out shared-L3 and DRAM contention and the second hardware thread per core."),
         "The paper's Figure 2 shows its truck scene without printed values; its statements (up to 2x at N_query = 1, naive ahead from about 70% of the most hits) stand beside ours in multihit-summary.".into(),
-        "Stand-in scenes: rtsim's scenes (see papers/multihit/README.md); the paper's truck and seven others are not available.".into(),
+        "Stand-in scenes: rtsim's scenes from viewpoints where a ray meets at least 4 surfaces on average (the deep group; papers/multihit/README.md); the paper's truck and seven others are not available.".into(),
     ];
     Ok(Produced {
         mismatches: mismatches(&scenes),
@@ -245,36 +298,30 @@ pub(crate) fn multihit_summary(a: &ReproduceArgs) -> AppResult<Produced> {
         rows.extend(scene_rows(sc));
         for (n, naive, cull) in &sc.cells {
             let (s, ci) = speedup(naive, cull);
-            let frac = f64::from(*n) / f64::from(sc.pr.max_hits);
             let k = |r: Row| r.key("scene", &sc.pr.name).key("n_query", n);
             let mut r = k(Row::new("speedup_node_culling_over_naive", s));
             r.ci95 = ci;
             rows.push(r);
-            rows.push(k(Row::new("fraction_of_max_hits", frac)));
+            let h = &sc.pr.hits;
+            let n = f64::from(*n);
+            rows.push(k(Row::new(
+                "fraction_of_max_hits",
+                n / f64::from(h.max.max(1)),
+            )));
+            rows.push(k(Row::new("fraction_of_mean_hits", n / h.mean)));
+            rows.push(k(Row::new(
+                "fraction_of_p95_hits",
+                n / f64::from(h.p95.max(1)),
+            )));
         }
     }
-    let mean =
-        |f: &dyn Fn(&SceneCells) -> f64| scenes.iter().map(f).sum::<f64>() / scenes.len() as f64;
-    let first = |sc: &SceneCells| speedup(&sc.cells[0].1, &sc.cells[0].2).0;
-    let last = |sc: &SceneCells| {
-        let c = sc.cells.last().expect("N = all");
-        speedup(&c.1, &c.2).0
-    };
-    let mut r = Row::new("mean_speedup_at_n_query_1", mean(&first)).key("scene", "mean of 8");
-    r.paper = Some(SPEEDUP_AT_ONE);
-    rows.push(r);
-    let mut r = Row::new("mean_speedup_at_all_hits", mean(&last)).key("scene", "mean of 8");
-    r.paper = Some(1.0);
-    rows.push(r);
-    let faster_at_one = scenes.iter().filter(|sc| first(sc) > 1.0).count();
-    rows.push(Row::new(
-        "scenes_node_culling_faster_at_n_query_1",
-        faster_at_one as f64,
-    ));
+    rows.extend(group_rows(&scenes));
     rows.extend(embree_rows(&scenes));
     plot_summary(a, &scenes)?;
     let notes = vec![
         "Speed-ups are paired over the same tiles (ratio of summed cycles; 95% CI over the tiles). The paper's 'up to 2x at N_query = 1' is its mean over eight scenes; its crossover 'as N_query -> 70%' of the most hits.".into(),
+        "crossover: the N_query at which node culling's speed-up first falls to 1, linear between the two N_query measured around it; low95 and high95 are the crossings of the speed-up's 95% band's lower and upper edges; NaN: naive never catches up. per: in N_query, or as a fraction of the scene's most, mean or 95th-percentile hits per ray (over every pixel).".into(),
+        "Group means are over the deep group only (the shallow scenes, full runs only, are an extra).".into(),
     ];
     Ok(Produced {
         mismatches: mismatches(&scenes),
@@ -282,57 +329,85 @@ pub(crate) fn multihit_summary(a: &ReproduceArgs) -> AppResult<Produced> {
     })
 }
 
-/// Embree's node-culling over naive time ratio on this host (`rtcIntersect8`,
-/// the timed tiles' rays, best of 3), per scene and N_query.
+/// The deep group's means: node culling's speed-up at N_query = 1 and at
+/// all hits, the scenes it is faster in at 1, and the scenes where naive
+/// catches up.
+fn group_rows(scenes: &[SceneCells]) -> Vec<Row> {
+    let deep: Vec<&SceneCells> = scenes
+        .iter()
+        .filter(|sc| sc.pr.stand.group == Group::Deep)
+        .collect();
+    let label = format!("mean of {} deep", deep.len());
+    let mean = |f: &dyn Fn(&SceneCells) -> f64| {
+        deep.iter().map(|sc| f(sc)).sum::<f64>() / deep.len().max(1) as f64
+    };
+    let first = |sc: &SceneCells| speedup(&sc.cells[0].1, &sc.cells[0].2).0;
+    let last = |sc: &SceneCells| {
+        let c = sc.cells.last().expect("N = all");
+        speedup(&c.1, &c.2).0
+    };
+    let mut at_one = Row::new("mean_speedup_at_n_query_1", mean(&first)).key("scene", &label);
+    at_one.paper = Some(SPEEDUP_AT_ONE);
+    let mut at_all = Row::new("mean_speedup_at_all_hits", mean(&last)).key("scene", &label);
+    at_all.paper = Some(1.0);
+    let faster = deep.iter().filter(|sc| first(sc) > 1.0).count();
+    let crossing = deep
+        .iter()
+        .filter(|sc| Crossover::of(&curve(sc)).at.is_some())
+        .count();
+    vec![
+        at_one,
+        at_all,
+        Row::new(
+            "deep_scenes_node_culling_faster_at_n_query_1",
+            faster as f64,
+        ),
+        Row::new("deep_scenes_where_naive_catches_up", crossing as f64),
+    ]
+}
+
+/// Embree natively on this host (`rtcIntersect8` over the timed tiles'
+/// packets, each tile the best of 3 passes): per scene and N_query each
+/// method's Mhit/s and node culling's speed-up, paired over the tiles
+/// with its 95% CI as the simulated one is, and the crossover with its
+/// interval and normalisations.
 #[cfg(feature = "embree")]
 fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
-    use crate::embree::{Call, State};
     let mut rows = Vec::new();
     for sc in scenes {
-        let mut cross = None;
+        let tiles: Vec<_> = sc.pr.timed_rays().collect();
+        let mut points = Vec::new();
         for (n, _, _) in &sc.cells {
-            // Buffers allocated once per method and reset before each
-            // pass, both outside the timer, the same way for both methods;
-            // the timed pass is the Embree calls and naive's sort.
-            let time = |me: Method| {
-                let mut bufs: Vec<State> = sc
-                    .pr
-                    .timed_rays()
-                    .map(|(rays, _)| State::new((me, *n), rays.len()))
-                    .collect();
-                (0..3)
-                    .map(|_| {
-                        bufs.iter_mut().for_each(State::reset);
-                        let t0 = Instant::now();
-                        for ((rays, slots), st) in sc.pr.timed_rays().zip(&mut bufs) {
-                            sc.pr.embree.pass(st, rays, Call::Eight, slots);
-                        }
-                        t0.elapsed().as_secs_f64()
-                    })
-                    .fold(f64::INFINITY, f64::min)
-            };
+            let time = |me: Method| sc.pr.embree.time_tiles(&tiles, (me, *n), 3);
             let (naive, cull) = (time(Method::Naive), time(Method::NodeCulling));
-            if naive <= cull && cross.is_none() {
-                cross = Some(f64::from(*n) / f64::from(sc.pr.max_hits));
+            let k = |r: Row| r.key("scene", &sc.pr.name).key("n_query", n);
+            for (me, t) in [("naive", &naive), ("node culling", &cull)] {
+                let (secs, hits) = t.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+                let mut r = k(Row::new(
+                    "embree_native_mhits_per_second",
+                    hits / secs / 1e6,
+                ));
+                r.ci95 = systematic_ratio_ci(&t.iter().map(|p| (p.1, p.0)).collect::<Vec<_>>())
+                    .map(|h| h / 1e6);
+                rows.push(r.key("method", me).unit("host-measured"));
             }
-            rows.push(
-                Row::new(
-                    "embree_native_speedup_node_culling_over_naive",
-                    naive / cull,
-                )
-                .key("scene", &sc.pr.name)
-                .key("n_query", n)
-                .unit("host-measured"),
-            );
+            let secs = |t: &[(f64, f64)]| t.iter().map(|p| p.0).collect::<Vec<_>>();
+            let (speedup, ci) = paired_ratio_systematic(&secs(&naive), &secs(&cull));
+            let mut r = k(Row::new(
+                "embree_native_speedup_node_culling_over_naive",
+                speedup,
+            ));
+            r.ci95 = ci;
+            rows.push(r.unit("host-measured"));
+            points.push(Point {
+                n: f64::from(*n),
+                speedup,
+                ci,
+            });
         }
-        let mut r = Row::new(
-            "embree_native_crossover_fraction_of_max_hits",
-            cross.unwrap_or(f64::NAN),
-        )
-        .key("scene", &sc.pr.name)
-        .unit("host-measured");
-        r.paper = Some(CROSSOVER_FRACTION);
-        rows.push(r);
+        let x = Crossover::of(&points);
+        let cross = crossover_rows("embree_native_crossover", &sc.pr.name, &x, &sc.pr.hits);
+        rows.extend(cross.into_iter().map(|r| r.unit("host-measured")));
     }
     rows
 }
@@ -378,7 +453,12 @@ fn plot_summary(a: &ReproduceArgs, scenes: &[SceneCells]) -> AppResult<()> {
             points: sc
                 .cells
                 .iter()
-                .map(|(n, nv, cu)| (f64::from(*n) / f64::from(sc.pr.max_hits), speedup(nv, cu).0))
+                .map(|(n, nv, cu)| {
+                    (
+                        f64::from(*n) / f64::from(sc.pr.max_hits()),
+                        speedup(nv, cu).0,
+                    )
+                })
                 .collect(),
         })
         .collect();

@@ -28,10 +28,45 @@ fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
     assert_eq!(p.mismatches, 0.0, "hit lists differ from the reference");
     assert!(dir.join("multihit-summary.png").exists());
     let j = serde_json::to_value(&p.report).unwrap();
-    // The layered scene: every primary ray crosses up to 64 layers.
+    // The layered scene: every primary ray crosses up to 64 layers (128
+    // triangles down a quad's diagonal), counted over every pixel.
     let layers = |m: &str| value(&j, &[("scene", "layers")], m).unwrap();
-    assert_eq!(layers("max_hits_per_ray"), 64.0);
+    assert_eq!(layers("max_hits_per_ray"), 128.0);
     assert!(layers("mean_hits_per_ray") > 32.0);
+    assert_eq!(layers("rays_for_hit_statistics"), 1024.0 * 768.0);
+    // Every scene of the quick run is in the deep group.
+    for r in j["rows"].as_array().unwrap() {
+        if r["metric"] == "mean_hits_per_ray" {
+            assert_eq!(r["group"], "deep");
+            assert!(r["value"].as_f64().unwrap() >= 4.0, "{r}");
+        }
+    }
+    // N_query at 1, 2, 4 and every 10% of the most hits.
+    let queries: Vec<&str> = j["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|r| r["metric"] == "fraction_of_max_hits" && r["scene"] == "layers")
+        .map(|r| r["n_query"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        queries,
+        ["1", "2", "4", "13", "26", "38", "51", "64", "77", "90", "102", "115", "128"]
+    );
+    // The crossover in N_query and as three fractions, each with its interval.
+    let cross = |per: &str, bound: &str| {
+        value(
+            &j,
+            &[("scene", "layers"), ("per", per), ("bound", bound)],
+            "crossover",
+        )
+        .unwrap()
+    };
+    let at = cross("n_query", "estimate");
+    assert!(at > 4.0 && at < 128.0, "layers cross at N = {at}");
+    assert!(cross("n_query", "low95") <= at && at <= cross("n_query", "high95"));
+    assert_eq!(cross("max_hits", "estimate"), at / 128.0);
+    assert_eq!(cross("p95_hits", "estimate"), at / 64.0);
     let speedup = |n: &str| {
         value(
             &j,
@@ -41,7 +76,7 @@ fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
         .unwrap()
     };
     assert!(speedup("1") > 2.0, "culling at N = 1: {}", speedup("1"));
-    assert!(speedup("64") < speedup("1"), "the gain falls with N_query");
+    assert!(speedup("128") < speedup("1"), "the gain falls with N_query");
     let row = j["rows"]
         .as_array()
         .unwrap()

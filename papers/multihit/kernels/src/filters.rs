@@ -43,6 +43,9 @@ pub struct NodeCulling {
     pub accepted: u64,
     /// Entries moved up by the insertion.
     pub moves: u64,
+    /// Steps of the insertion's walk: entries (single rays) or entry rows
+    /// (packets) compared with a candidate.
+    pub steps: u64,
 }
 
 impl NodeCulling {
@@ -57,6 +60,7 @@ impl NodeCulling {
             candidates: 0,
             accepted: 0,
             moves: 0,
+            steps: 0,
         }
     }
 
@@ -114,6 +118,7 @@ impl NodeCulling {
                 break;
             }
             let prev = m.s_addi(ptr, -row);
+            self.steps += 1;
             let pt = m.load(e, at(prev, 0));
             let closer = m.cmp(Cmp::Lt, c.t, pt);
             // Lanes not nearer than entry k - 1 go at entry k.
@@ -155,6 +160,7 @@ impl NodeCulling {
             active = m.kand(active, pos);
             let below = m.iop(IOp::Sub, idx, one);
             let from = ix.t(m, below);
+            self.steps += 1;
             let pt = m.gather(active, inf, e, at(base, 0), from, 4);
             let closer = m.cmp(Cmp::Lt, c.t, pt);
             active = m.kand(active, closer);
@@ -193,6 +199,7 @@ impl<M: Machine> Filter<M> for NodeCulling {
                 break;
             }
             let prev = m.s_addi(ptr, -8);
+            self.steps += 1;
             let pt = m.x_load(e, at(prev, 0));
             let closer = m.x_cmp(Cmp::Lt, c.t, pt);
             if !m.branch(site::CULL_CLOSER, closer) {

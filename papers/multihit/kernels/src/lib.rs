@@ -169,6 +169,9 @@ pub struct Counters {
     pub accepted: u64,
     /// Entries moved by node culling's insertion or the naive sort's swaps.
     pub moves: u64,
+    /// Steps of node culling's insertion walk or the naive sort's inner
+    /// walk: entries (single rays) or entry rows (packets) compared.
+    pub steps: u64,
     /// Hits a naive buffer had no room for.
     pub overflowed: u64,
     /// Ray-node and ray-leaf tests of the traversal.
@@ -277,7 +280,7 @@ impl Run {
                 );
                 c.candidates = f.candidates;
                 c.accepted = f.accepted;
-                c.moves = f.moves;
+                (c.moves, c.steps) = (f.moves, f.steps);
                 f.bufs.lists_single(n, self.n_query)
             }
             Method::Naive => {
@@ -288,7 +291,8 @@ impl Run {
                 );
                 c.candidates = f.candidates;
                 c.overflowed = f.overflowed;
-                c.moves = sort::single(m, &mut f.bufs, n, self.n_query);
+                let sorted = sort::single(m, &mut f.bufs, n, self.n_query);
+                (c.moves, c.steps) = (sorted.moves, sorted.steps);
                 f.bufs.lists_single(n, self.n_query)
             }
         };
@@ -318,7 +322,7 @@ impl Run {
                 rt::packet::trace_bvh4_filtered(m, s, &mut pb, &mut f);
                 c.candidates = f.candidates;
                 c.accepted = f.accepted;
-                c.moves = f.moves;
+                (c.moves, c.steps) = (f.moves, f.steps);
                 f.bufs.lists_packet(&slots, self.n_query)
             }
             Method::Naive => {
@@ -327,7 +331,8 @@ impl Run {
                 rt::packet::trace_bvh4_filtered(m, s, &mut pb, &mut f);
                 c.candidates = f.candidates;
                 c.overflowed = f.overflowed;
-                c.moves = sort::packets(m, &mut f.bufs, np, self.n_query);
+                let sorted = sort::packets(m, &mut f.bufs, np, self.n_query);
+                (c.moves, c.steps) = (sorted.moves, sorted.steps);
                 f.bufs.lists_packet(&slots, self.n_query)
             }
         };

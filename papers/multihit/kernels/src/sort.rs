@@ -10,10 +10,20 @@ use crate::site;
 use crate::{at, each, FILTER_REGION};
 use isa::{At, Cmp, IOp, Machine, SOp};
 
-/// Sort `n` single rays' entries; returns the entries swapped into place.
-pub fn single<M: Machine>(m: &mut M, b: &mut HitBufs, n: usize, n_query: u32) -> u64 {
+/// What a sort did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sorted {
+    /// Entries (lane entries, for packets) swapped into place.
+    pub moves: u64,
+    /// Steps of the inner walk: entries (single rays) or entry rows
+    /// (packets) compared with the nearest so far.
+    pub steps: u64,
+}
+
+/// Sort `n` single rays' entries.
+pub fn single<M: Machine>(m: &mut M, b: &mut HitBufs, n: usize, n_query: u32) -> Sorted {
     m.region(FILTER_REGION);
-    let mut moves = 0;
+    let (mut moves, mut steps) = (0, 0);
     let stride = m.int(8 * i64::from(b.cap));
     let nq = m.int(i64::from(n_query));
     each(m, n, site::SORT_RAY, |m, ray| {
@@ -36,6 +46,7 @@ pub fn single<M: Machine>(m: &mut M, b: &mut HitBufs, n: usize, n_query: u32) ->
                 if !m.branch_if(site::SORT_J, Cmp::Lt, pj, end) {
                     break;
                 }
+                steps += 1;
                 let tj = m.x_load(e, at(pj, 0));
                 let less = m.x_cmp(Cmp::Lt, tj, bt);
                 if m.branch(site::SORT_LESS, less) {
@@ -51,15 +62,14 @@ pub fn single<M: Machine>(m: &mut M, b: &mut HitBufs, n: usize, n_query: u32) ->
             pi = m.s_addi(pi, 8);
         }
     });
-    moves
+    Sorted { moves, steps }
 }
 
-/// Sort `np` packets' entries, lanes together; returns the lane-entries
-/// swapped into place.
-pub fn packets<M: Machine>(m: &mut M, b: &mut HitBufs, np: usize, n_query: u32) -> u64 {
+/// Sort `np` packets' entries, lanes together.
+pub fn packets<M: Machine>(m: &mut M, b: &mut HitBufs, np: usize, n_query: u32) -> Sorted {
     m.region(FILTER_REGION);
     let w = M::LANES;
-    let mut moves = 0;
+    let (mut moves, mut steps) = (0, 0);
     let step = m.int(b.packet_bytes() as i64);
     let ix = EntryIndex::new(m);
     let one = m.splat_i(1);
@@ -90,6 +100,7 @@ pub fn packets<M: Machine>(m: &mut M, b: &mut HitBufs, np: usize, n_query: u32) 
                 if !m.branch(site::SORT_PK_J, any) {
                     break;
                 }
+                steps += 1;
                 let tj = m.load(e, at(rj, 0));
                 let nearer = m.cmp(Cmp::Lt, tj, bt);
                 let less = m.kand(nearer, act_j);
@@ -111,5 +122,5 @@ pub fn packets<M: Machine>(m: &mut M, b: &mut HitBufs, np: usize, n_query: u32) 
             ri = m.s_addi(ri, 8 * w as i64);
         }
     });
-    moves
+    Sorted { moves, steps }
 }

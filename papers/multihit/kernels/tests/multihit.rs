@@ -56,6 +56,7 @@ fn check(
             forms.into_iter().map(move |f| (k, f))
         });
         for (kernel, insertion) in variants {
+            let mut counts = Vec::new();
             for &n_query in queries.iter().chain([&max]) {
                 let run = Run {
                     kernel,
@@ -81,11 +82,69 @@ fn check(
                     rays.len()
                 );
                 assert_eq!(c.overflowed, 0);
+                if n_query == max {
+                    // Each ray's hits as this kernel finds them (naive
+                    // buffers every one, whatever N_query is).
+                    counts = lists.iter().map(|l| l.len() as u32).collect();
+                }
                 out.push((kernel, n_query, c));
+            }
+            for (_, n_query, c) in &out[out.len() - queries.len() - 1..] {
+                check_steps(kernel, *n_query, c, &counts, (&slots, fl.lanes()));
             }
         }
     }
     out
+}
+
+/// The walks' step counts: the naive sort's exactly as its loops run over
+/// the rays' hit counts (single rays: the entries after each place; a
+/// packet: per place, the most entries after it over the lanes still
+/// placing); node culling's insertion at least a step per candidate and
+/// one per entry moved (a packet's row step: per lanes' worth).
+fn check_steps(
+    kernel: Kernel,
+    n_query: u32,
+    c: &Counters,
+    counts: &[u32],
+    (slots, lanes): (&[u32], usize),
+) {
+    let after = |count: u32, i: u32| u64::from(count.saturating_sub(i + 1));
+    let places = |count: u32| count.min(n_query);
+    let want = match (kernel.method, kernel.traversal) {
+        (Method::NodeCulling, Traversal::Single) => {
+            assert!(c.steps >= c.candidates.max(c.moves), "{kernel:?}: {c:?}");
+            return;
+        }
+        (Method::NodeCulling, Traversal::Packet) => {
+            // A row step serves the packet's lanes.
+            let least = c.candidates.max(c.moves).div_ceil(lanes as u64);
+            assert!(c.steps >= least && c.steps > 0, "{kernel:?}: {c:?}");
+            return;
+        }
+        (Method::Naive, Traversal::Single) => counts
+            .iter()
+            .map(|&k| (0..places(k)).map(|i| after(k, i)).sum::<u64>())
+            .sum::<u64>(),
+        (Method::Naive, Traversal::Packet) => slots
+            .chunks(lanes)
+            .map(|p| {
+                let held: Vec<u32> = p
+                    .iter()
+                    .filter(|&&r| r != u32::MAX)
+                    .map(|&r| counts[r as usize])
+                    .collect();
+                let top = held.iter().map(|&k| places(k)).max().unwrap_or(0);
+                (0..top)
+                    .map(|i| {
+                        let placing = held.iter().filter(|&&k| i < places(k));
+                        placing.map(|&k| after(k, i)).max().unwrap_or(0)
+                    })
+                    .sum::<u64>()
+            })
+            .sum(),
+    };
+    assert_eq!(c.steps, want, "{kernel:?} N={n_query}: sort steps");
 }
 
 #[test]

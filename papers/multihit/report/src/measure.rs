@@ -299,6 +299,9 @@ pub(crate) struct Cell {
     pub(crate) filter_share: f64,
     /// Filter calls per ray, and node tests per ray.
     pub(crate) candidates_per_ray: f64,
+    /// Steps of node culling's insertion walk or naive's sort walk per ray
+    /// (entry rows: one step serves a packet's lanes).
+    pub(crate) steps_per_ray: f64,
     pub(crate) nodes_per_ray: f64,
     /// Ops simulated (timed and warmed).
     pub(crate) ops: u64,
@@ -381,6 +384,7 @@ pub(crate) fn measure(
         cpi: cycles / instr.max(1.0),
         filter_share: filter_cycles / cycles.max(1.0),
         candidates_per_ray: c.candidates as f64 / rays,
+        steps_per_ray: c.steps as f64 / rays,
         nodes_per_ray: c.tests.other as f64 / rays,
         ops,
         bad,
@@ -392,5 +396,6 @@ fn add(c: &mut Counters, d: &Counters) {
     c.rays += d.rays;
     c.hits += d.hits;
     c.candidates += d.candidates;
+    c.steps += d.steps;
     c.tests.other += d.tests.other;
 }

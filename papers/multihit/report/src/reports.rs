@@ -262,6 +262,7 @@ pub(crate) fn multihit_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
                 rows.push(k(Row::new("hits_per_ray", c.hits_per_ray)));
                 rows.push(k(Row::new("filter_calls_per_ray", c.candidates_per_ray)));
                 rows.push(k(Row::new("node_tests_per_ray", c.nodes_per_ray)));
+                rows.push(k(Row::new("filter_walk_steps_per_ray", c.steps_per_ray)));
                 rows.push(k(Row::new("instructions_per_ray", c.instr_per_ray)));
                 rows.push(k(Row::new("cpi", c.cpi)));
                 rows.push(k(Row::new("filter_and_sort_cycle_share", c.filter_share)));

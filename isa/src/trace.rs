@@ -254,6 +254,9 @@ impl Trace {
                     return Err(at(format!("source %{} is not defined before use", s.0)));
                 }
             }
+            if op.class.is_store() && op.has_addr_src() && op.nsrc == 0 {
+                return Err(at("an address source named, but no source".into()));
+            }
             if op.mask.0 & !full != 0 {
                 return Err(at(format!(
                     "mask {:#x} has lanes beyond {lanes}",

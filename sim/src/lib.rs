@@ -278,7 +278,10 @@ fn estimate(
 
 /// Repeat a loop body `n` times, renaming values so iteration k's ops read
 /// iteration k's values; a source defined later in the body (or by the op
-/// itself) is loop-carried and reads the previous iteration's value.
+/// itself) is loop-carried and reads the previous iteration's value. In
+/// the first iteration a carried value is ready from the start: it is
+/// dropped, and a store whose address was it computes its address at
+/// dispatch (its address flag cleared, so its data is not taken for it).
 #[must_use]
 pub fn repeat(body: &Trace, n: usize) -> Trace {
     let stride = body.ops.iter().map(|o| o.dst.0).max().unwrap_or(0);
@@ -302,13 +305,16 @@ pub fn repeat(body: &Trace, n: usize) -> Trace {
                 op.dst = ValId(o.dst.0 + base);
             }
             op.nsrc = 0;
-            for &src in o.sources() {
+            for (j, &src) in o.sources().iter().enumerate() {
                 let carried = defined_at.get(&src).is_none_or(|&at| at >= i);
                 let renamed = match (carried, defined_at.contains_key(&src)) {
                     (false, _) => ValId(src.0 + base),
                     (true, true) if k > 0 => ValId(src.0 + base - stride),
                     _ => ValId::NONE, // first iteration: the carried value is ready
                 };
+                if j == 0 && o.has_addr_src() && !renamed.is_some() {
+                    op.flags &= !isa::trace::FLAG_ADDR;
+                }
                 op.push_src(renamed);
             }
             if op.class.is_per_lane_mem() {

@@ -272,7 +272,8 @@ pub struct SimCli {
     pub trace: PathBuf,
     /// Repeat the trace as a loop body this many times (loop-carried values
     /// are sources defined later in the body); cycles per iteration is then
-    /// the steady state, (cycles(N) - cycles(N/2)) / (N - N/2).
+    /// the steady state, (cycles(N) - cycles(N/2)) / (N - N/2), with whether
+    /// runs of N/2, N/4, ... agree within 0.5% (the report says when not).
     #[arg(long, default_value_t = 1)]
     pub iterations: usize,
     /// Fidelity: counts, caches, full.

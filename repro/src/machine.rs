@@ -192,11 +192,79 @@ fn report(
     }
 }
 
+/// Successive windows of a loop agree within this share when it is steady.
+pub const STEADY_TOLERANCE: f64 = 0.005;
+
+/// A loop's steady state from runs of doubling length: each run's window
+/// is its last half, (cycles(n) - cycles(n/2)) / (n - n/2), so the first
+/// iterations' cold misses, predictor training and pipeline fill (and the
+/// drain after the last) cancel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Steady {
+    /// The longest run's window: cycles per iteration.
+    pub per_iteration: f64,
+    /// The shortest run from which every window agrees with the one before
+    /// it within [`STEADY_TOLERANCE`] (`None`: the last two disagree).
+    pub converged_after: Option<usize>,
+    /// The last two windows' difference over the last.
+    pub last_gap: f64,
+}
+
+impl Steady {
+    /// From `(iterations, cycles)` runs, shortest first, each twice (or
+    /// twice plus one) the one before.
+    #[must_use]
+    pub fn of(runs: &[(usize, u64)]) -> Steady {
+        let windows: Vec<(usize, f64)> = runs
+            .windows(2)
+            .map(|w| {
+                let ((h, ch), (n, cn)) = (w[0], w[1]);
+                (n, cn.saturating_sub(ch) as f64 / (n - h) as f64)
+            })
+            .collect();
+        let gap = |i: usize| {
+            let (a, b) = (windows[i - 1].1, windows[i].1);
+            (b - a).abs() / b.abs().max(f64::MIN_POSITIVE)
+        };
+        let k = windows.len();
+        let first_steady = (1..k)
+            .rev()
+            .take_while(|&i| gap(i) <= STEADY_TOLERANCE)
+            .last();
+        Steady {
+            per_iteration: windows.last().map_or(0.0, |w| w.1),
+            converged_after: first_steady.map(|i| windows[i].0),
+            last_gap: if k >= 2 { gap(k - 1) } else { f64::NAN },
+        }
+    }
+
+    /// What the report says about it.
+    fn note(&self, iterations: usize) -> String {
+        let how = "cycles_per_iteration is the last half of the run: (cycles of N iterations - cycles of N/2) / (N - N/2), the first iterations' cold misses and pipeline fill cancelled; the same window is taken over runs of N/2, N/4, ... iterations";
+        match self.converged_after {
+            Some(n) => format!(
+                "{how}. Steady: every window from {n} iterations on agrees with the one before within {:.1}% (the last two: {:.2}%). cycles_per_iteration_all is the mean over all {iterations}, warm-up included.",
+                100.0 * STEADY_TOLERANCE,
+                100.0 * self.last_gap
+            ),
+            None if self.last_gap.is_nan() => format!(
+                "{how}. NOT STEADY: {iterations} iterations give one window, nothing to compare it with; give --iterations 4 or more."
+            ),
+            None => format!(
+                "{how}. NOT STEADY: the windows of {iterations} and {} iterations differ by {:.2}% (more than {:.1}%); give --iterations {} or more.",
+                iterations / 2,
+                100.0 * self.last_gap,
+                100.0 * STEADY_TOLERANCE,
+                2 * iterations
+            ),
+        }
+    }
+}
+
 /// `rtsim sim`: `trace` (repeated `iterations` times as a loop body) timed
 /// on `m` at `fidelity`. With two or more iterations, `cycles_per_iteration`
-/// is the loop's steady state, differenced: (cycles(N) - cycles(N/2)) /
-/// (N - N/2), so the first iterations' cold misses, predictor training and
-/// pipeline fill (and the drain after the last) cancel; the mean over all N
+/// is the loop's steady state ([`Steady`]): the last half of the run, with
+/// whether windows over runs of N/2, N/4, ... agree; the mean over all N
 /// iterations is `cycles_per_iteration_all`. Every other row is of the N runs.
 pub fn sim_report(
     m: &MachineConfig,
@@ -238,18 +306,25 @@ pub fn sim_report(
     let mut ops = t.ops.len() as u64;
     let mean = s.cycles as f64 / iterations as f64;
     let mut notes = Vec::new();
+    let mut extra = Vec::new();
     let per_iteration = if iterations > 1 {
-        let half = iterations / 2;
-        let (h, th) = run(half)?;
-        ops += th.ops.len() as u64;
-        notes.push(format!(
-            "cycles_per_iteration is the loop's steady state: (cycles of {iterations} iterations \
-             - cycles of {half}) / {}; the first iterations' cold misses and pipeline fill \
-             cancel. cycles_per_iteration_all is the mean over all {iterations}, warm-up \
-             included.",
-            iterations - half
+        let mut cycles = vec![(iterations, s.cycles)];
+        let mut n = iterations / 2;
+        while n >= 1 {
+            let (h, th) = run(n)?;
+            ops += th.ops.len() as u64;
+            cycles.push((n, h.cycles));
+            n /= 2;
+        }
+        cycles.reverse();
+        let st = Steady::of(&cycles);
+        notes.push(st.note(iterations));
+        extra.push(Row::new(
+            "converged_after_iterations",
+            st.converged_after.map_or(f64::NAN, |n| n as f64),
         ));
-        s.cycles.saturating_sub(h.cycles) as f64 / (iterations - half) as f64
+        extra.push(Row::new("last_windows_gap", st.last_gap));
+        st.per_iteration
     } else {
         notes.push(
             "one iteration: cycles_per_iteration is its cycles from cold, not a steady state \
@@ -262,6 +337,7 @@ pub fn sim_report(
         Row::new("cycles_per_iteration", per_iteration).unit("cycles"),
         Row::new("cycles_per_iteration_all", mean).unit("cycles"),
     ];
+    rows.extend(extra);
     for c in OpClass::ALL {
         let n = s.class_ops[*c as usize];
         if n > 0 {

@@ -58,6 +58,13 @@ pub const FLAG_ADDR: u8 = 2;
 /// `Op::flags`: the instruction has a length-changing prefix (a 16-bit
 /// immediate after `66h`): the legacy predecoder takes its slow path.
 pub const FLAG_LCP: u8 = 4;
+/// `Op::flags`: the instruction needs the legacy decoders' complex decoder
+/// and ends its decode group (`pop r12`, `pop rsp` on Haswell).
+pub const FLAG_COMPLEX: u8 = 8;
+/// `Op::flags`: the instruction can macro-fuse with a following branch
+/// (cmp, test, add, sub, and, inc, dec), whether or not it does: a legacy
+/// decode fact (a `cmp` op always can).
+pub const FLAG_FUSIBLE: u8 = 16;
 /// Longest x86 instruction, in bytes.
 pub const MAX_ILEN: u8 = 15;
 
@@ -111,6 +118,19 @@ impl Op {
     #[inline]
     pub fn lcp(&self) -> bool {
         self.flags & FLAG_LCP != 0
+    }
+    /// Whether the instruction needs the complex decoder ([`FLAG_COMPLEX`]).
+    #[must_use]
+    #[inline]
+    pub fn complex(&self) -> bool {
+        self.flags & FLAG_COMPLEX != 0
+    }
+    /// Whether the instruction can macro-fuse ([`FLAG_FUSIBLE`], or a
+    /// compare).
+    #[must_use]
+    #[inline]
+    pub fn fusible(&self) -> bool {
+        self.flags & FLAG_FUSIBLE != 0 || self.class == OpClass::Cmp
     }
     /// Whether a store's first source is its address ([`FLAG_ADDR`]).
     #[must_use]

@@ -1,4 +1,4 @@
-//! Binary trace files (`.rtt`), format version 3 (versions 1 and 2 still read). `traces/FORMAT.md` is the
+//! Binary trace files (`.rtt`), format version 4 (versions 1 to 3 still read). `traces/FORMAT.md` is the
 //! specification; this is its implementation.
 //!
 //! ```text
@@ -11,25 +11,32 @@
 use crate::class::OpClass;
 use crate::flavour::FlavourId;
 use crate::mem::MemRegion;
-use crate::trace::{Op, Trace, FLAG_ADDR, FLAG_LCP, FLAG_TAKEN, MAX_ILEN, MAX_SRCS};
+use crate::trace::{
+    Op, Trace, FLAG_ADDR, FLAG_COMPLEX, FLAG_FUSIBLE, FLAG_LCP, FLAG_TAKEN, MAX_ILEN, MAX_SRCS,
+};
 use crate::types::{Addr, LaneMask, MemId, MemKind, Region, ValId};
 use std::fmt;
 
 /// File magic.
 pub const MAGIC: &[u8; 8] = b"RTSIMTRC";
 /// Format version written and read.
-pub const VERSION: u16 = 3;
+pub const VERSION: u16 = 4;
 /// The oldest version still read (version 1 has no operand widths,
 /// version 2 no instruction lengths).
 pub const OLDEST: u16 = 1;
-/// Class byte bit: an extension varint follows the mask (version 3:
-/// operand width << 5 | length-changing prefix << 4 | instruction length;
-/// version 2: the operand width alone).
+/// Class byte bit: an extension varint follows the mask (version 4:
+/// operand width << 7 | fusible << 6 | complex << 5 | length-changing
+/// prefix << 4 | instruction length; version 3: operand width << 5 | lcp
+/// << 4 | instruction length; version 2: the operand width alone).
 const C_EXT: u8 = 0x80;
-/// Extension bit: a length-changing prefix (version 3).
+/// Extension bit: a length-changing prefix (versions 3 and 4).
 const X_LCP: u64 = 0x10;
-/// Extension bits: the instruction length (version 3).
+/// Extension bits: the instruction length (versions 3 and 4).
 const X_ILEN: u64 = 0x0F;
+/// Extension bit: a complex-decoder instruction (version 4).
+const X_COMPLEX: u64 = 0x20;
+/// Extension bit: a macro-fusible instruction (version 4).
+const X_FUSIBLE: u64 = 0x40;
 
 const F_NSRC: u8 = 0b0000_0111;
 const F_DST: u8 = 0b0000_1000;
@@ -478,19 +485,24 @@ fn read_op(
     Ok(op)
 }
 
-/// An op's extension word (version 3): operand width, length-changing
-/// prefix and instruction length; 0 when it has none of them.
+/// An op's extension word (version 4): operand width, the legacy-decode
+/// facts and instruction length; 0 when it has none of them.
 fn extension(op: &Op) -> u64 {
     let width = if op.class.is_mem() {
         0
     } else {
         u64::from(op.bytes)
     };
-    width << 5 | if op.lcp() { X_LCP } else { 0 } | u64::from(op.ilen)
+    let bit = |flag: u8, x: u64| if op.flags & flag != 0 { x } else { 0 };
+    width << 7
+        | bit(FLAG_FUSIBLE, X_FUSIBLE)
+        | bit(FLAG_COMPLEX, X_COMPLEX)
+        | bit(FLAG_LCP, X_LCP)
+        | u64::from(op.ilen)
 }
 
 /// The extension varint after the mask: version 2 the operand width alone,
-/// version 3 [`extension`]'s word.
+/// version 3 width, lcp and length, version 4 [`extension`]'s word.
 fn read_extension(
     r: &mut Reader<'_>,
     op: &mut Op,
@@ -501,9 +513,15 @@ fn read_extension(
     let wat = r.pos;
     let word = r.varint("operand width")?;
     let (w, lcp, ilen) = if version >= 3 {
-        (word >> 5, word & X_LCP != 0, (word & X_ILEN) as u8)
+        let shift = if version >= 4 { 7 } else { 5 };
+        (word >> shift, word & X_LCP != 0, (word & X_ILEN) as u8)
     } else {
         (word, false, 0)
+    };
+    let facts = if version >= 4 {
+        word & (X_COMPLEX | X_FUSIBLE)
+    } else {
+        0
     };
     let class = op.class;
     if w != 0 && (class.is_mem() || !w.is_power_of_two() || w > 4 * flavour.lanes() as u64)
@@ -511,11 +529,17 @@ fn read_extension(
     {
         return r.err(wat, format!("op {i}: bad operand width {w} on a {class}"));
     }
-    if ilen > MAX_ILEN || lcp && ilen == 0 || version >= 3 && word == 0 {
+    if ilen > MAX_ILEN || (lcp || facts != 0) && ilen == 0 || version >= 3 && word == 0 {
         return r.err(
             wat,
-            format!("op {i}: bad instruction length {ilen} (lcp {lcp})"),
+            format!("op {i}: bad instruction length {ilen} (lcp {lcp}, decode facts {facts:#x})"),
         );
+    }
+    if facts & X_COMPLEX != 0 {
+        op.flags |= FLAG_COMPLEX;
+    }
+    if facts & X_FUSIBLE != 0 {
+        op.flags |= FLAG_FUSIBLE;
     }
     op.bytes = if class.is_mem() { op.bytes } else { w as u32 };
     op.ilen = ilen;

@@ -128,6 +128,12 @@ pub fn write(t: &Trace) -> String {
         if op.lcp() {
             s.push_str(" lcp");
         }
+        if op.complex() {
+            s.push_str(" complex");
+        }
+        if op.flags & crate::trace::FLAG_FUSIBLE != 0 {
+            s.push_str(" fusible");
+        }
         if op.class == OpClass::Branch {
             let _ = write!(
                 s,
@@ -290,7 +296,8 @@ fn directive(t: &mut Trace, st: &mut TextState, key: &str, rest: &str) -> Result
 }
 
 /// An op line: `[%D =] CLASS [%S ...] [@REGION+OFFSET:BYTES ...] [addr=%A]
-/// [mask=M] [w=BYTES] [len=BYTES [lcp]] [site=N] [taken|not-taken]`.
+/// [mask=M] [w=BYTES] [len=BYTES [lcp] [complex] [fusible]] [site=N]
+/// [taken|not-taken]`.
 fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
     let err = |msg: String| msg;
     let mut toks = line.split_whitespace().peekable();
@@ -399,6 +406,10 @@ fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
                 })?;
         } else if tok == "lcp" {
             op.flags |= crate::trace::FLAG_LCP;
+        } else if tok == "complex" {
+            op.flags |= crate::trace::FLAG_COMPLEX;
+        } else if tok == "fusible" {
+            op.flags |= crate::trace::FLAG_FUSIBLE;
         } else if tok == "taken" || tok == "not-taken" {
             if op.class != OpClass::Branch {
                 return Err(err(format!("'{tok}' on an op that is not a branch")));
@@ -418,9 +429,11 @@ fn op_line(t: &mut Trace, st: &TextState, line: &str) -> Result<Op, String> {
     if op.class == OpClass::Branch && !has_site {
         return Err(err("branch needs site=N".into()));
     }
-    if op.lcp() && op.ilen == 0 {
+    let decode_facts =
+        crate::trace::FLAG_LCP | crate::trace::FLAG_COMPLEX | crate::trace::FLAG_FUSIBLE;
+    if op.flags & decode_facts != 0 && op.ilen == 0 {
         return Err(err(
-            "lcp needs len=N (a length-changing prefix is a legacy-decode fact)".into(),
+            "lcp, complex and fusible need len=N (they are legacy-decode facts)".into(),
         ));
     }
     if op.class.is_per_lane_mem() {

@@ -174,16 +174,29 @@ fn one() -> u32 {
 }
 
 /// The legacy (x86 instruction) decoders of an out-of-order core's front
-/// end: one fetch block of instruction bytes is predecoded per cycle, the
-/// decoders take instructions in order, and only the first decoder takes
-/// one of several fused uops.
+/// end: one fetch block of instruction bytes is predecoded per cycle, at
+/// most `predecode_width` instructions of it a cycle, into the instruction
+/// queue; the decoders take instructions in order from it, only the first
+/// decoder takes one of several fused uops or a complex-only instruction,
+/// and put their uops in the decoded-uop queue the core dispatches from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LegacyDecode {
     /// Bytes fetched and predecoded per cycle (an aligned block).
     pub fetch_bytes: u32,
+    /// Instructions predecoded per cycle (at most; a block with more takes
+    /// another cycle).
+    pub predecode_width: u32,
+    /// Instruction queue entries between the predecoder and the decoders.
+    pub instruction_queue: u32,
     /// Instructions decoded per cycle.
     pub decoders: u32,
+    /// Whether an instruction that can macro-fuse (cmp, test, add, sub,
+    /// and, inc, dec) is kept off the last decoder.
+    pub fusible_not_last: bool,
+    /// Decoded-uop queue entries (fused uops) between the decoders and
+    /// dispatch, for one thread; halved per thread when two share the core.
+    pub decoded_queue: u32,
     /// Extra predecode cycles of an instruction with a length-changing
     /// prefix (it and everything after it wait).
     pub lcp_penalty: u32,
@@ -624,6 +637,21 @@ impl MachineConfig {
             }
             if l.decoders == 0 || l.decoders > 16 {
                 return e("core.legacy_decode.decoders", "must be 1 to 16");
+            }
+            if l.predecode_width == 0 || l.predecode_width > 16 {
+                return e("core.legacy_decode.predecode_width", "must be 1 to 16");
+            }
+            if l.instruction_queue < l.predecode_width || l.instruction_queue > 1024 {
+                return e(
+                    "core.legacy_decode.instruction_queue",
+                    "must hold a predecode cycle's instructions, at most 1024",
+                );
+            }
+            if l.decoded_queue < 2 * MAX_UOPS as u32 || l.decoded_queue > 4096 {
+                return e(
+                    "core.legacy_decode.decoded_queue",
+                    "must be 32 to 4096 (two threads' halves each hold an instruction's uops)",
+                );
             }
             if l.lcp_penalty > 100 {
                 return e("core.legacy_decode.lcp_penalty", "must be 0 to 100");

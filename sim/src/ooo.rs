@@ -574,7 +574,9 @@ impl Thread {
             stores: vec![StoreEntry::default(); (c.store_buffer / share).max(1) as usize],
             store_seq: 0,
             granules: Box::new([0; GRANULES]),
-            legacy: c.legacy_decode.map(crate::frontend::Legacy::new),
+            legacy: c
+                .legacy_decode
+                .map(|l| crate::frontend::Legacy::new(l, share)),
             history: None,
             d: 0,
             dcount: 0,
@@ -896,6 +898,9 @@ impl OooCore {
             self.legacy_decoded(op, ct.fused, taken_branch)
         };
         let (d, f, mut why) = self.dispatch(ct, decoded);
+        if op.ilen != 0 {
+            self.legacy_dispatched(d, ct.fused);
+        }
         if taken_branch && self.taken_ends_issue {
             // The next op dispatches in the next cycle.
             self.th.dcount = self.width;
@@ -975,6 +980,14 @@ impl OooCore {
         match &mut self.th.legacy {
             Some(l) => l.decode(op, fused, taken, (d, redirect)),
             None => 0,
+        }
+    }
+
+    /// A legacy-decoded op's uops left the decoded-uop queue in cycle `d`.
+    #[inline(never)]
+    fn legacy_dispatched(&mut self, d: u64, fused: u32) {
+        if let Some(l) = &mut self.th.legacy {
+            l.dispatched(d, fused);
         }
     }
 

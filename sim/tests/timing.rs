@@ -648,11 +648,133 @@ fn only_the_first_decoder_takes_a_multi_uop_instruction_on_haswell() {
 fn a_length_changing_prefix_stalls_the_predecoder_on_haswell() {
     let m = hsw();
     // Four-byte ops, four a block and a cycle; each with a length-changing
-    // prefix (add r16, imm16) costs 5 more cycles: 8 ops, 2 + 8 * 5 cycles.
+    // prefix (add r16, imm16) costs 3 more cycles: 8 ops, 2 + 8 * 3 cycles.
     let lcp = |n| straight(n, "alu", "len=4 lcp");
     let plain = |n| straight(n, "alu", "len=4");
     assert_eq!(per_iterations(&m, plain, 8), 2);
-    assert_eq!(per_iterations(&m, lcp, 8), 2 + 8 * 5);
+    assert_eq!(per_iterations(&m, lcp, 8), 2 + 8 * 3);
+}
+
+#[test]
+fn the_predecoder_takes_five_instructions_a_cycle_on_haswell() {
+    let m = hsw();
+    // Blocks of six instructions (five of 2 bytes, one of 6): five are
+    // predecoded in a block's first cycle, the sixth in a second; the
+    // decoders take four, then two: two cycles a block, 16 for 8 blocks.
+    let six = |n| {
+        repeat(
+            n,
+            &[
+                "alu len=2",
+                "alu len=2",
+                "alu len=2",
+                "alu len=2",
+                "alu len=2",
+                "alu len=6",
+            ],
+        )
+    };
+    assert_eq!(per_iterations(&m, six, 8), 16);
+    // A predecoder of 16 a cycle: the decoders' four a cycle, 12.
+    let wide = m
+        .with_sets(&["core.legacy_decode.predecode_width=16".into()])
+        .unwrap();
+    assert_eq!(per_iterations(&wide, six, 8), 12);
+}
+
+#[test]
+fn a_fusible_instruction_skips_the_last_decoder_on_haswell() {
+    let m = hsw();
+    // Three-byte compares (cmp r, r), never followed by a branch: three a
+    // cycle, as a test, add, sub, and, inc or dec marked fusible; other
+    // ALU ops four.
+    assert_eq!(per_iterations(&m, |n| straight(n, "cmp", "len=3"), 12), 4);
+    assert_eq!(
+        per_iterations(&m, |n| straight(n, "alu", "len=3 fusible"), 12),
+        4
+    );
+    assert_eq!(per_iterations(&m, |n| straight(n, "alu", "len=3"), 12), 3);
+    let later = m
+        .with_sets(&["core.legacy_decode.fusible_not_last=false".into()])
+        .unwrap();
+    assert_eq!(
+        per_iterations(&later, |n| straight(n, "cmp", "len=3"), 12),
+        3
+    );
+}
+
+#[test]
+fn a_complex_only_instruction_decodes_alone_on_haswell() {
+    let m = hsw();
+    // pop r12 (2 bytes, one uop, the complex decoder): one a cycle.
+    assert_eq!(
+        per_iterations(&m, |n| straight(n, "alu", "len=2 complex"), 8),
+        8
+    );
+    // It ends its group: a complex one and three simple ones take two
+    // cycles (one without the flag).
+    let group = |flag: &'static str| {
+        let first = format!("alu len=2 {flag}");
+        move |n: u32| repeat(n, &[first.as_str(), "alu len=2", "alu len=2", "alu len=2"])
+    };
+    assert_eq!(per_iterations(&m, group("complex"), 4), 8);
+    assert_eq!(per_iterations(&m, group(""), 4), 4);
+}
+
+#[test]
+fn a_branch_ends_its_decode_group_on_haswell() {
+    let m = hsw();
+    // Two ALU ops and a not-taken branch, 2 bytes each: one group a cycle
+    // (the branch ends it), 8 cycles for 8; from the uop cache 6 (4 a cycle).
+    let close = |len: &'static str| {
+        let ops = [
+            format!("alu {len}"),
+            format!("alu {len}"),
+            format!("branch site=1 not-taken {len}"),
+        ];
+        move |n: u32| repeat(n, &ops.each_ref().map(String::as_str))
+    };
+    assert_eq!(per_iterations(&m, close("len=2"), 8), 8);
+    assert_eq!(per_iterations(&m, close(""), 8), 6);
+}
+
+/// A cold load and `n` 8-byte ALU ops that wait for it: two decoded a
+/// cycle, dispatched until the scheduler is full of them.
+fn behind_a_miss(n: u32) -> String {
+    let mut s = String::from("%1 = load @d+0x0:8\n");
+    for i in 0..n {
+        s.push_str(&format!("%{} = alu %1 len=8\n", i + 2));
+    }
+    s
+}
+
+#[test]
+fn the_decoders_run_ahead_by_the_decoded_queue_on_haswell() {
+    let m = hsw();
+    let unbounded = m
+        .with_sets(&["core.legacy_decode.decoded_queue=4096".into()])
+        .unwrap();
+    // The load completes at 217 (walk 20, DRAM 196). Its 60 dependants fill
+    // the scheduler by cycle 30; unbounded, the decoders go on (two a
+    // cycle) and have all 300 decoded when the load completes: the rest
+    // dispatch four a cycle as the ALUs free the scheduler: the last four
+    // issue at 291 and retire at 292. Bounded, they hold 56 more and stop,
+    // with 20 predecoded in the instruction queue: from 217 the decoders
+    // take four a cycle as the predecoder adds two, the queue empties in 10
+    // cycles (40 decoded), and the last 144 decode two a cycle (72 cycles):
+    // the last decoded at 298, dispatched at 299, done and retired at 301.
+    let (fast, slow) = (
+        cycles(&unbounded, &behind_a_miss(300)),
+        cycles(&m, &behind_a_miss(300)),
+    );
+    assert_eq!(fast, 217 + 300 / 4);
+    assert_eq!(slow, 217 + 10 + (300 - 60 - 56 - 40) / 2 + 2);
+    // Not behind a stall the queue changes nothing: decode-bound both ways.
+    let free = |n| straight(n, "alu", "len=8");
+    assert_eq!(
+        per_iterations(&m, free, 32),
+        per_iterations(&unbounded, free, 32)
+    );
 }
 
 fn stall_cycles(m: &MachineConfig, body: &str) -> [u64; sim::Stall::COUNT] {

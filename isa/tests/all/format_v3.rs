@@ -1,6 +1,6 @@
 //! Trace format version 3: instruction lengths and length-changing
 //! prefixes (what a front end's legacy decoders need) round-trip through
-//! both forms; version 2 files still read.
+//! both forms (written as version 4 now); version 2 files still read.
 
 use isa::{trace_file, trace_text};
 
@@ -37,7 +37,7 @@ fn instruction_lengths_and_lcp_round_trip() {
         ]
     );
     let bin = trace_file::encode(&t);
-    assert_eq!(&bin[8..10], &3u16.to_le_bytes());
+    assert_eq!(&bin[8..10], &trace_file::VERSION.to_le_bytes());
     assert_eq!(trace_file::decode(&bin).unwrap(), t);
     assert_eq!(trace_text::parse(&trace_text::write(&t)).unwrap(), t);
 }
@@ -48,7 +48,7 @@ fn version_2_files_still_read() {
     let got = trace_file::decode(&hex(V2_FILE)).unwrap();
     assert_eq!(got, want);
     assert!(got.ops.iter().all(|o| o.ilen == 0 && !o.lcp()));
-    // Written again, it is version 3 and reads back the same.
+    // Written again, it is the current version and reads back the same.
     assert_eq!(trace_file::decode(&trace_file::encode(&got)).unwrap(), got);
 }
 
@@ -58,7 +58,9 @@ fn bad_lengths_are_named() {
         ("%1 = alu len=0", "len=0"),
         ("%1 = alu len=16", "len=16"),
         ("%1 = alu len=x", "len=x"),
-        ("%1 = alu lcp", "lcp needs len"),
+        ("%1 = alu lcp", "need len=N"),
+        ("%1 = alu complex", "need len=N"),
+        ("%1 = alu fusible", "need len=N"),
     ] {
         let e = trace_text::parse(&format!(".trace 1\n.isa avx2\n{bad}\n")).unwrap_err();
         assert!(e.to_string().contains(says), "{bad}: {e}");

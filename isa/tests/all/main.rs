@@ -4,5 +4,6 @@
 mod expansions;
 mod format_v2;
 mod format_v3;
+mod format_v4;
 mod ops;
 mod props;

@@ -230,6 +230,12 @@ pub struct ClassTiming {
     /// loads take a port two cycles); out-of-order cores.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub narrow: Option<Narrow>,
+    /// Result latency through the op's first source, its condition (a
+    /// cmov's flags, as the kernels' selects record it), where it differs
+    /// from `lat` (which is then the latency through the other sources);
+    /// out-of-order cores.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub cond_lat: Option<u32>,
 }
 
 /// A class's latency and port occupancy on narrow (<= 16-byte) operands.

@@ -78,6 +78,7 @@ const FUSED_CMP: ClassT = ClassT {
     vector: false,
     load_extra: 0,
     fp_uops: 0,
+    cond_extra: 0,
 };
 
 /// A class's uops as port masks, inline (no pointer to chase per op).
@@ -146,6 +147,9 @@ pub(crate) struct ClassT {
     /// Of its uops, those held in the second scheduler (every port of the
     /// uop in `core.fp_scheduler.ports`); the rest in the first.
     pub fp_uops: u8,
+    /// How much later than through its other sources the result comes
+    /// through its first source, the condition (`cond_lat - lat`).
+    pub cond_extra: u64,
 }
 
 pub(crate) fn class_table(m: &MachineConfig) -> Vec<ClassT> {
@@ -186,6 +190,7 @@ fn class_table_of(m: &MachineConfig, narrow: bool) -> Vec<ClassT> {
                     .iter()
                     .filter(|&&u| in_fp_pool(u, fp_mask(m)))
                     .count() as u8,
+                cond_extra: t.cond_lat.map_or(0, |c| u64::from(c.saturating_sub(lat))),
             }
         })
         .collect()
@@ -983,6 +988,23 @@ impl OooCore {
         }
     }
 
+    /// When an op with a slower condition may issue: its result comes
+    /// `lat` after its other sources and `cond_lat` after its first (the
+    /// flags: a select's condition), so the condition counts `cond_lat -
+    /// lat` later.
+    #[inline(never)]
+    fn cond_ready(&self, op: &Op, ct: &ClassT, d: u64) -> u64 {
+        let src = op.sources();
+        let mut r = d + 1;
+        if let Some((&cond, rest)) = src.split_first() {
+            for &s in rest {
+                r = r.max(self.th.values.get(s));
+            }
+            r = r.max(self.th.values.get(cond) + ct.cond_extra);
+        }
+        r
+    }
+
     /// A legacy-decoded op's uops left the decoded-uop queue in cycle `d`.
     #[inline(never)]
     fn legacy_dispatched(&mut self, d: u64, fused: u32) {
@@ -1115,6 +1137,9 @@ impl OooCore {
         let mut r = d + 1;
         for &src in op.sources() {
             r = r.max(self.th.values.get(src));
+        }
+        if ct.cond_extra > 0 {
+            r = self.cond_ready(op, ct, d);
         }
         if ct.load && op.aux != 0 && !ct.per_lane && self.mdp[mdp_slot(op)] {
             r = r.max(self.older_store_addresses(r));

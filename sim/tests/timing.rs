@@ -1035,3 +1035,31 @@ fn every_built_in_machine_translates_and_states_its_fusion_mode() {
         .to_string()
         .contains("tlb.levels[0].latency"));
 }
+
+#[test]
+fn a_cmov_is_one_cycle_through_its_registers_and_two_through_its_flags_on_haswell() {
+    let m = hsw();
+    // Flags from an ALU op (done at 2); eight cmovs chained through a
+    // register, the flags their first source: the first waits for the
+    // flags (2 + 2 = 4), each next one cycle after the one before: 11.
+    let mut data = String::from("%1 = alu\n%2 = alu\n");
+    for k in 3..11 {
+        data.push_str(&format!("%{k} = cmov %1 %{} %2\n", k - 1));
+    }
+    assert_eq!(cycles(&m, &data), 4 + 7);
+    // Chained through the flags (each cmov's result the next one's
+    // condition): two cycles a link, 2 + 8 * 2 = 18.
+    let mut flags = String::from("%1 = alu\n%2 = alu\n");
+    for k in 3..11 {
+        flags.push_str(&format!("%{k} = cmov %{} %2 %2\n", k - 1));
+    }
+    assert_eq!(cycles(&m, &flags), 2 + 8 * 2);
+    // One latency from every operand (the older model): 2 a link both ways.
+    let flat = m
+        .with_sets(&[
+            "classes.cmov.cond_lat=null".into(),
+            "classes.cmov.lat=2".into(),
+        ])
+        .unwrap();
+    assert_eq!(cycles(&flat, &data), 2 + 8 * 2);
+}

@@ -55,6 +55,12 @@ pub struct CoreConfig {
     /// contains the load forwards (OoO).
     #[serde(default)]
     pub store_forward_wide_same_start: bool,
+    /// Whether a load that overlaps a buffered store it cannot forward
+    /// from waits until that store has retired and written the L1, then
+    /// reads it there (OoO; at least `store_forward_fail_penalty` late
+    /// either way); otherwise it pays the penalty alone.
+    #[serde(default)]
+    pub store_forward_fail_waits_commit: bool,
     /// Store buffer entries (OoO): a store dispatches only with a free
     /// entry, held until the store retires; loads forward from its stores.
     #[serde(default)]

@@ -622,6 +622,7 @@ pub struct OooCore {
     sf_latency: u64,
     sf_fail: u64,
     sf_same_start: bool,
+    sf_waits_commit: bool,
     macro_fusion: bool,
     penalty: u64,
     cal: Calendar,
@@ -666,6 +667,7 @@ impl OooCore {
             sf_latency: u64::from(c.store_forward_latency),
             sf_fail: u64::from(c.store_forward_fail_penalty),
             sf_same_start: c.store_forward_wide_same_start,
+            sf_waits_commit: c.store_forward_fail_waits_commit,
             macro_fusion: c.fuses(),
             penalty: u64::from(c.mispredict_penalty),
             cal: Calendar::new(c.ports as usize),
@@ -1235,6 +1237,11 @@ impl OooCore {
                     s.forwarded += u64::from(counted);
                 } else {
                     done += self.sf_fail;
+                    if self.sf_waits_commit && st.ret < u64::MAX - 1 {
+                        // The store writes the L1 the cycle after it
+                        // retires; the load reads it there.
+                        done = done.max(st.ret + 1 + self.l1_latency);
+                    }
                     s.forward_fails += u64::from(counted);
                     *why = Stall::Forwarding;
                 }

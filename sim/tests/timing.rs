@@ -1063,3 +1063,20 @@ fn a_cmov_is_one_cycle_through_its_registers_and_two_through_its_flags_on_haswel
         .unwrap();
     assert_eq!(cycles(&flat, &data), 2 + 8 * 2);
 }
+
+#[test]
+fn a_load_that_cannot_forward_waits_for_the_store_to_reach_the_cache_on_haswell() {
+    let m = hsw_untranslated();
+    // The store's data is ready at 2 but it retires behind the divide (22);
+    // the load, wider than the store, cannot forward: it reads the L1 once
+    // the store has written it, the cycle after it retires: 23 + 4 = 27.
+    let body = "%1 = vdiv\n%2 = alu\nstore %2 @d+0x40:4\n%3 = load @d+0x40:8\n";
+    let l1 = u64::from(m.caches[0].latency);
+    assert_eq!(cycles(&m, body), 22 + 1 + l1);
+    // With the fixed penalty alone it is done at 2 + 5 + 12 = 19, and the
+    // run ends with the divide's retirement.
+    let fixed = m
+        .with_sets(&["core.store_forward_fail_waits_commit=false".into()])
+        .unwrap();
+    assert_eq!(cycles(&fixed, body), 22);
+}

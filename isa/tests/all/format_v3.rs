@@ -2,6 +2,7 @@
 //! prefixes (what a front end's legacy decoders need) round-trip through
 //! both forms (written as version 4 now); version 2 files still read.
 
+use crate::hex;
 use isa::{trace_file, trace_text};
 
 /// A version-2 file written by the version-2 writer (rtsim at 0b4df53,
@@ -11,13 +12,6 @@ const V2_FILE: &str = "525453494d54524302000200000107076973612d6c757480808080014
 
 const V2_TEXT: &str = ".trace 1\n.isa avx2\n.mem 0 lut isa-lut 0x10000000 64\n%1 = vdiv w=16\n\
                        %2 = div %1 w=4\n%3 = alu\nstore %2 @0+0x8:8 addr=%3\n%4 = load @0+0x8:8 site=7\n";
-
-fn hex(s: &str) -> Vec<u8> {
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
-        .collect()
-}
 
 #[test]
 fn instruction_lengths_and_lcp_round_trip() {

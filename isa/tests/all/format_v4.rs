@@ -2,6 +2,7 @@
 //! macro-fusible facts round-trip through both forms; version 3 files
 //! (lengths and length-changing prefixes) still read.
 
+use crate::hex;
 use isa::{trace_file, trace_text};
 
 /// A version-3 file written by the version-3 writer (rtsim at 3a2f4d5,
@@ -11,13 +12,6 @@ const V3_FILE: &str = "525453494d54524303000200000107076973612d6c757480808080014
 const V3_TEXT: &str = ".trace 1\n.isa avx2\n.mem 0 lut isa-lut 0x10000000 64\n%1 = alu len=4 lcp\n\
                        %2 = vdiv %1 w=16 len=5\n%3 = load @0+0x8:8 len=7\n%4 = alu %3\n\
                        branch %4 site=1 taken len=2\n";
-
-fn hex(s: &str) -> Vec<u8> {
-    (0..s.len())
-        .step_by(2)
-        .map(|i| u8::from_str_radix(&s[i..i + 2], 16).unwrap())
-        .collect()
-}
 
 #[test]
 fn complex_and_fusible_round_trip() {

@@ -256,16 +256,14 @@ impl Trace {
     fn check(&self, as_loop: bool) -> Result<(), String> {
         let lanes = self.flavour.lanes();
         let full = LaneMask::full(lanes).0;
-        let mut defined = std::collections::HashSet::new();
-        let all: std::collections::HashSet<ValId> = if as_loop {
-            self.ops
-                .iter()
-                .map(|o| o.dst)
-                .filter(|d| d.is_some())
-                .collect()
-        } else {
-            Default::default()
-        };
+        let top = self.ops.iter().map(|o| o.dst.0).max().unwrap_or(0);
+        let mut defined = IdSet::up_to(top, self.ops.len());
+        let mut all = IdSet::up_to(if as_loop { top } else { 0 }, self.ops.len());
+        if as_loop {
+            for o in self.ops.iter().filter(|o| o.dst.is_some()) {
+                all.insert(o.dst);
+            }
+        }
         let mut lane_next = 0usize;
         for (i, op) in self.ops.iter().enumerate() {
             let at = |m: String| format!("op {i} ({}): {m}", op.class);
@@ -360,4 +358,48 @@ pub(crate) fn pooled_buffers() -> (Vec<Op>, Vec<Addr>) {
         Some(p.swap_remove(largest))
     })
     .unwrap_or_default()
+}
+
+/// A set of value ids for [`Trace::validate`]: a bit per id when the ids are
+/// dense (a recorded trace's are consecutive), a hash set when a
+/// hand-written trace names ids far beyond its length. The bit set keeps
+/// the check from hashing every id of a long trace.
+enum IdSet {
+    Dense(Vec<u64>),
+    Sparse(std::collections::HashSet<ValId>),
+}
+
+impl IdSet {
+    /// An empty set for ids up to `top` in a trace of `ops` ops.
+    fn up_to(top: u32, ops: usize) -> IdSet {
+        let words = top as usize / 64 + 1;
+        if words <= ops / 8 + 1024 {
+            IdSet::Dense(vec![0; words])
+        } else {
+            IdSet::Sparse(std::collections::HashSet::new())
+        }
+    }
+
+    /// Whether `v` is in the set.
+    fn contains(&self, v: &ValId) -> bool {
+        match self {
+            IdSet::Dense(w) => w
+                .get(v.0 as usize / 64)
+                .is_some_and(|x| x >> (v.0 % 64) & 1 != 0),
+            IdSet::Sparse(h) => h.contains(v),
+        }
+    }
+
+    /// Add `v`; whether it was new.
+    fn insert(&mut self, v: ValId) -> bool {
+        match self {
+            IdSet::Dense(w) => {
+                let (k, bit) = (v.0 as usize / 64, 1u64 << (v.0 % 64));
+                let new = w[k] & bit == 0;
+                w[k] |= bit;
+                new
+            }
+            IdSet::Sparse(h) => h.insert(v),
+        }
+    }
 }

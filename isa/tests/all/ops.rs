@@ -763,3 +763,28 @@ fn a_recycled_trace_gives_its_buffers_to_the_next_unit_and_nothing_else() {
     assert_eq!(t.ops, fresh.take().ops, "only the new unit's ops");
     assert!(t.ops.capacity() >= cap, "{} < {cap}", t.ops.capacity());
 }
+
+#[test]
+fn validation_reads_dense_and_far_apart_ids_alike() {
+    use isa::trace_text::parse;
+    let t = |body: &str| parse(&format!(".trace 1\n.isa avx2\n{body}")).unwrap();
+    // Ids far beyond the trace's length (a hand-written trace may name any).
+    let far = t("%4000000000 = alu\n%7 = alu %4000000000\n");
+    assert!(far.validate().is_ok());
+    let twice = t("%4000000000 = alu\n%4000000000 = alu\n");
+    assert!(twice.validate().unwrap_err().contains("defined twice"));
+    // A source defined later: not a straight trace, but a loop body.
+    for body in [
+        "%7 = alu %9\n%9 = alu\n",
+        "%7 = alu %4000000000\n%4000000000 = alu\n",
+    ] {
+        let later = t(body);
+        assert!(later
+            .validate()
+            .unwrap_err()
+            .contains("not defined before use"));
+        assert!(later.validate_loop().is_ok());
+    }
+    let missing = t("%7 = alu %8\n");
+    assert!(missing.validate_loop().is_err());
+}

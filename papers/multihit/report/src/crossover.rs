@@ -68,12 +68,8 @@ impl Crossover {
     /// 95th-percentile hits per ray: (normalisation, [(bound, value)]).
     #[must_use]
     pub(crate) fn normalised(&self, h: &HitStats) -> [(&'static str, [(&'static str, f64); 3]); 4] {
-        [
-            ("n_query", self.scaled(1.0)),
-            ("max_hits", self.scaled(f64::from(h.max.max(1)))),
-            ("mean_hits", self.scaled(h.mean.max(f64::MIN_POSITIVE))),
-            ("p95_hits", self.scaled(f64::from(h.p95.max(1)))),
-        ]
+        let [max, mean, p95] = h.scales().map(|(per, by)| (per, self.scaled(by)));
+        [("n_query", self.scaled(1.0)), max, mean, p95]
     }
 }
 

@@ -107,6 +107,16 @@ impl HitStats {
         }
     }
 
+    /// What an N_query is read against: the most, mean and 95th-percentile
+    /// hits per ray, each at least the smallest positive value.
+    pub(crate) fn scales(&self) -> [(&'static str, f64); 3] {
+        [
+            ("max_hits", f64::from(self.max.max(1))),
+            ("mean_hits", self.mean.max(f64::MIN_POSITIVE)),
+            ("p95_hits", f64::from(self.p95.max(1))),
+        ]
+    }
+
     /// Count every pixel's hits with the reference.
     fn over_every_pixel(cam: &Camera, refi: &Reference) -> HitStats {
         let counts: Vec<u32> = (0..HEIGHT)

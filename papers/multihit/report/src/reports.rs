@@ -303,17 +303,12 @@ pub(crate) fn multihit_summary(a: &ReproduceArgs) -> AppResult<Produced> {
             let mut r = k(Row::new("speedup_node_culling_over_naive", s));
             r.ci95 = ci;
             rows.push(r);
-            let h = &sc.pr.hits;
-            let n = f64::from(*n);
-            rows.push(k(Row::new(
-                "fraction_of_max_hits",
-                n / f64::from(h.max.max(1)),
-            )));
-            rows.push(k(Row::new("fraction_of_mean_hits", n / h.mean)));
-            rows.push(k(Row::new(
-                "fraction_of_p95_hits",
-                n / f64::from(h.p95.max(1)),
-            )));
+            for (per, by) in sc.pr.hits.scales() {
+                rows.push(k(Row::new(
+                    &format!("fraction_of_{per}"),
+                    f64::from(*n) / by,
+                )));
+            }
         }
     }
     rows.extend(group_rows(&scenes));

@@ -44,6 +44,11 @@ pub(crate) struct Stand {
     pub(crate) group: Group,
 }
 
+/// A viewpoint: the eye, the point looked at, the vertical field of view.
+const fn view(eye: [f32; 3], target: [f32; 3], fov: f32) -> Option<View> {
+    Some(View { eye, target, fov })
+}
+
 const fn deep(name: &'static str, scene: &'static str, view: Option<View>) -> Stand {
     Stand {
         name,
@@ -75,22 +80,14 @@ pub(crate) const STANDS: [Stand; 12] = [
     deep(
         "truck-cargo",
         "truck",
-        Some(View {
-            eye: [4.0, 3.0, 9.0],
-            target: [0.0, 2.1, 1.5],
-            fov: 30.0,
-        }),
+        view([4.0, 3.0, 9.0], [0.0, 2.1, 1.5], 30.0),
     ),
     // Inside the cab above the dashboard, looking back through the seats,
     // the cab's back wall and the cargo body.
     deep(
         "truck-interior",
         "truck",
-        Some(View {
-            eye: [0.0, 2.4, -3.2],
-            target: [0.0, 1.8, 3.0],
-            fov: 70.0,
-        }),
+        view([0.0, 2.4, -3.2], [0.0, 1.8, 3.0], 70.0),
     ),
     deep("layers", "layers", None),
     // pbrt-v3's camera on the BMW M6, its field of view narrowed from 30 to
@@ -98,21 +95,13 @@ pub(crate) const STANDS: [Stand; 12] = [
     deep(
         "bmw",
         "bmw",
-        Some(View {
-            eye: [-11.0, 0.8, 5.0],
-            target: [-2.0, -0.5, 0.0],
-            fov: 18.0,
-        }),
+        view([-11.0, 0.8, 5.0], [-2.0, -0.5, 0.0], 18.0),
     ),
     // Into the Fairy Forest stand-in's trees from the forest's edge.
     deep(
         "fairy",
         "fairy",
-        Some(View {
-            eye: [0.0, 4.0, 18.0],
-            target: [0.0, 3.0, 0.0],
-            fov: 25.0,
-        }),
+        view([0.0, 4.0, 18.0], [0.0, 3.0, 0.0], 25.0),
     ),
     deep("courtyard", "courtyard", None),
     shallow("conference"),

@@ -41,6 +41,11 @@ pub enum Cmd {
     /// and simulated on the model of this CPU over the same rays; Kendall tau
     /// and mean error of the times relative to single-ray BVH4.
     Validate(ValidateCli),
+    /// Check the model against this host on the kernels' own instruction
+    /// streams: windows of every traversal kernel's recorded trace run as
+    /// x86-64 loops on this host and on the model of this CPU; Kendall tau
+    /// and mean error of cycles per iteration.
+    Replay(drs_report::replay::ReplayCli),
     /// Time one traversal kernel over one tile's stream on a grid of one or two
     /// config fields (`--vary classes.vfma.lat=3,4,5,6 --vary core.width=2,4,6`;
     /// `--vary isa=sse4,avx2` varies the lanes): a table, and a PNG with --out.

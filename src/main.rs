@@ -188,6 +188,10 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
             let f = a.format;
             show(drs_report::native::native_report(&a.args()?)?, f)
         }
+        Cmd::Replay(a) => {
+            let f = a.format;
+            show(drs_report::replay::replay_report(&a.args())?, f)
+        }
         Cmd::Validate(a) => {
             let f = a.format;
             show(drs_report::validate::validate_report(&a.args())?, f)

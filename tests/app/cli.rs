@@ -802,3 +802,68 @@ fn sweep_runs_a_reports_cells_on_a_grid_and_plots_them() {
         assert!(e.contains(says), "{bad:?}: {e}");
     }
 }
+
+#[test]
+fn replay_runs_every_kernels_windows_on_the_host_and_the_model() {
+    if !std::arch::is_x86_feature_detected!("avx2") || !std::arch::is_x86_feature_detected!("fma") {
+        eprintln!("skipped: the replayed AVX2 windows need AVX2 + FMA");
+        return;
+    }
+    let j = json(&rtsim(&[
+        "replay",
+        "--scene",
+        "sphere",
+        "--stream",
+        "primary",
+        "--tile",
+        "4",
+        "--spp",
+        "2",
+        "--isa",
+        "avx2",
+        "--windows",
+        "1",
+        "--min-ops",
+        "100",
+        "--max-ops",
+        "300",
+        "--repeat",
+        "2",
+        "--machine",
+        "zen3",
+        "--format",
+        "json",
+    ]));
+    assert_eq!(j["report"], "replay");
+    let rows = j["rows"].as_array().unwrap();
+    let windows = |k: &str| {
+        rows.iter()
+            .find(|r| r["metric"] == "windows" && r["kernel"] == k)
+            .and_then(|r| r["value"].as_f64())
+    };
+    // Every traversal kernel that runs 8 lanes, one window each.
+    for k in [
+        "single-bvh2",
+        "single-bvh4",
+        "packet-bvh2",
+        "packet-bvh4",
+        "hybrid-bvh4",
+        "drs-bvh2",
+        "drs-bvh4",
+    ] {
+        assert_eq!(windows(k), Some(1.0), "{k}");
+    }
+    assert_eq!(windows("all"), Some(7.0));
+    let cpi = |m: &str| {
+        rows.iter()
+            .find(|r| r["metric"] == m && r["kernel"] == "all")
+            .unwrap()["value"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(
+        cpi("host_cycles_per_instruction") > 0.05 && cpi("model_cycles_per_instruction") > 0.05
+    );
+    let e = err(&rtsim(&["replay", "--windows", "0", "--machine", "zen3"]));
+    assert!(e.contains("--windows"), "{e}");
+}

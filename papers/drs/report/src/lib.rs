@@ -16,6 +16,7 @@ mod figures;
 mod measure;
 pub mod native;
 pub mod paper;
+pub mod replay;
 pub mod run;
 pub mod sweep;
 mod table1;

@@ -125,6 +125,10 @@ fn eval(x: &Inst, st: &State, c: &Ctx) -> (V, V) {
             let r = two(u64::wrapping_add);
             (r, fl(r))
         }
+        N::And => {
+            let r = two(|a, b| a & b);
+            (r, fl(r))
+        }
         N::Imul => (two(u64::wrapping_mul), None),
         N::Popcnt => (a.map(|a| u64::from(a.count_ones())), fl(a)),
         N::Lea => {
@@ -135,6 +139,9 @@ fn eval(x: &Inst, st: &State, c: &Ctx) -> (V, V) {
                 .try_fold(m.addr, |s, &r| Some(s.wrapping_add(st.get(r)?)));
             (s, None)
         }
+        // `cmp r, r` (a compare with its constant operand dropped) is equal
+        // whatever r holds.
+        N::Cmp if x.uses.len() == 1 => (None, Some(1)),
         N::Cmp => (None, two(|a, b| u64::from(a == b))),
         N::Test => (None, two(|a, b| u64::from(a & b == 0))),
         N::Setne => {

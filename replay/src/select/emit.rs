@@ -152,8 +152,10 @@ impl Sel<'_> {
             }
             (OpClass::Alu, 1) if dies(self, 0) => {
                 let d = self.dst(i, File::G, Some(s[0]), &s);
-                let mut m = self.inst(o.class, Code::Shl_rm64_imm8);
-                m.ops = vec![Opnd::R(d), Opnd::Imm(2)];
+                // `and r, r`: one ALU uop that keeps the value, so loop-carried
+                // values settle (a shift or add would grow them every iteration).
+                let mut m = self.inst(o.class, Code::And_rm64_r64);
+                m.ops = vec![Opnd::R(d), Opnd::R(d)];
                 m.uses = vec![d];
                 m.defs = vec![d, Reg::Flags];
                 m
@@ -170,7 +172,7 @@ impl Sel<'_> {
                 let code = if o.class == OpClass::IMul {
                     Code::Imul_r64_rm64
                 } else {
-                    Code::Add_rm64_r64
+                    Code::And_rm64_r64
                 };
                 let mut m = self.inst(o.class, code);
                 m.ops = vec![Opnd::R(d), Opnd::R(x)];
@@ -196,11 +198,16 @@ impl Sel<'_> {
                 m
             }
             _ => {
-                // lea: two components for alu, three for lea3.
+                // lea: `[a]` or `[a + b]` for alu (a non-destructive form), three
+                // components for lea3.
                 let d = self.dst(i, File::G, None, &s);
                 let mut m = self.inst(o.class, Code::Lea_r64_m);
                 let base = s.first().copied();
-                let index = s.get(1).copied().or(base);
+                let index = if o.class == OpClass::Lea3 {
+                    s.get(1).copied().or(base)
+                } else {
+                    s.get(1).copied()
+                };
                 let mut mr = crate::program::MemRef::at(
                     if o.class == OpClass::Lea3 { 8 } else { 0 },
                     0,

@@ -190,7 +190,25 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
         }
         Cmd::Replay(a) => {
             let f = a.format;
-            show(drs_report::replay::replay_report(&a.args())?, f)
+            let all: [(&str, repro::replay::Traces); 5] = [
+                ("drs", &drs_report::replay::traces),
+                ("mft", &mft_report::replay::traces),
+                ("mbvh", &mbvh_report::replay::traces),
+                ("multihit", &multihit_report::replay::traces),
+                ("volume", &volume_report::replay::traces),
+            ];
+            for p in &a.papers {
+                if !all.iter().any(|(n, _)| n == p) {
+                    return Err(AppError(format!(
+                        "--paper {p}: unknown (drs, mft, mbvh, multihit, volume)"
+                    )));
+                }
+            }
+            let chosen: Vec<_> = all
+                .into_iter()
+                .filter(|(n, _)| a.papers.is_empty() || a.papers.iter().any(|p| p == n))
+                .collect();
+            show(repro::replay::replay_report(&a.args(), &chosen)?, f)
         }
         Cmd::Validate(a) => {
             let f = a.format;

@@ -20,6 +20,7 @@ pub mod options;
 pub mod plot;
 pub mod png;
 pub mod progress;
+pub mod replay;
 pub mod report;
 pub mod sampling;
 pub mod scenes;

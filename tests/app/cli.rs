@@ -810,29 +810,8 @@ fn replay_runs_every_kernels_windows_on_the_host_and_the_model() {
         return;
     }
     let j = json(&rtsim(&[
-        "replay",
-        "--scene",
-        "sphere",
-        "--stream",
-        "primary",
-        "--tile",
-        "4",
-        "--spp",
-        "2",
-        "--isa",
-        "avx2",
-        "--windows",
-        "1",
-        "--min-ops",
-        "100",
-        "--max-ops",
-        "300",
-        "--repeat",
-        "2",
-        "--machine",
-        "zen3",
-        "--format",
-        "json",
+        "replay", "--paper", "drs", "--isa", "avx2", "--windows", "1", "--min-ops", "100",
+        "--max-ops", "300", "--repeat", "2", "--machine", "zen3", "--format", "json",
     ]));
     assert_eq!(j["report"], "replay");
     let rows = j["rows"].as_array().unwrap();
@@ -866,4 +845,6 @@ fn replay_runs_every_kernels_windows_on_the_host_and_the_model() {
     );
     let e = err(&rtsim(&["replay", "--windows", "0", "--machine", "zen3"]));
     assert!(e.contains("--windows"), "{e}");
+    let e = err(&rtsim(&["replay", "--paper", "nope", "--machine", "zen3"]));
+    assert!(e.contains("--paper nope"), "{e}");
 }

@@ -11,6 +11,7 @@ use drs_kernels::methods::{Kernel, Run};
 use rayon::prelude::*;
 use repro::host::HostCpu;
 use repro::report::Format;
+use repro::sampling::{kendall_tau, GOAL_ERROR, GOAL_TAU};
 use repro::{AppError, AppResult, MachineSpec, Report, Row};
 use scene::loaded::Loaded;
 use sim::MachineConfig;
@@ -39,12 +40,6 @@ pub struct ValidateArgs {
     pub format: Format,
 }
 
-/// The goals the issue set: tau of the kernel order, mean error of the
-/// relative times.
-pub const GOAL_TAU: f64 = 0.9;
-/// See [`GOAL_TAU`].
-pub const GOAL_ERROR: f64 = 0.15;
-
 /// One kernel on one scene's stream: native median seconds and simulated cycles.
 #[derive(Clone, Debug)]
 struct Point {
@@ -56,28 +51,6 @@ struct Point {
     /// Simulated instructions (the model's count, independent of timing).
     instructions: u64,
     rays: usize,
-}
-
-/// Kendall's tau-b of paired observations (ties in either count against
-/// neither order); `None` with fewer than two pairs or all tied.
-#[must_use]
-pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
-    use std::cmp::Ordering::Equal;
-    let (mut c, mut d, mut tx, mut ty) = (0u64, 0u64, 0u64, 0u64);
-    for i in 0..x.len() {
-        for j in i + 1..x.len() {
-            match (x[i].partial_cmp(&x[j]), y[i].partial_cmp(&y[j])) {
-                (Some(Equal), Some(Equal)) | (None, _) | (_, None) => {}
-                (Some(Equal), _) => tx += 1,
-                (_, Some(Equal)) => ty += 1,
-                (a, b) if a == b => c += 1,
-                _ => d += 1,
-            }
-        }
-    }
-    let (c, d, tx, ty) = (c as f64, d as f64, tx as f64, ty as f64);
-    let den = ((c + d + tx) * (c + d + ty)).sqrt();
-    (den > 0.0).then(|| (c - d) / den)
 }
 
 /// The model to check against: `--machine`, or this host's config.

@@ -13,6 +13,7 @@
 mod counters;
 mod frame;
 pub mod paper;
+pub mod replay;
 mod rates;
 mod timing;
 

@@ -15,6 +15,7 @@ mod light;
 mod loose;
 pub mod paper;
 pub mod perset;
+pub mod replay;
 mod quality;
 mod shading;
 mod table1;

@@ -14,6 +14,7 @@ mod crossover;
 mod embree;
 mod measure;
 pub mod paper;
+pub mod replay;
 mod reports;
 mod scenes;
 

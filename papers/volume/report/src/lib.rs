@@ -13,6 +13,7 @@ mod custom;
 mod images;
 mod measure;
 pub mod paper;
+pub mod replay;
 mod reports;
 mod rows;
 mod scaling;

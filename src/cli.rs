@@ -45,7 +45,7 @@ pub enum Cmd {
     /// streams: windows of every traversal kernel's recorded trace run as
     /// x86-64 loops on this host and on the model of this CPU; Kendall tau
     /// and mean error of cycles per iteration.
-    Replay(ReplayCli),
+    Replay(repro::replay::ReplayCli),
     /// Time one traversal kernel over one tile's stream on a grid of one or two
     /// config fields (`--vary classes.vfma.lat=3,4,5,6 --vary core.width=2,4,6`;
     /// `--vary isa=sse4,avx2` varies the lanes): a table, and a PNG with --out.
@@ -611,68 +611,6 @@ impl ValidateCli {
             repeat: self.repeat,
             machine: self.machine,
             sets: self.sets,
-            format: self.format,
-        }
-    }
-}
-
-/// `rtsim replay` arguments.
-#[derive(Args, Debug)]
-pub struct ReplayCli {
-    /// Papers whose kernels to replay (repeat the flag; default: all five):
-    /// drs, mft, mbvh, multihit, volume.
-    #[arg(long = "paper")]
-    pub papers: Vec<String>,
-    /// Window seed.
-    #[arg(long, default_value_t = 7)]
-    pub seed: u64,
-    /// Windows cut from each recorded trace.
-    #[arg(long, default_value_t = 2)]
-    pub windows: usize,
-    /// Shortest window, in recorded ops.
-    #[arg(long, default_value_t = 200)]
-    pub min_ops: usize,
-    /// Longest window, in recorded ops.
-    #[arg(long, default_value_t = 2000)]
-    pub max_ops: usize,
-    /// Flavours (repeat the flag; default: every one this host runs).
-    #[arg(long = "isa", value_parser = parse_isa)]
-    pub isa: Vec<FlavourId>,
-    /// The model (default: the built-in config of this host's CPU).
-    #[arg(long)]
-    pub machine: Option<String>,
-    /// Override a config field of the model: `--set core.rob=256`.
-    #[arg(long = "set", value_name = "FIELD=VALUE")]
-    pub sets: Vec<String>,
-    /// Timed runs of each loop length (the minimum is kept).
-    #[arg(long, default_value_t = 15)]
-    pub repeat: u32,
-    /// Write each window's listing (assembly, each line with the class the
-    /// model prices it as and its inputs' steady values, `+` where the
-    /// replay added it) into this folder.
-    #[arg(long, value_name = "DIR")]
-    pub listing: Option<PathBuf>,
-    /// Output format: text, json or csv.
-    #[arg(long, value_parser = Format::from_name, default_value = "text")]
-    pub format: Format,
-}
-
-impl ReplayCli {
-    /// The library's options.
-    pub fn args(self) -> repro::replay::ReplayArgs {
-        repro::replay::ReplayArgs {
-            seed: self.seed,
-            windows: self.windows,
-            ops: (self.min_ops, self.max_ops),
-            flavours: if self.isa.is_empty() {
-                repro::replay::host_flavours()
-            } else {
-                self.isa
-            },
-            machine: self.machine,
-            sets: self.sets,
-            repeat: self.repeat,
-            listing: self.listing,
             format: self.format,
         }
     }

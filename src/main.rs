@@ -197,17 +197,7 @@ fn dispatch(cmd: Cmd) -> AppResult<()> {
                 ("multihit", &multihit_report::replay::traces),
                 ("volume", &volume_report::replay::traces),
             ];
-            for p in &a.papers {
-                if !all.iter().any(|(n, _)| n == p) {
-                    return Err(AppError(format!(
-                        "--paper {p}: unknown (drs, mft, mbvh, multihit, volume)"
-                    )));
-                }
-            }
-            let chosen: Vec<_> = all
-                .into_iter()
-                .filter(|(n, _)| a.papers.is_empty() || a.papers.iter().any(|p| p == n))
-                .collect();
+            let chosen = repro::replay::choose(&all, &a.papers)?;
             show(repro::replay::replay_report(&a.args(), &chosen)?, f)
         }
         Cmd::Validate(a) => {

@@ -182,7 +182,11 @@ pub fn replay_report(a: &ReplayArgs, papers: &[(&str, Traces)]) -> AppResult<Rep
         for (n, w) in windows.into_iter().enumerate() {
             if let Some(dir) = &a.listing {
                 std::fs::create_dir_all(dir)?;
-                let f = dir.join(format!("{}-{}-{n:03}.asm", w.kernel.replace('/', "-"), fl.name()));
+                let f = dir.join(format!(
+                    "{}-{}-{n:03}.asm",
+                    w.kernel.replace('/', "-"),
+                    fl.name()
+                ));
                 crate::io::write_atomic(&f, replay::listing(&w.built).as_bytes())?;
             }
             let p = &w.built.program;
@@ -351,4 +355,97 @@ fn notes(points: &[Point], failed: &[(String, String)]) -> Vec<String> {
         ),
         "Added instructions (copies for two-operand forms and merges, flag tests, spills, moves between register files) are in both the host's loop and the model's trace; a folded memory operand is replayed as its own load and priced so.".into(),
     ]
+}
+
+/// `rtsim replay` arguments.
+#[derive(clap::Args, Debug)]
+pub struct ReplayCli {
+    /// Papers whose kernels to replay (repeat the flag; default: all five):
+    /// drs, mft, mbvh, multihit, volume.
+    #[arg(long = "paper")]
+    pub papers: Vec<String>,
+    /// Window seed.
+    #[arg(long, default_value_t = 7)]
+    pub seed: u64,
+    /// Windows cut from each recorded trace.
+    #[arg(long, default_value_t = 2)]
+    pub windows: usize,
+    /// Shortest window, in recorded ops.
+    #[arg(long, default_value_t = 200)]
+    pub min_ops: usize,
+    /// Longest window, in recorded ops.
+    #[arg(long, default_value_t = 2000)]
+    pub max_ops: usize,
+    /// Flavours (repeat the flag; default: every one this host runs).
+    #[arg(long = "isa", value_parser = parse_flavour)]
+    pub isa: Vec<FlavourId>,
+    /// The model (default: the built-in config of this host's CPU).
+    #[arg(long)]
+    pub machine: Option<String>,
+    /// Override a config field of the model: `--set core.rob=256`.
+    #[arg(long = "set", value_name = "FIELD=VALUE")]
+    pub sets: Vec<String>,
+    /// Timed runs of each loop length (the minimum is kept).
+    #[arg(long, default_value_t = 15)]
+    pub repeat: u32,
+    /// Write each window's listing (assembly, each line with the class the
+    /// model prices it as and its inputs' steady values, `+` where the
+    /// replay added it) into this folder.
+    #[arg(long, value_name = "DIR")]
+    pub listing: Option<std::path::PathBuf>,
+    /// Output format: text, json or csv.
+    #[arg(long, value_parser = Format::from_name, default_value = "text")]
+    pub format: Format,
+}
+
+impl ReplayCli {
+    /// The library's options.
+    #[must_use]
+    pub fn args(self) -> ReplayArgs {
+        ReplayArgs {
+            seed: self.seed,
+            windows: self.windows,
+            ops: (self.min_ops, self.max_ops),
+            flavours: if self.isa.is_empty() {
+                host_flavours()
+            } else {
+                self.isa
+            },
+            machine: self.machine,
+            sets: self.sets,
+            repeat: self.repeat,
+            listing: self.listing,
+            format: self.format,
+        }
+    }
+}
+
+fn parse_flavour(s: &str) -> Result<FlavourId, String> {
+    FlavourId::from_name(s)
+        .ok_or_else(|| format!("unknown isa '{s}' (sse4, avx2, avx512 run on x86-64 hosts)"))
+}
+
+/// The papers `--paper` names (all of `all` when none), or which name is
+/// unknown.
+///
+/// # Errors
+/// A name that is not one of `all`'s.
+pub fn choose<'a>(
+    all: &[(&'a str, Traces<'a>)],
+    names: &[String],
+) -> AppResult<Vec<(&'a str, Traces<'a>)>> {
+    for n in names {
+        if !all.iter().any(|(p, _)| p == n) {
+            let known: Vec<&str> = all.iter().map(|p| p.0).collect();
+            return Err(AppError(format!(
+                "--paper {n}: unknown ({})",
+                known.join(", ")
+            )));
+        }
+    }
+    Ok(all
+        .iter()
+        .filter(|(p, _)| names.is_empty() || names.iter().any(|n| n == p))
+        .copied()
+        .collect())
 }

@@ -123,6 +123,34 @@ pub fn t95(df: usize) -> f64 {
         .map_or(T[0].1, |&(_, t)| t)
 }
 
+/// The goals the model is held to against a host (`rtsim validate`,
+/// `rtsim replay`): Kendall tau of the order, and mean absolute error.
+pub const GOAL_TAU: f64 = 0.9;
+/// See [`GOAL_TAU`].
+pub const GOAL_ERROR: f64 = 0.15;
+
+/// Kendall's tau-b of paired observations (ties in either count against
+/// neither order); `None` with fewer than two pairs or all tied.
+#[must_use]
+pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
+    use std::cmp::Ordering::Equal;
+    let (mut c, mut d, mut tx, mut ty) = (0u64, 0u64, 0u64, 0u64);
+    for i in 0..x.len() {
+        for j in i + 1..x.len() {
+            match (x[i].partial_cmp(&x[j]), y[i].partial_cmp(&y[j])) {
+                (Some(Equal), Some(Equal)) | (None, _) | (_, None) => {}
+                (Some(Equal), _) => tx += 1,
+                (_, Some(Equal)) => ty += 1,
+                (a, b) if a == b => c += 1,
+                _ => d += 1,
+            }
+        }
+    }
+    let (c, d, tx, ty) = (c as f64, d as f64, tx as f64, ty as f64);
+    let den = ((c + d + tx) * (c + d + ty)).sqrt();
+    (den > 0.0).then(|| (c - d) / den)
+}
+
 #[cfg(test)]
 mod tests {
     use super::{ratio_ci, strata_with_previous, systematic_ratio_ci, t95};
@@ -183,32 +211,4 @@ mod tests {
         let flat: Vec<(f64, f64)> = (0..8).map(|_| (3.0, 1.5)).collect();
         assert!(systematic_ratio_ci(&flat).unwrap() < 1e-12);
     }
-}
-
-/// The goals the model is held to against a host (`rtsim validate`,
-/// `rtsim replay`): Kendall tau of the order, and mean absolute error.
-pub const GOAL_TAU: f64 = 0.9;
-/// See [`GOAL_TAU`].
-pub const GOAL_ERROR: f64 = 0.15;
-
-/// Kendall's tau-b of paired observations (ties in either count against
-/// neither order); `None` with fewer than two pairs or all tied.
-#[must_use]
-pub fn kendall_tau(x: &[f64], y: &[f64]) -> Option<f64> {
-    use std::cmp::Ordering::Equal;
-    let (mut c, mut d, mut tx, mut ty) = (0u64, 0u64, 0u64, 0u64);
-    for i in 0..x.len() {
-        for j in i + 1..x.len() {
-            match (x[i].partial_cmp(&x[j]), y[i].partial_cmp(&y[j])) {
-                (Some(Equal), Some(Equal)) | (None, _) | (_, None) => {}
-                (Some(Equal), _) => tx += 1,
-                (_, Some(Equal)) => ty += 1,
-                (a, b) if a == b => c += 1,
-                _ => d += 1,
-            }
-        }
-    }
-    let (c, d, tx, ty) = (c as f64, d as f64, tx as f64, ty as f64);
-    let den = ((c + d + tx) * (c + d + ty)).sqrt();
-    (den > 0.0).then(|| (c - d) / den)
 }

@@ -810,8 +810,23 @@ fn replay_runs_every_kernels_windows_on_the_host_and_the_model() {
         return;
     }
     let j = json(&rtsim(&[
-        "replay", "--paper", "drs", "--isa", "avx2", "--windows", "1", "--min-ops", "100",
-        "--max-ops", "300", "--repeat", "2", "--machine", "zen3", "--format", "json",
+        "replay",
+        "--paper",
+        "drs",
+        "--isa",
+        "avx2",
+        "--windows",
+        "1",
+        "--min-ops",
+        "100",
+        "--max-ops",
+        "300",
+        "--repeat",
+        "2",
+        "--machine",
+        "zen3",
+        "--format",
+        "json",
     ]));
     assert_eq!(j["report"], "replay");
     let rows = j["rows"].as_array().unwrap();
@@ -820,7 +835,8 @@ fn replay_runs_every_kernels_windows_on_the_host_and_the_model() {
             .find(|r| r["metric"] == "windows" && r["kernel"] == k)
             .and_then(|r| r["value"].as_f64())
     };
-    // Every traversal kernel that runs 8 lanes, one window each.
+    // Every DRS kernel on 8 lanes: a window from each of its six traces
+    // (two scenes, three streams).
     for k in [
         "single-bvh2",
         "single-bvh4",
@@ -830,9 +846,9 @@ fn replay_runs_every_kernels_windows_on_the_host_and_the_model() {
         "drs-bvh2",
         "drs-bvh4",
     ] {
-        assert_eq!(windows(k), Some(1.0), "{k}");
+        assert_eq!(windows(&format!("drs/{k}")), Some(6.0), "{k}");
     }
-    assert_eq!(windows("all"), Some(7.0));
+    assert_eq!(windows("all"), Some(42.0));
     let cpi = |m: &str| {
         rows.iter()
             .find(|r| r["metric"] == m && r["kernel"] == "all")

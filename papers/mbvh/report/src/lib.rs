@@ -13,8 +13,8 @@
 mod counters;
 mod frame;
 pub mod paper;
-pub mod replay;
 mod rates;
+pub mod replay;
 mod timing;
 
 use repro::{Opt, ReportDef};

@@ -56,10 +56,15 @@ fn tiles_wide() -> (u32, u32) {
 /// Pixel-centre rays of tile `k` (raster order), path = pixel in the tile.
 fn tile_rays(cam: &Camera, k: usize) -> RayStream {
     let (tw, _) = tiles_wide();
-    let (x0, y0) = ((k as u32 % tw) * TILE, (k as u32 / tw) * TILE);
+    pixel_rays(cam, ((k as u32 % tw) * TILE, (k as u32 / tw) * TILE), TILE)
+}
+
+/// Pixel-centre primary rays of the `size` x `size` block at `(x0, y0)`,
+/// path = pixel in the block (raster order).
+pub(crate) fn pixel_rays(cam: &Camera, (x0, y0): (u32, u32), size: u32) -> RayStream {
     let (mut org, mut dir) = (Vec::new(), Vec::new());
-    for y in 0..TILE {
-        for x in 0..TILE {
+    for y in 0..size {
+        for x in 0..size {
             let (o, d) = cam.ray(f64::from(x0 + x) + 0.5, f64::from(y0 + y) + 0.5);
             org.push(o.map(|c| c as f32));
             dir.push(d.map(|c| c as f32));

@@ -3,30 +3,14 @@
 //! rays of the layers scene (its many stacked hits), at N_query 1, 4 and
 //! 16 (node culling's Listing 1 walk grows with it).
 
+use crate::measure::pixel_rays;
 use isa::{FlavourId, Trace};
 use multihit_kernels::filters::Insertion;
 use multihit_kernels::{Kernel, Run, Tree, NAIVE_CAPACITY};
 use repro::{AppError, AppResult};
 use scene::scene::Scene;
-use scene::workload::{packet_slots, RayStream, StreamKind};
+use scene::workload::packet_slots;
 use std::sync::Arc;
-
-/// The `size` x `size` block of pixel-centre primary rays at the image's
-/// middle.
-fn block(scene: &Scene, size: u32) -> RayStream {
-    let cam = &scene.config.camera;
-    let (x0, y0) = (cam.width / 2 - size / 2, cam.height / 2 - size / 2);
-    let (mut org, mut dir) = (Vec::new(), Vec::new());
-    for y in 0..size {
-        for x in 0..size {
-            let (o, d) = cam.ray(f64::from(x0 + x) + 0.5, f64::from(y0 + y) + 0.5);
-            org.push(o.map(|c| c as f32));
-            dir.push(d.map(|c| c as f32));
-        }
-    }
-    let n = org.len();
-    RayStream::from_rays(StreamKind::Primary, org, dir, vec![f32::INFINITY; n])
-}
 
 /// Every kernel at each N_query, on `fl`.
 ///
@@ -35,7 +19,8 @@ fn block(scene: &Scene, size: u32) -> RayStream {
 pub fn traces(fl: FlavourId) -> AppResult<Vec<(String, Trace)>> {
     let scene = Scene::load("layers")?;
     let tree = Arc::new(Tree::build(scene.mesh.clone()).map_err(AppError)?);
-    let rays = Arc::new(block(&scene, 16));
+    let cam = &scene.config.camera;
+    let rays = Arc::new(pixel_rays(cam, (cam.width / 2 - 8, cam.height / 2 - 8), 16));
     let slots = Arc::new(packet_slots(&rays, 16, 1, fl.lanes()));
     let mut out = Vec::new();
     for kernel in Kernel::ALL {
@@ -49,7 +34,10 @@ pub fn traces(fl: FlavourId) -> AppResult<Vec<(String, Trace)>> {
                 slots: Some(slots.clone()),
                 insertion: Insertion::Rows,
             };
-            let name = kernel.name().replace(" (single ray)", "-single").replace(' ', "-");
+            let name = kernel
+                .name()
+                .replace(" (single ray)", "-single")
+                .replace(' ', "-");
             out.push((name, isa::record(&run, fl, kernel.name()).0));
         }
     }

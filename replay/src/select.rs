@@ -136,7 +136,7 @@ impl Sel<'_> {
         let o = self.ops[i];
         match tied {
             Some(r) => {
-                let tied_v = self.a_holder(r);
+                let tied_v = self.a.holder(r);
                 if tied_v.is_some_and(|v| self.a.live_after(v, i)) {
                     let d = self.a.take(file, i, keep, &mut self.out);
                     self.out.push(copy(d, r, self.vbytes, self.avx512));
@@ -153,10 +153,6 @@ impl Sel<'_> {
                 d
             }
         }
-    }
-
-    fn a_holder(&self, r: Reg) -> Option<ValId> {
-        self.a.holder(r)
     }
 
     fn bind_dst(&mut self, v: ValId, r: Reg) {

@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use isa::FlavourId;
 use repro::report::Format;
 use repro::scenes::{RenderArgs, Shade};
-use repro::{AppResult, Given, MachineSpec, ReportDef};
+use repro::{AppResult, Given, MachineSpec, Opt, ReportDef};
 use sim::{Fidelity, MachineConfig};
 use std::path::PathBuf;
 
@@ -242,6 +242,10 @@ pub struct ReproduceCli {
     /// Also write the report (and its figures) to DIR.
     #[arg(long, value_name = "DIR")]
     pub out: Option<PathBuf>,
+    /// Only these of the report's scenes or datasets, comma-separated
+    /// (`rtsim reproduce --help` names them).
+    #[arg(long, value_name = "A,B", value_delimiter = ',')]
+    pub scenes: Vec<String>,
     /// No progress bar on standard error (there is none when it is not a terminal).
     #[arg(long)]
     pub quiet: bool,
@@ -261,6 +265,7 @@ impl ReproduceCli {
             seed: self.seed,
             format: self.format,
             out: self.out,
+            scenes: self.scenes,
             quiet: self.quiet,
         }
     }
@@ -424,8 +429,13 @@ pub fn with_registries(cmd: clap::Command, reports: &[&ReportDef]) -> clap::Comm
         .iter()
         .map(|d| {
             let opts: Vec<&str> = d.options.iter().map(|o| o.flag()).collect();
+            let scenes = if d.options.contains(&Opt::Scenes) {
+                format!("; scenes {}", d.scenes.join(","))
+            } else {
+                String::new()
+            };
             format!(
-                "  {}: {} [machine {}; {}]",
+                "  {}: {} [machine {}; {}{scenes}]",
                 d.name,
                 d.about,
                 d.machine,

@@ -29,11 +29,13 @@ pub enum Opt {
     ThreadsPerCore,
     /// `--out DIR`: write the report (and its figures) there too.
     Out,
+    /// `--scenes a,b`: only these of the report's scenes.
+    Scenes,
 }
 
 impl Opt {
     /// Every option.
-    pub const ALL: [Opt; 9] = [
+    pub const ALL: [Opt; 10] = [
         Opt::Quick,
         Opt::Machine,
         Opt::Set,
@@ -43,6 +45,7 @@ impl Opt {
         Opt::Seed,
         Opt::ThreadsPerCore,
         Opt::Out,
+        Opt::Scenes,
     ];
     /// The command-line flag.
     #[must_use]
@@ -57,6 +60,7 @@ impl Opt {
             Opt::Seed => "--seed",
             Opt::ThreadsPerCore => "--threads-per-core",
             Opt::Out => "--out",
+            Opt::Scenes => "--scenes",
         }
     }
 }
@@ -72,6 +76,9 @@ pub struct ReportDef {
     pub machine: &'static str,
     /// The options it uses; any other given is an error.
     pub options: &'static [Opt],
+    /// Its scenes (or datasets), in the order it runs them: what
+    /// `--scenes` chooses from (empty: the report has no choice of scene).
+    pub scenes: &'static [&'static str],
     /// Compute it (figures written with `--out` go to the directory).
     pub run: fn(&ReproduceArgs) -> AppResult<Produced>,
 }
@@ -110,6 +117,8 @@ pub struct Given {
     pub format: Format,
     /// `--out`.
     pub out: Option<PathBuf>,
+    /// `--scenes`.
+    pub scenes: Vec<String>,
     /// `--quiet`: no progress bar.
     pub quiet: bool,
 }
@@ -128,6 +137,7 @@ impl Given {
             Opt::Seed => self.seed.is_some(),
             Opt::ThreadsPerCore => self.threads_per_core.is_some(),
             Opt::Out => self.out.is_some(),
+            Opt::Scenes => !self.scenes.is_empty(),
         }
     }
 }
@@ -172,6 +182,9 @@ pub struct ReproduceArgs {
     pub format: Format,
     /// Also write the report to this directory.
     pub out: Option<PathBuf>,
+    /// The scenes to run, in the report's order (all of its own unless
+    /// `--scenes` chose some).
+    pub scenes: Vec<&'static str>,
     /// The run's progress bar (hidden with `--quiet` or off a terminal).
     pub progress: crate::progress::Progress,
 }
@@ -195,6 +208,12 @@ impl ReproduceArgs {
         }
         m.cores = 1;
         Ok(m)
+    }
+
+    /// Whether scene (or dataset) `name` is among those to run.
+    #[must_use]
+    pub fn runs(&self, name: &str) -> bool {
+        self.scenes.contains(&name)
     }
 
     /// Where a figure's PNG goes: `--out DIR`, else the current directory.
@@ -242,6 +261,7 @@ impl ReportDef {
         if g.spp == Some(0) {
             return Err(AppError("--spp: 0 samples per pixel".into()));
         }
+        let scenes = self.chosen_scenes(&g.scenes)?;
         Ok(ReproduceArgs {
             name: self.name.into(),
             quick: g.quick,
@@ -256,8 +276,32 @@ impl ReportDef {
             seed: g.seed.unwrap_or(DEFAULT_SEED),
             format: g.format,
             out: g.out,
+            scenes,
             progress: crate::progress::Progress::for_terminal(self.name, g.quiet),
         })
+    }
+
+    /// The scenes `--scenes` names (all of the report's when none), in the
+    /// report's order; an unknown or repeated name is an error naming it.
+    fn chosen_scenes(&self, given: &[String]) -> AppResult<Vec<&'static str>> {
+        for (i, s) in given.iter().enumerate() {
+            if !self.scenes.contains(&s.as_str()) {
+                return Err(AppError(format!(
+                    "--scenes: '{s}' is not a scene of {} ({})",
+                    self.name,
+                    self.scenes.join(", ")
+                )));
+            }
+            if given[..i].contains(s) {
+                return Err(AppError(format!("--scenes: '{s}' given twice")));
+            }
+        }
+        Ok(self
+            .scenes
+            .iter()
+            .copied()
+            .filter(|s| given.is_empty() || given.iter().any(|g| g == s))
+            .collect())
     }
 }
 
@@ -344,9 +388,28 @@ mod tests {
         name: "t",
         about: "a test report",
         machine: "larrabee",
-        options: &[Opt::Quick, Opt::Tiles, Opt::Set],
+        options: &[Opt::Quick, Opt::Tiles, Opt::Set, Opt::Scenes],
+        scenes: &["a", "b", "c"],
         run: nothing,
     };
+
+    #[test]
+    fn scenes_are_the_reports_own_in_its_order() {
+        let with = |s: &[&str]| {
+            DEF.resolve(Given {
+                scenes: s.iter().map(|s| (*s).to_string()).collect(),
+                ..Given::default()
+            })
+        };
+        assert_eq!(with(&[]).unwrap().scenes, ["a", "b", "c"]);
+        let a = with(&["c", "a"]).unwrap();
+        assert_eq!(a.scenes, ["a", "c"]);
+        assert!(a.runs("c") && !a.runs("b"));
+        let e = with(&["d"]).unwrap_err().0;
+        assert_eq!(e, "--scenes: 'd' is not a scene of t (a, b, c)");
+        let e = with(&["a", "a"]).unwrap_err().0;
+        assert_eq!(e, "--scenes: 'a' given twice");
+    }
 
     #[test]
     fn an_unused_option_is_an_error_naming_it() {

@@ -2,7 +2,6 @@
 //! methods against the field of view.
 
 use crate::measure::*;
-use crate::paper::*;
 use drs_kernels::methods::{Kernel, SharedLayouts};
 use rayon::prelude::*;
 use repro::{AppResult, Produced, ReproduceArgs, Row};
@@ -17,7 +16,7 @@ pub fn drs_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     let sizes = [4u32, 8, 12, 16, 20, 24, 28];
     let (mut rows, mut notes, mut ops_total) = (Vec::new(), Vec::new(), 0u64);
     let (mut s_mray, mut s_bpr) = (Vec::new(), Vec::new());
-    for (scene_name, ld) in DRS_SCENES.into_iter().zip(LoadAhead::over(DRS_SCENES)) {
+    for (&scene_name, ld) in a.scenes.iter().zip(LoadAhead::over(a.scenes.clone())) {
         let ld = ld?;
         let (mut pm, mut pb) = (Vec::new(), Vec::new());
         // The sizes are independent runs: one host thread each, in order,

@@ -39,6 +39,19 @@ const OPTIONS: &[Opt] = &[
     Opt::Seed,
     Opt::ThreadsPerCore,
     Opt::Out,
+    Opt::Scenes,
+];
+
+/// What `drs-fig6` reads: its one scene is the paper's.
+const FIG6_OPTIONS: &[Opt] = &[
+    Opt::Quick,
+    Opt::Machine,
+    Opt::Set,
+    Opt::Tiles,
+    Opt::Spp,
+    Opt::Seed,
+    Opt::ThreadsPerCore,
+    Opt::Out,
 ];
 
 /// The DRS paper's reports.
@@ -48,6 +61,7 @@ pub const REPORTS: [ReportDef; 4] = [
         about: "DRS Table 1: render speed and DRAM bytes per ray of the seven methods",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &paper::DRS_SCENES,
         run: table1::drs_table1,
     },
     ReportDef {
@@ -55,6 +69,7 @@ pub const REPORTS: [ReportDef; 4] = [
         about: "DRS Table 2: CPI and s/Gray of Single BVH4, Our BVH4 and its core loop",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &paper::DRS_SCENES,
         run: table2::drs_table2,
     },
     ReportDef {
@@ -62,13 +77,15 @@ pub const REPORTS: [ReportDef; 4] = [
         about: "DRS Figure 5: Our BVH4 against the tile size (PNG in --out DIR)",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &paper::DRS_SCENES,
         run: figures::drs_fig5,
     },
     ReportDef {
         name: "drs-fig6",
         about: "DRS Figure 6: three methods against the field of view (PNG in --out DIR)",
         machine: MACHINE,
-        options: OPTIONS,
+        options: FIG6_OPTIONS,
+        scenes: &["dragon"],
         run: figures::drs_fig6,
     },
 ];

@@ -313,6 +313,7 @@ impl SweepCli {
                 seed: self.seed,
                 format: self.format,
                 out: None,
+                scenes: Vec::new(),
                 quiet: true,
             };
             return Ok(Sweep::Report(

@@ -28,8 +28,9 @@ pub fn drs_table1(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
     let mray = |cycles: u64, rays: u64| chip_mray(&smp, cycles, rays);
-    let scenes = LoadAhead::over(PAPER_TABLE1.map(|s| s.0));
-    for ((scene_name, paper, paper_trav, paper_share), ld) in PAPER_TABLE1.into_iter().zip(scenes) {
+    let table: Vec<_> = PAPER_TABLE1.into_iter().filter(|s| a.runs(s.0)).collect();
+    let scenes = LoadAhead::over(table.iter().map(|s| s.0));
+    for ((scene_name, paper, paper_trav, paper_share), ld) in table.into_iter().zip(scenes) {
         let ld = ld?;
         let acc = measure_loaded(
             a,

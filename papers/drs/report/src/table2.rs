@@ -15,8 +15,9 @@ pub fn drs_table2(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut rows = Vec::new();
     let mut notes = Vec::new();
     let mut ops_total = 0u64;
-    let scenes = LoadAhead::over(PAPER_TABLE2.map(|s| s.0));
-    for ((scene_name, paper), ld) in PAPER_TABLE2.into_iter().zip(scenes) {
+    let table: Vec<_> = PAPER_TABLE2.into_iter().filter(|s| a.runs(s.0)).collect();
+    let scenes = LoadAhead::over(table.iter().map(|s| s.0));
+    for ((scene_name, paper), ld) in table.into_iter().zip(scenes) {
         let ld = ld?;
         let acc = measure_loaded(
             a,

@@ -15,12 +15,34 @@ fn report(name: &str, g: Given) -> serde_json::Value {
     serde_json::to_value(&p.report).unwrap()
 }
 
+/// The paper's scenes as `--scenes` takes them.
+fn named(scenes: &[&str]) -> Vec<String> {
+    scenes.iter().map(|s| (*s).to_string()).collect()
+}
+
+/// The tests' scenes: the smallest (crown, 0.1M triangles) and one of the
+/// paper's 0.8M-triangle scenes, whose long paths separate the core loop.
+/// The same checks on all four scenes: `cargo test -p drs-report -- --ignored`.
+const SMALL: [&str; 2] = ["crown", "bentley"];
+
 #[test]
 fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
+    table2_on(&SMALL);
+}
+
+#[test]
+#[ignore = "every paper scene (7.9M triangles): cargo test -p drs-report -- --ignored"]
+fn reproduce_drs_table2_on_every_paper_scene() {
+    table2_on(&drs_report::paper::DRS_SCENES);
+}
+
+/// `drs-table2` on `scenes`: every cell computed, on 1 and 2 host threads.
+fn table2_on(scenes: &[&str]) {
     let g = || Given {
         quick: true,
         tiles: Some(1),
         spp: Some(2),
+        scenes: named(scenes),
         ..Given::default()
     };
     let j = on_threads(2, "drs-table2", g());
@@ -53,7 +75,7 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
         assert_eq!(r.len(), 1, "{scene} {method} {metric}");
         r[0]["value"].as_f64().unwrap()
     };
-    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+    for &scene in scenes {
         for method in ["single-bvh4", "drs-bvh4"] {
             assert_eq!(
                 get(scene, method, "hit_mismatches"),
@@ -84,9 +106,9 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
         }
         let share = get(scene, "drs-bvh4", "core_loop_share");
         assert!(share > 0.0 && share <= 1.0, "{scene}: {share}");
-        if ["dragon", "sanmiguel"].contains(&scene) {
-            // (On this one-round sample the crown and bentley tiles hold
-            // few long paths; there the two are within a few percent.)
+        if scene != "crown" {
+            // (On this one-round sample the crown's tiles hold few long
+            // paths; there the two are within a few percent.)
             assert!(
                 get(scene, "drs-bvh4", "core_loop_cpi") < get(scene, "drs-bvh4", "cpi"),
                 "{scene}: the core loop has the lowest CPI"
@@ -94,31 +116,52 @@ fn reproduce_drs_table2_computes_every_cell_on_a_small_sample() {
         }
     }
     assert!(
-        rows.iter().filter(|r| r.get("paper").is_some()).count() >= 4 * 7,
+        rows.iter().filter(|r| r.get("paper").is_some()).count() >= scenes.len() * 7,
         "the paper's figures beside ours"
     );
     let notes = j["notes"].as_array().unwrap();
-    assert!(
-        notes
-            .iter()
-            .any(|n| n.as_str().unwrap().starts_with("dragon: Our BVH4")),
-        "each scene's comparison with the paper is spelled out: {notes:?}"
-    );
+    for scene in scenes {
+        assert!(
+            notes.iter().any(|n| n
+                .as_str()
+                .unwrap()
+                .starts_with(&format!("{scene}: Our BVH4"))),
+            "each scene's comparison with the paper is spelled out: {notes:?}"
+        );
+    }
 }
 
 #[test]
 fn reproduce_drs_table1_computes_all_seven_rows() {
+    table1_on(&SMALL);
+}
+
+#[test]
+#[ignore = "every paper scene (7.9M triangles): cargo test -p drs-report -- --ignored"]
+fn reproduce_drs_table1_on_every_paper_scene() {
+    table1_on(&drs_report::paper::DRS_SCENES);
+}
+
+/// `drs-table1` on `scenes`: all seven methods' rows.
+fn table1_on(scenes: &[&str]) {
     let j = report(
         "drs-table1",
         Given {
             tiles: Some(1),
             spp: Some(1),
             threads_per_core: Some(1),
+            scenes: named(scenes),
             ..Given::default()
         },
     );
     let rows = j["rows"].as_array().unwrap();
-    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+    assert!(
+        rows.iter()
+            .filter_map(|r| r.get("scene"))
+            .all(|s| scenes.contains(&s.as_str().unwrap())),
+        "only the scenes --scenes chose"
+    );
+    for &scene in scenes {
         for method in [
             "drs-bvh2",
             "drs-bvh4",
@@ -173,7 +216,23 @@ fn reproduce_drs_table1_computes_all_seven_rows() {
 
 #[test]
 fn reproduce_drs_figures_write_their_table_and_plot() {
-    let dir = std::env::temp_dir().join(format!("rtsim-figs-{}", std::process::id()));
+    figures_on(&SMALL[..1]);
+}
+
+#[test]
+#[ignore = "every paper scene (7.9M triangles): cargo test -p drs-report -- --ignored"]
+fn reproduce_drs_figures_on_every_paper_scene() {
+    figures_on(&drs_report::paper::DRS_SCENES);
+}
+
+/// `drs-fig6` (the dragon, its one scene) and `drs-fig5` on `scenes`:
+/// their rows and plots.
+fn figures_on(scenes: &[&str]) {
+    let dir = std::env::temp_dir().join(format!(
+        "rtsim-figs-{}-{}",
+        std::process::id(),
+        scenes.len()
+    ));
     let _ = std::fs::remove_dir_all(&dir);
     let j = report(
         "drs-fig6",
@@ -205,11 +264,12 @@ fn reproduce_drs_figures_write_their_table_and_plot() {
             spp: Some(1),
             threads_per_core: Some(1),
             out: Some(dir.clone()),
+            scenes: named(scenes),
             ..Given::default()
         },
     );
     let rows = j["rows"].as_array().unwrap();
-    for scene in ["crown", "bentley", "dragon", "sanmiguel"] {
+    for &scene in scenes {
         let tiles: Vec<&str> = rows
             .iter()
             .filter(|r| r["scene"] == scene && r["metric"] == "bytes_per_ray")

@@ -37,8 +37,20 @@ const RATE_OPTIONS: &[Opt] = &[
     Opt::Out,
 ];
 
+/// What Figure 2 reads: the rates' options and a choice of its scenes.
+const FIG2_OPTIONS: &[Opt] = &[
+    Opt::Quick,
+    Opt::Machine,
+    Opt::Set,
+    Opt::Tiles,
+    Opt::Res,
+    Opt::Seed,
+    Opt::Out,
+    Opt::Scenes,
+];
+
 /// What the whole-machine tables read (their machines are the paper's two).
-const TABLE_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Seed, Opt::Out];
+const TABLE_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Seed, Opt::Out, Opt::Scenes];
 
 /// The MBVH paper's reports.
 pub const REPORTS: [ReportDef; 5] = [
@@ -46,7 +58,8 @@ pub const REPORTS: [ReportDef; 5] = [
         name: "mbvh-fig2",
         about: "MBVH RS Figure 2: Mrays/s per scene (BMW, Conference, Ferrari) on one Core 2 core, 1-4 bounces (PNG in --out DIR)",
         machine: MACHINE,
-        options: RATE_OPTIONS,
+        options: FIG2_OPTIONS,
+        scenes: &rates::SCENES,
         run: rates::mbvh_fig2,
     },
     ReportDef {
@@ -54,6 +67,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "MBVH RS Figure 3: Conference Mrays/s on one Core 2 core, 1 to 7 bounces; ordering and ray layout measured (PNG in --out DIR)",
         machine: MACHINE,
         options: RATE_OPTIONS,
+        scenes: &["conference"],
         run: rates::mbvh_fig3,
     },
     ReportDef {
@@ -61,6 +75,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "MBVH RS Figures 4-6: box tests, box fetches, primitive tests per ray vs glossy bounces (PNG in --out DIR)",
         machine: MACHINE,
         options: COUNTER_OPTIONS,
+        scenes: &["conference"],
         run: counters::mbvh_fig4_6,
     },
     ReportDef {
@@ -68,6 +83,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "MBVH RS Figures 7-8: SIMD efficiency of primitive tests vs ray group size, 4 and 16 lanes (PNG in --out DIR)",
         machine: MACHINE,
         options: COUNTER_OPTIONS,
+        scenes: &["conference"],
         run: counters::mbvh_fig7_8,
     },
     ReportDef {
@@ -75,6 +91,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "MBVH RS Tables 1-2: frames per second at 512x512, 16 paths, 1-4 bounces, on the 24-core Dunnington and 8-core Core i7 models",
         machine: "dunnington-x7460",
         options: TABLE_OPTIONS,
+        scenes: &rates::SCENES,
         run: rates::mbvh_table1_2,
     },
 ];

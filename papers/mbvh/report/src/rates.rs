@@ -296,7 +296,7 @@ pub fn mbvh_fig3(a: &ReproduceArgs) -> AppResult<Produced> {
 }
 
 /// The scenes of Figure 2 and Tables 1-2, in the paper's order.
-const SCENES: [&str; 3] = ["bmw", "conference", "ferrari"];
+pub(crate) const SCENES: [&str; 3] = ["bmw", "conference", "ferrari"];
 
 /// Deepest frame of Figure 2 and Tables 1-2.
 const TABLE_BOUNCES: u32 = 4;
@@ -313,7 +313,8 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
     let (mut rows, mut notes, mut series) = (Vec::new(), Vec::new(), Vec::new());
     let (mut ops, mut bad) = (0, 0);
     // The scenes are independent runs: all at once, results in order.
-    let per_scene = SCENES
+    let per_scene = a
+        .scenes
         .par_iter()
         .map(|&scene| {
             let pr = Prepared::new(scene, res)?;
@@ -327,7 +328,7 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
             Ok((pr.scene.mesh.len(), rates))
         })
         .collect::<AppResult<Vec<_>>>()?;
-    for (scene, (triangles, rates)) in SCENES.into_iter().zip(per_scene) {
+    for (&scene, (triangles, rates)) in a.scenes.iter().zip(per_scene) {
         ops += rates[0].ops;
         bad += rates[0].bad;
         for (b, r) in (1..).zip(&rates) {
@@ -366,7 +367,7 @@ pub fn mbvh_fig2(a: &ReproduceArgs) -> AppResult<Produced> {
         report: header(
             name,
             (&m, a, res, start),
-            (SCENES.join(", "), ops, rows, notes),
+            (a.scenes.join(", "), ops, rows, notes),
         ),
         mismatches: bad as f64,
     })
@@ -388,7 +389,7 @@ pub fn mbvh_table1_2(a: &ReproduceArgs) -> AppResult<Produced> {
     let (mut rows, mut notes) = (Vec::new(), Vec::new());
     let (mut ops, mut bad) = (0, 0);
     let mut core_m = None;
-    for scene in SCENES {
+    for &scene in &a.scenes {
         let pr = Prepared::new(scene, res)?;
         // The two machines are independent runs: at once, results in order.
         let per_machine = machines
@@ -464,7 +465,7 @@ pub fn mbvh_table1_2(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut report = header(
         name,
         (&m, a, res, start),
-        (SCENES.join(", "), ops, rows, notes),
+        (a.scenes.join(", "), ops, rows, notes),
     );
     report.machine = Some(machines.map(|x| x.1).join(", "));
     Ok(Produced {

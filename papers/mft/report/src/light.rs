@@ -30,10 +30,6 @@ const SCALES: [f64; 5] = [0.125, 0.25, 0.5, 1.0, 2.0];
 /// the footprint stays where it is; measured.)
 const OFFSETS: [f64; 4] = [0.0, 0.5, 1.0, 2.0];
 
-/// The paper's Figure 6 scenes, and Fairy Forest (not in the figure; the
-/// stand-in farthest from Table 1's per-set counts in mft-table1).
-const SCENES: [&str; 4] = ["trex", "fern", "saloon", "fairy"];
-
 /// `rtsim reproduce mft-fig6`.
 pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let name = "mft-fig6";
@@ -52,7 +48,7 @@ pub fn mft_fig6(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut s_tris = Vec::new();
     let mut s_isec = Vec::new();
     let mut s_ratio = Vec::new();
-    for scene_name in SCENES {
+    for &scene_name in &a.scenes {
         let pr = Prepared::new(scene_name, res, name, false)?;
         let (pout, _) = isa::run_native(&pr.frusta(pr.primary.clone(), false, Shrink::None), fl);
         let hits = pixel_hits(&pr.primary, &pout, res as usize);

@@ -20,9 +20,6 @@ use scene::bvh::BuildConfig;
 use scene::workload::SampleSplit;
 use std::time::Instant;
 
-/// The stand-ins, in Table 1's order.
-const SCENES: [&str; 4] = ["trex", "fern", "saloon", "fairy"];
-
 /// One thing changed from the default workload.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Variant {
@@ -70,7 +67,7 @@ pub fn mft_loose(a: &ReproduceArgs) -> AppResult<Produced> {
     let res = a.res.unwrap_or(1024);
     let every = if a.quick { 8 } else { 1 };
     let (mut rows, mut notes, mut bad) = (Vec::new(), Vec::new(), 0usize);
-    for scene_name in SCENES {
+    for &scene_name in &a.scenes {
         let pr = Prepared::new(scene_name, res, name, true)?;
         let (r, n, b) = scene_rows(&m, &pr, scene_name, every)?;
         rows.extend(r);

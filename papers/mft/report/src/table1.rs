@@ -103,7 +103,7 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
     let mut unseparated: Vec<String> = Vec::new();
     // Per scene: our primary cycles over the paper's, frusta and packets.
     let mut vs_paper: Vec<(f64, f64)> = Vec::new();
-    for (scene_name, label, paper) in PAPER {
+    for (scene_name, label, paper) in PAPER.into_iter().filter(|s| a.runs(s.0)) {
         let pr = Prepared::new(scene_name, su.res, name, true)?;
         let mut ms = measure_methods(&su, &pr, scene_name)?;
         let (shade_p, shade_s, o) = shading(&su, &pr, &ms)?;

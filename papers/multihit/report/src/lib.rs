@@ -30,6 +30,7 @@ const OPTIONS: &[Opt] = &[
     Opt::Tiles,
     Opt::Seed,
     Opt::Out,
+    Opt::Scenes,
 ];
 
 /// The multi-hit paper's reports.
@@ -39,6 +40,7 @@ pub const REPORTS: [ReportDef; 2] = [
         about: "Multi-hit Figure 2: Mhit/s vs N_query, naive vs node culling, 8 scenes at 1024x768 on one E5-2650 v3 core (PNG in --out DIR)",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &scenes::NAMES,
         run: reports::multihit_fig2,
     },
     ReportDef {
@@ -46,6 +48,7 @@ pub const REPORTS: [ReportDef; 2] = [
         about: "Multi-hit summary: node culling's speed-up over naive vs N_query as a fraction of the most hits, 8 scenes (PNG in --out DIR)",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &scenes::NAMES,
         run: reports::multihit_summary,
     },
 ];

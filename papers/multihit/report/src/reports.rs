@@ -30,9 +30,10 @@ fn groups(a: &ReproduceArgs) -> usize {
 }
 
 /// The scenes a run measures: the deep group; the full run adds the
-/// shallow one (`--quick` previews the deep group's verdicts).
+/// shallow one (`--quick` previews the deep group's verdicts); of those,
+/// the ones `--scenes` names.
 fn stands(a: &ReproduceArgs) -> Vec<crate::scenes::Stand> {
-    chosen(!a.quick)
+    chosen(!a.quick, |s| a.runs(s))
 }
 
 /// Every scene's cells, in parallel over (scene, method, N_query).

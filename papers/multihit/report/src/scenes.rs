@@ -111,13 +111,24 @@ pub(crate) const STANDS: [Stand; 12] = [
     shallow("ferrari"),
 ];
 
+/// Every scene's name, in [`STANDS`]' order (what `--scenes` chooses from).
+pub(crate) const NAMES: [&str; STANDS.len()] = {
+    let mut names = [""; STANDS.len()];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = STANDS[i].name;
+        i += 1;
+    }
+    names
+};
+
 /// The scenes a run measures: the deep group, and with `extra` the
-/// shallow one too.
-pub(crate) fn chosen(extra: bool) -> Vec<Stand> {
+/// shallow one too; of those, the ones `wanted` takes.
+pub(crate) fn chosen(extra: bool, wanted: impl Fn(&str) -> bool) -> Vec<Stand> {
     STANDS
         .iter()
         .copied()
-        .filter(|s| extra || s.group == Group::Deep)
+        .filter(|s| (extra || s.group == Group::Deep) && wanted(s.name))
         .collect()
 }
 
@@ -135,7 +146,8 @@ mod tests {
                 s.scene
             );
         }
-        assert_eq!(chosen(false).len(), 7);
-        assert_eq!(chosen(true).len(), STANDS.len());
+        assert_eq!(chosen(false, |_| true).len(), 7);
+        assert_eq!(chosen(true, |s| s == "layers" || s == "trex").len(), 2);
+        assert_eq!(chosen(true, |_| true).len(), STANDS.len());
     }
 }

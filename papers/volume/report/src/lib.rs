@@ -35,13 +35,36 @@ const OPTIONS: &[Opt] = &[
     Opt::Out,
 ];
 
+/// What Figure 5 reads: the options and a choice of its datasets.
+const FIG5_OPTIONS: &[Opt] = &[
+    Opt::Quick,
+    Opt::Machine,
+    Opt::Set,
+    Opt::Tiles,
+    Opt::Seed,
+    Opt::Out,
+    Opt::Scenes,
+];
+
+/// Figure 5's datasets, in its order.
+const FIG5_DATASETS: [&str; paper::FIG5.len()] = {
+    let mut names = [""; paper::FIG5.len()];
+    let mut i = 0;
+    while i < names.len() {
+        names[i] = paper::FIG5[i].name;
+        i += 1;
+    }
+    names
+};
+
 /// The volume paper's reports.
 pub const REPORTS: [ReportDef; 5] = [
     ReportDef {
         name: "volume-fig5",
         about: "Volume rendering Figure 5: fps at 512^2 per dataset, gcc, sse and bvh on the 8-core X5550 workstation and bvh on the 2-core Core 2 Duo (PNG per dataset in --out DIR)",
         machine: MACHINE,
-        options: OPTIONS,
+        options: FIG5_OPTIONS,
+        scenes: &FIG5_DATASETS,
         run: reports::volume_fig5,
     },
     ReportDef {
@@ -49,6 +72,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "Volume rendering Table 1: CPU time by stage (voxel fetch, interpolation, classification, blending, BVH traversal, diffuse, Phong, other) for gcc and sse, nearest and trilinear, with the BVH and lit, on the Core 2 Duo (the paper's Table 1 machine), with the 8-core X5550 fps beside",
         machine: reports::LAPTOP,
         options: OPTIONS,
+        scenes: &["engine"],
         run: table1::volume_table1,
     },
     ReportDef {
@@ -56,6 +80,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "Volume rendering Figure 6: the mixing layer (Richtmyer-Meshkov stand-in) at 256^3, 512^3, 1024^3 (256^3 at --quick), far / medium / close views at 1024^2, gcc / sse / bvh on the X5550 and bvh on the Core 2 Duo",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &["mixing256", "mixing512", "mixing1024"],
         run: scaling::volume_fig6,
     },
     ReportDef {
@@ -63,6 +88,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "Volume rendering Figure 7: differential sampling rda = 2^-8 .. 2^-5 on the mixing layer, fps (bvh, X5550) and image error against uniform sampling",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &["mixing256", "mixing512", "mixing1024"],
         run: scaling::volume_fig7,
     },
     ReportDef {
@@ -70,6 +96,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "Volume rendering section 7.3: the implicit BVH by leaf size L = 1, 2, 4, 8 (size against the volume, build time, fps on one core of the X5550 workstation)",
         machine: MACHINE,
         options: OPTIONS,
+        scenes: &["neghip", "engine"],
         run: bvh_sizes::volume_bvh,
     },
 ];

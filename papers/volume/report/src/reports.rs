@@ -63,7 +63,7 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
     let mut rows = Vec::new();
     let (mut ops, mut bad) = (0u64, 0usize);
     let mut skipped = Vec::new();
-    for row in &FIG5 {
+    for row in FIG5.iter().filter(|r| a.runs(r.name)) {
         if let Some(why) = missing(row.name) {
             skipped.push(format!("The {} row is left out: {why}.", row.name));
             continue;
@@ -221,9 +221,9 @@ pub(crate) fn volume_fig5(a: &ReproduceArgs) -> AppResult<Produced> {
             fidelity: "full".into(),
             sample: Some(s),
             input: Some(
-                FIG5.iter()
-                    .map(|r| r.name)
+                (a.scenes.iter())
                     .filter(|n| missing(n).is_none())
+                    .copied()
                     .collect::<Vec<_>>()
                     .join(", "),
             ),

@@ -60,8 +60,31 @@ fn set_overrides_apply_to_the_reports_own_machine() {
     }
 }
 
+/// The paper's scenes as `--scenes` takes them.
+fn named(scenes: &[&str]) -> Vec<String> {
+    scenes.iter().map(|s| (*s).to_string()).collect()
+}
+
+/// The tests' scenes: the T-Rex (one mesh) and the fern (foliage); the
+/// same checks on all four: `cargo test -p mft-report -- --ignored`.
+const SMALL: [&str; 2] = ["trex", "fern"];
+
+/// Every scene of the paper.
+const ALL: [&str; 4] = ["trex", "fern", "saloon", "fairy"];
+
 #[test]
 fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
+    table1_on(&SMALL);
+}
+
+#[test]
+#[ignore = "every paper scene: cargo test -p mft-report -- --ignored"]
+fn reproduce_mft_table1_on_every_paper_scene() {
+    table1_on(&ALL);
+}
+
+/// `mft-table1` on `scenes`: every cell counted, frusta cutting box tests.
+fn table1_on(scenes: &[&str]) {
     // The paper's 1024 x 1024 is the report's default, also at --quick; a
     // smaller frame here keeps the test fast.
     let j = report(
@@ -70,6 +93,7 @@ fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
             quick: true,
             tiles: Some(3),
             res: Some(256),
+            scenes: named(scenes),
             ..Given::default()
         },
     );
@@ -84,7 +108,7 @@ fn reproduce_mft_table1_counts_every_cell_and_frusta_cut_box_tests() {
         assert_eq!(r.len(), 1, "{scene} {method} {metric}");
         r[0]["value"].as_f64().unwrap()
     };
-    for scene in ["trex", "fern", "saloon", "fairy"] {
+    for &scene in scenes {
         for method in ["p-packet", "p-frusta", "s-packet", "s-frusta"] {
             assert_eq!(
                 get(scene, method, "hit_mismatches"),
@@ -202,7 +226,17 @@ fn reproduce_mft_table2_shrinking_keeps_hits_and_cr_keeps_traversal() {
 #[test]
 fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
     let dir = std::env::temp_dir().join(format!("rtsim-mftq-{}", std::process::id()));
-    let j = quick_report("mft-quality", Some(dir.clone()));
+    // At 128 x 128 (the quick run's 256 x 256: 4x the time).
+    let j = report(
+        "mft-quality",
+        Given {
+            quick: true,
+            tiles: Some(1),
+            res: Some(128),
+            out: Some(dir.clone()),
+            ..Given::default()
+        },
+    );
     let rows = j["rows"].as_array().unwrap();
     let get = |method: &str, metric: &str| -> f64 {
         let r: Vec<&serde_json::Value> = rows
@@ -233,10 +267,35 @@ fn reproduce_mft_quality_writes_images_and_the_filter_pays() {
 
 #[test]
 fn reproduce_mft_fig6_counts_grow_with_the_light() {
-    let dir = std::env::temp_dir().join(format!("rtsim-fig6-{}", std::process::id()));
-    let j = quick_report("mft-fig6", Some(dir.clone()));
+    fig6_on(&SMALL[..1]);
+}
+
+#[test]
+#[ignore = "every paper scene: cargo test -p mft-report -- --ignored"]
+fn reproduce_mft_fig6_on_every_paper_scene() {
+    fig6_on(&ALL);
+}
+
+/// `mft-fig6` on `scenes`: counts linear in the light's size on the
+/// Figure's scenes (all but Fairy Forest).
+fn fig6_on(scenes: &[&str]) {
+    let dir = std::env::temp_dir().join(format!(
+        "rtsim-fig6-{}-{}",
+        std::process::id(),
+        scenes.len()
+    ));
+    let j = report(
+        "mft-fig6",
+        Given {
+            quick: true,
+            tiles: Some(1),
+            out: Some(dir.clone()),
+            scenes: named(scenes),
+            ..Given::default()
+        },
+    );
     let rows = j["rows"].as_array().unwrap();
-    for scene in ["trex", "fern", "saloon"] {
+    for &scene in scenes.iter().filter(|&&s| s != "fairy") {
         let tris: Vec<f64> = rows
             .iter()
             .filter(|r| {
@@ -291,6 +350,7 @@ fn one_and_two_host_threads_give_identical_reports() {
         quick: true,
         tiles: Some(1),
         res: Some(128),
+        scenes: named(&SMALL[..1]),
         ..Given::default()
     };
     let one = on_threads(1, "mft-table1", g());
@@ -299,11 +359,23 @@ fn one_and_two_host_threads_give_identical_reports() {
 
 #[test]
 fn reproduce_mft_loose_counts_every_variant_and_smaller_leaves_fetch_fewer_triangles() {
+    loose_on(&SMALL[..1]);
+}
+
+#[test]
+#[ignore = "every paper scene: cargo test -p mft-report -- --ignored"]
+fn reproduce_mft_loose_on_every_paper_scene() {
+    loose_on(&ALL);
+}
+
+/// `mft-loose` on `scenes`: every variant counted.
+fn loose_on(scenes: &[&str]) {
     let j = report(
         "mft-loose",
         Given {
             quick: true,
             res: Some(256),
+            scenes: named(scenes),
             ..Given::default()
         },
     );
@@ -317,7 +389,7 @@ fn reproduce_mft_loose_counts_every_variant_and_smaller_leaves_fetch_fewer_trian
         assert_eq!(r.len(), 1, "{scene} {variant} {metric}");
         r[0]["value"].as_f64().unwrap()
     };
-    for scene in ["trex", "fern", "saloon", "fairy"] {
+    for &scene in scenes {
         for variant in [
             "default",
             "strips",

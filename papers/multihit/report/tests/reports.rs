@@ -13,7 +13,24 @@ fn value(j: &serde_json::Value, want: &[(&str, &str)], metric: &str) -> Option<f
 
 #[test]
 fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
-    let dir = std::env::temp_dir().join(format!("multihit-test-{}", std::process::id()));
+    // The layered scene, the deepest.
+    summary_on(&["layers"]);
+}
+
+#[test]
+#[ignore = "every deep scene: cargo test -p multihit-report -- --ignored"]
+fn the_summary_on_every_deep_scene() {
+    summary_on(&[]);
+}
+
+/// `multihit-summary --quick` on `scenes` (all the deep group's when
+/// empty), which take in the layered scene.
+fn summary_on(scenes: &[&str]) {
+    let dir = std::env::temp_dir().join(format!(
+        "multihit-test-{}-{}",
+        std::process::id(),
+        scenes.len()
+    ));
     let def = multihit_report::REPORTS
         .iter()
         .find(|d| d.name == "multihit-summary")
@@ -22,6 +39,7 @@ fn the_summary_checks_every_ray_and_culls_ahead_at_one_hit() {
         quick: true,
         tiles: Some(2),
         out: Some(dir.clone()),
+        scenes: scenes.iter().map(|s| (*s).to_string()).collect(),
         ..Given::default()
     };
     let p = def.compute(g).expect("computed");
@@ -113,6 +131,7 @@ fn one_and_two_host_threads_give_identical_reports() {
         quick: true,
         tiles: Some(1),
         out: Some(dir.clone()),
+        scenes: vec!["layers".into()],
         ..Given::default()
     };
     let one = on_threads(1, "multihit-fig2", g());

@@ -34,7 +34,7 @@ pub enum Cmd {
     /// Time a recorded or hand-written trace on a machine.
     Sim(SimCli),
     /// Time the traversal kernels natively on this host over one tile's stream
-    /// (and Embree 3 on the same rays, built with --features embree), every
+    /// (and Embree 3 on the same rays, where the host has it), every
     /// answer checked against the reference.
     Native(NativeCli),
     /// Check the model against this host: every traversal kernel timed natively
@@ -546,7 +546,7 @@ pub struct NativeCli {
     pub isa: FlavourId,
     /// Extra Embree device configuration, e.g. `tri_accel=bvh4.triangle4`
     /// (Embree's BVH4 and Moller test instead of its default for the host);
-    /// needs a build with `--features embree`.
+    /// needs Embree 3 on the host (Debian: libembree3-3).
     #[arg(long, value_name = "KEY=VALUE,...")]
     pub embree_config: Option<String>,
     /// Output format: text, json or csv.

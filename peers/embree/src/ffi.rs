@@ -149,59 +149,81 @@ pub(crate) type Device = *mut c_void;
 pub(crate) type Scene = *mut c_void;
 pub(crate) type Geometry = *mut c_void;
 
-#[link(name = "embree3")]
-extern "C" {
-    pub(crate) fn rtcNewDevice(config: *const std::ffi::c_char) -> Device;
-    pub(crate) fn rtcReleaseDevice(d: Device);
-    pub(crate) fn rtcGetDeviceError(d: Device) -> i32;
-    pub(crate) fn rtcNewScene(d: Device) -> Scene;
-    pub(crate) fn rtcSetSceneFlags(s: Scene, flags: u32);
-    pub(crate) fn rtcReleaseScene(s: Scene);
-    pub(crate) fn rtcNewGeometry(d: Device, kind: u32) -> Geometry;
-    pub(crate) fn rtcSetNewGeometryBuffer(
-        g: Geometry,
-        kind: u32,
-        slot: u32,
-        format: u32,
-        stride: usize,
-        count: usize,
-    ) -> *mut c_void;
-    pub(crate) fn rtcSetGeometryIntersectFilterFunction(
-        g: Geometry,
-        f: Option<unsafe extern "C" fn(*const FilterArgs)>,
-    );
-    pub(crate) fn rtcCommitGeometry(g: Geometry);
-    pub(crate) fn rtcAttachGeometry(s: Scene, g: Geometry) -> u32;
-    pub(crate) fn rtcReleaseGeometry(g: Geometry);
-    pub(crate) fn rtcCommitScene(s: Scene);
-    pub(crate) fn rtcIntersect1(s: Scene, ctx: *mut IntersectContext, rh: *mut RayHit1);
-    pub(crate) fn rtcIntersect8(
-        valid: *const i32,
-        s: Scene,
-        ctx: *mut IntersectContext,
-        rh: *mut RayHit8,
-    );
-    pub(crate) fn rtcIntersect1M(
-        s: Scene,
-        ctx: *mut IntersectContext,
-        rh: *mut RayHit1,
-        m: u32,
-        stride: usize,
-    );
-    pub(crate) fn rtcOccluded1(s: Scene, ctx: *mut IntersectContext, r: *mut RayHit1);
-    pub(crate) fn rtcOccluded8(
-        valid: *const i32,
-        s: Scene,
-        ctx: *mut IntersectContext,
-        r: *mut RayHit8,
-    );
-    pub(crate) fn rtcOccluded1M(
-        s: Scene,
-        ctx: *mut IntersectContext,
-        r: *mut RayHit1,
-        m: u32,
-        stride: usize,
-    );
+/// The library's names, tried in order: Debian's runtime package
+/// (`libembree3-3`) installs the first, `libembree-dev` adds the second.
+const LIBRARY: [&str; 2] = ["libembree3.so.3", "libembree3.so"];
+
+/// The entry points, each declared once: the [`Api`] struct's fields and
+/// the symbols they are loaded from.
+macro_rules! api {
+    ($($field:ident = $sym:literal: fn($($arg:ty),*) $(-> $ret:ty)?;)*) => {
+        /// Embree's entry points, resolved from the library at run time.
+        pub(crate) struct Api {
+            $(pub(crate) $field: unsafe extern "C" fn($($arg),*) $(-> $ret)?,)*
+            /// Kept open while the entry points are in use (for the process).
+            _lib: libloading::Library,
+        }
+
+        impl Api {
+            /// Open the library and resolve every entry point.
+            fn load() -> Result<Api, String> {
+                let lib = LIBRARY
+                    .iter()
+                    // SAFETY: loading Embree runs its initialisers only.
+                    .find_map(|name| unsafe { libloading::Library::new(name) }.ok())
+                    .ok_or_else(|| {
+                        format!(
+                            "Embree 3 not found ({}; on Debian: apt install libembree3-3)",
+                            LIBRARY.join(", ")
+                        )
+                    })?;
+                // SAFETY: each symbol has the signature rtcore.h 3.13 gives it.
+                unsafe {
+                    Ok(Api {
+                        $($field: *lib
+                            .get::<unsafe extern "C" fn($($arg),*) $(-> $ret)?>($sym)
+                            .map_err(|e| format!("Embree 3: {e}"))?,)*
+                        _lib: lib,
+                    })
+                }
+            }
+        }
+    };
+}
+
+api! {
+    new_device = b"rtcNewDevice": fn(*const std::ffi::c_char) -> Device;
+    release_device = b"rtcReleaseDevice": fn(Device);
+    get_device_error = b"rtcGetDeviceError": fn(Device) -> i32;
+    new_scene = b"rtcNewScene": fn(Device) -> Scene;
+    set_scene_flags = b"rtcSetSceneFlags": fn(Scene, u32);
+    release_scene = b"rtcReleaseScene": fn(Scene);
+    new_geometry = b"rtcNewGeometry": fn(Device, u32) -> Geometry;
+    set_new_geometry_buffer = b"rtcSetNewGeometryBuffer":
+        fn(Geometry, u32, u32, u32, usize, usize) -> *mut c_void;
+    set_geometry_intersect_filter_function = b"rtcSetGeometryIntersectFilterFunction":
+        fn(Geometry, Option<unsafe extern "C" fn(*const FilterArgs)>);
+    commit_geometry = b"rtcCommitGeometry": fn(Geometry);
+    attach_geometry = b"rtcAttachGeometry": fn(Scene, Geometry) -> u32;
+    release_geometry = b"rtcReleaseGeometry": fn(Geometry);
+    commit_scene = b"rtcCommitScene": fn(Scene);
+    intersect1 = b"rtcIntersect1": fn(Scene, *mut IntersectContext, *mut RayHit1);
+    intersect8 = b"rtcIntersect8":
+        fn(*const i32, Scene, *mut IntersectContext, *mut RayHit8);
+    intersect1m = b"rtcIntersect1M":
+        fn(Scene, *mut IntersectContext, *mut RayHit1, u32, usize);
+    occluded1 = b"rtcOccluded1": fn(Scene, *mut IntersectContext, *mut RayHit1);
+    occluded8 = b"rtcOccluded8":
+        fn(*const i32, Scene, *mut IntersectContext, *mut RayHit8);
+    occluded1m = b"rtcOccluded1M":
+        fn(Scene, *mut IntersectContext, *mut RayHit1, u32, usize);
+}
+
+/// Embree's entry points, loaded on first use; why not, when the library
+/// is missing or lacks one.
+pub(crate) fn api() -> Result<&'static Api, String> {
+    static API: std::sync::OnceLock<Result<Api, String>> = std::sync::OnceLock::new();
+    API.get_or_init(Api::load).as_ref().map_err(Clone::clone)
 }
 
 pub(crate) const GEOMETRY_TYPE_TRIANGLE: u32 = 0;

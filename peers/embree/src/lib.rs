@@ -8,11 +8,11 @@
 //! The bindings are written here (a few calls of `rtcore.h` 3.13): the
 //! `embree` crate on crates.io binds 8-wide packets only in its sys module,
 //! and its safe API cannot pass an extended intersect context to a filter.
-//! Everything is behind the `link` feature (Debian's `libembree-dev`); off,
-//! this crate is empty.
+//! The library is opened at run time (Debian's `libembree3-3`, which
+//! `libembree-dev` pulls in): the workspace builds and runs without it, and
+//! [`available`] says whether this host has it.
 
 #![warn(missing_docs)]
-#![cfg(feature = "link")]
 #![allow(unsafe_code)]
 
 mod ffi;
@@ -36,8 +36,18 @@ unsafe impl Context for IntersectContext {}
 
 use scene::mesh::Mesh;
 
+/// Whether Embree 3 can be used on this host; why not, naming the library
+/// looked for.
+///
+/// # Errors
+/// When the library is missing or lacks an entry point the peer calls.
+pub fn available() -> Result<(), String> {
+    ffi::api().map(|_| ())
+}
+
 /// An Embree device (one build thread) and the scene of one mesh.
 pub struct Embree {
+    api: &'static ffi::Api,
     device: ffi::Device,
     scene: ffi::Scene,
 }
@@ -56,7 +66,8 @@ impl Embree {
     /// at the default build quality; `filter` set on its geometry.
     ///
     /// # Errors
-    /// When Embree cannot make the device or reports an error building.
+    /// When Embree is not installed ([`available`]), cannot make the device
+    /// or reports an error building.
     pub fn new(mesh: &Mesh, filter: Option<FilterFn>) -> Result<Embree, String> {
         Self::with_config(mesh, filter, "")
     }
@@ -79,18 +90,19 @@ impl Embree {
         };
         let cfg = std::ffi::CString::new(full)
             .map_err(|_| format!("embree config {config:?}: contains a NUL byte"))?;
+        let api = ffi::api()?;
         // SAFETY: plain Embree API calls with buffers Embree allocates and
         // we fill within their sizes.
         unsafe {
-            let device = ffi::rtcNewDevice(cfg.as_ptr());
+            let device = (api.new_device)(cfg.as_ptr());
             if device.is_null() {
                 return Err(format!("embree: rtcNewDevice refused config {config:?}"));
             }
-            let scene = ffi::rtcNewScene(device);
-            ffi::rtcSetSceneFlags(scene, ffi::SCENE_FLAG_ROBUST);
-            let g = ffi::rtcNewGeometry(device, ffi::GEOMETRY_TYPE_TRIANGLE);
+            let scene = (api.new_scene)(device);
+            (api.set_scene_flags)(scene, ffi::SCENE_FLAG_ROBUST);
+            let g = (api.new_geometry)(device, ffi::GEOMETRY_TYPE_TRIANGLE);
             let nv = mesh.positions.len();
-            let v = ffi::rtcSetNewGeometryBuffer(
+            let v = (api.set_new_geometry_buffer)(
                 g,
                 ffi::BUFFER_TYPE_VERTEX,
                 0,
@@ -100,7 +112,7 @@ impl Embree {
             ) as *mut [f32; 3];
             std::ptr::copy_nonoverlapping(mesh.positions.as_ptr(), v, nv);
             let nt = mesh.tris.len();
-            let ix = ffi::rtcSetNewGeometryBuffer(
+            let ix = (api.set_new_geometry_buffer)(
                 g,
                 ffi::BUFFER_TYPE_INDEX,
                 0,
@@ -110,21 +122,21 @@ impl Embree {
             ) as *mut [u32; 3];
             std::ptr::copy_nonoverlapping(mesh.tris.as_ptr(), ix, nt);
             if filter.is_some() {
-                ffi::rtcSetGeometryIntersectFilterFunction(g, filter);
+                (api.set_geometry_intersect_filter_function)(g, filter);
             }
-            ffi::rtcCommitGeometry(g);
-            ffi::rtcAttachGeometry(scene, g);
-            ffi::rtcReleaseGeometry(g);
-            ffi::rtcCommitScene(scene);
-            let err = ffi::rtcGetDeviceError(device);
+            (api.commit_geometry)(g);
+            (api.attach_geometry)(scene, g);
+            (api.release_geometry)(g);
+            (api.commit_scene)(scene);
+            let err = (api.get_device_error)(device);
             if err != 0 {
-                ffi::rtcReleaseScene(scene);
-                ffi::rtcReleaseDevice(device);
+                (api.release_scene)(scene);
+                (api.release_device)(device);
                 return Err(format!(
                     "embree: error {err} building the scene (device config {config:?})"
                 ));
             }
-            Ok(Embree { device, scene })
+            Ok(Embree { api, device, scene })
         }
     }
 
@@ -132,13 +144,13 @@ impl Embree {
     /// of a larger `#[repr(C)]` struct a filter reads).
     pub fn intersect1<C: Context>(&self, ctx: &mut C, rh: &mut RayHit1) {
         // SAFETY: a committed scene, a live context and a valid RTCRayHit.
-        unsafe { ffi::rtcIntersect1(self.scene, (ctx as *mut C).cast(), rh) };
+        unsafe { (self.api.intersect1)(self.scene, (ctx as *mut C).cast(), rh) };
     }
 
     /// `rtcIntersect8` of the lanes `valid` marks (-1 valid, 0 not).
     pub fn intersect8<C: Context>(&self, valid: &[i32; 8], ctx: &mut C, rh: &mut RayHit8) {
         // SAFETY: as `intersect1`, with an RTCRayHit8 and its valid mask.
-        unsafe { ffi::rtcIntersect8(valid.as_ptr(), self.scene, (ctx as *mut C).cast(), rh) };
+        unsafe { (self.api.intersect8)(valid.as_ptr(), self.scene, (ctx as *mut C).cast(), rh) };
     }
 
     /// `rtcIntersect1M` over `rhs` (one ray stream).
@@ -147,7 +159,7 @@ impl Embree {
         let stride = std::mem::size_of::<RayHit1>();
         // SAFETY: `rhs` holds `m` RTCRayHits `stride` bytes apart.
         unsafe {
-            ffi::rtcIntersect1M(
+            (self.api.intersect1m)(
                 self.scene,
                 (ctx as *mut C).cast(),
                 rhs.as_mut_ptr(),
@@ -160,13 +172,13 @@ impl Embree {
     /// `rtcOccluded1`: the ray part of `rh` (its t_far becomes -inf when occluded).
     pub fn occluded1<C: Context>(&self, ctx: &mut C, rh: &mut RayHit1) {
         // SAFETY: an RTCRayHit starts with its RTCRay.
-        unsafe { ffi::rtcOccluded1(self.scene, (ctx as *mut C).cast(), rh) };
+        unsafe { (self.api.occluded1)(self.scene, (ctx as *mut C).cast(), rh) };
     }
 
     /// `rtcOccluded8` over the ray rows of `rh`.
     pub fn occluded8<C: Context>(&self, valid: &[i32; 8], ctx: &mut C, rh: &mut RayHit8) {
         // SAFETY: an RTCRayHit8 starts with its RTCRay8 rows.
-        unsafe { ffi::rtcOccluded8(valid.as_ptr(), self.scene, (ctx as *mut C).cast(), rh) };
+        unsafe { (self.api.occluded8)(valid.as_ptr(), self.scene, (ctx as *mut C).cast(), rh) };
     }
 
     /// `rtcOccluded1M` over the rays of `rhs` (stride: a whole RTCRayHit).
@@ -175,7 +187,7 @@ impl Embree {
         let stride = std::mem::size_of::<RayHit1>();
         // SAFETY: `rhs` holds `m` rays `stride` bytes apart.
         unsafe {
-            ffi::rtcOccluded1M(
+            (self.api.occluded1m)(
                 self.scene,
                 (ctx as *mut C).cast(),
                 rhs.as_mut_ptr(),
@@ -190,8 +202,8 @@ impl Drop for Embree {
     fn drop(&mut self) {
         // SAFETY: released once, after every trace.
         unsafe {
-            ffi::rtcReleaseScene(self.scene);
-            ffi::rtcReleaseDevice(self.device);
+            (self.api.release_scene)(self.scene);
+            (self.api.release_device)(self.device);
         }
     }
 }

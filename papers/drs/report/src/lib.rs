@@ -5,7 +5,7 @@
 //! Table 1 (all seven methods), Table 2 (CPI and s/Gray of the core loop),
 //! Figure 5 (tile size) and Figure 6 (field of view), and `rtsim run` of one
 //! of its traversal methods over one tile's stream, and `rtsim native` of
-//! them (beside Embree with the `embree` feature). The paper's own figures
+//! them (beside Embree 3 where the host has it). The paper's own figures
 //! are data in [`paper`].
 
 #![warn(missing_docs)]

@@ -1,7 +1,7 @@
 //! `rtsim native`: the traversal kernels run natively on this host over one
 //! tile's stream of a scene — host rays per second, median and range over
-//! repeated runs, every answer checked against the reference — and, with
-//! the `embree` feature, Embree 3's `rtcIntersect1`, `rtcIntersect8` and
+//! repeated runs, every answer checked against the reference — and, where
+//! the host has Embree 3, its `rtcIntersect1`, `rtcIntersect8` and
 //! `rtcIntersect1M` over exactly the same rays.
 
 use crate::run::{stream_input, tile_stream};
@@ -199,7 +199,7 @@ impl Program for Interleaved<'_> {
 }
 
 /// `kernels` natively on `fl` over `rays` (a tile of `tile` at `spp`) and,
-/// built with the `embree` feature, Embree 3's three calls on the same rays,
+/// where the host has Embree 3, its three calls on the same rays,
 /// all in the same rounds on this thread ([`Interleaved`]): the kernels'
 /// timings, then Embree's.
 ///
@@ -255,19 +255,18 @@ pub fn time_methods(
 
 /// Embree 3's scene (built once, not timed) and the packets the packet
 /// kernels form (slots of 8 rays).
-#[cfg(feature = "embree")]
 type EmbreeSetup = (embree_peer::Embree, Vec<u32>);
-/// Without the `embree` feature: nothing ([`embree_setup`] gives `None`).
-#[cfg(not(feature = "embree"))]
-type EmbreeSetup = ();
 
-#[cfg(feature = "embree")]
+/// Embree's scene over `ld`'s mesh, or `None` on a host without Embree.
 fn embree_setup(
     ld: &Loaded,
     (tile, spp): (Tile, u32),
     rays: &RayStream,
     config: &str,
 ) -> AppResult<Option<EmbreeSetup>> {
+    if embree_peer::available().is_err() {
+        return Ok(None);
+    }
     let e = embree_peer::Embree::with_config(&ld.scene.mesh, None, config)
         .map_err(|e| AppError(format!("--embree-config: {e}")))?;
     Ok(Some((
@@ -276,19 +275,8 @@ fn embree_setup(
     )))
 }
 
-#[cfg(not(feature = "embree"))]
-fn embree_setup(
-    _: &Loaded,
-    _: (Tile, u32),
-    _: &RayStream,
-    _: &str,
-) -> AppResult<Option<EmbreeSetup>> {
-    Ok(None)
-}
-
 /// Embree's `rtcIntersect1`, `rtcIntersect8` and `rtcIntersect1M` over
 /// `rays`, each run once and checked against the reference.
-#[cfg(feature = "embree")]
 fn embree_peers<'a>(
     setup: Option<&'a EmbreeSetup>,
     ld: &Loaded,
@@ -313,11 +301,6 @@ fn embree_peers<'a>(
             }
         })
         .collect()
-}
-
-#[cfg(not(feature = "embree"))]
-fn embree_peers<'a>(_: Option<&'a EmbreeSetup>, _: &Loaded, _: &'a RayStream) -> Vec<Peer<'a>> {
-    Vec::new()
 }
 
 /// The Embree device settings `--embree-config` may set (Embree ignores
@@ -398,10 +381,8 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
     if a.repeat == 0 || a.repeat > 1000 {
         return Err(AppError("--repeat: must be 1 to 1000".into()));
     }
-    if a.embree_config.is_some() && !cfg!(feature = "embree") {
-        return Err(AppError(
-            "--embree-config: this build has no Embree (build with --features embree)".into(),
-        ));
+    if a.embree_config.is_some() {
+        embree_peer::available().map_err(|e| AppError(format!("--embree-config: {e}")))?;
     }
     if let Some(c) = &a.embree_config {
         check_embree_config(c)?;
@@ -471,12 +452,13 @@ pub fn native_report(a: &NativeArgs) -> AppResult<Report> {
              SSE registers as Embree 2.0's), hand-single-bvh4-ymm the same with the node test in \
              8-lane registers as the kernel runs it on an 8-lane machine, both timed after the \
              kernels and before Embree; Embree \
-             rows (built with --features embree) build the scene robust at the default quality, \
-             untimed (Embree device config: threads=1{}), and trace primary rays with the \
-             coherent hint",
+             rows (where the host has Embree 3: {}) build the scene robust at the default \
+             quality, untimed (Embree device config: threads=1{}), and trace primary rays with \
+             the coherent hint",
             a.repeat,
             a.isa,
             isa::host::describe(a.isa.lanes()),
+            embree_peer::available().map_or_else(|e| e, |()| "found".into()),
             a.embree_config
                 .as_ref()
                 .map_or(String::new(), |c| format!(",{c}"))

@@ -10,7 +10,6 @@
 #![warn(missing_docs)]
 
 mod crossover;
-#[cfg(feature = "embree")]
 mod embree;
 mod measure;
 pub mod paper;

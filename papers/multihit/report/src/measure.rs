@@ -35,9 +35,8 @@ pub(crate) struct Prepared {
     pub(crate) hits: HitStats,
     /// Per sampled run: the warmed tile before (if any) and the timed tile.
     tiles: Vec<(Option<TileRays>, TileRays)>,
-    /// Embree's scene of the same mesh.
-    #[cfg(feature = "embree")]
-    pub(crate) embree: crate::embree::Embree,
+    /// Embree's scene of the same mesh (on a host with Embree 3).
+    pub(crate) embree: Option<crate::embree::Embree>,
 }
 
 /// One tile's rays, packet slots and (timed tiles) every ray's reference hits.
@@ -180,8 +179,10 @@ impl Prepared {
             .map(|(before, k)| (before.map(|b| with(b, false)), with(k, true)))
             .collect();
         Ok(Prepared {
-            #[cfg(feature = "embree")]
-            embree: crate::embree::Embree::new(&tree.mesh).map_err(AppError)?,
+            embree: match embree_peer::available() {
+                Ok(()) => Some(crate::embree::Embree::new(&tree.mesh).map_err(AppError)?),
+                Err(_) => None,
+            },
             stand,
             name: stand.name.into(),
             tree,
@@ -196,7 +197,6 @@ impl Prepared {
     }
 
     /// The rays of the timed tiles, with their packet slots.
-    #[cfg(feature = "embree")]
     pub(crate) fn timed_rays(&self) -> impl Iterator<Item = (&RayStream, &[u32])> {
         self.tiles
             .iter()
@@ -205,8 +205,7 @@ impl Prepared {
 
     /// Rays of a timed tile where Embree's hits (`rtcIntersect1` and
     /// `rtcIntersect8`, the same filter) differ from ours or from the
-    /// reference's.
-    #[cfg(feature = "embree")]
+    /// reference's (none without Embree).
     fn embree_mismatches(
         &self,
         (tile, rays, refi): (&TileRays, &[Ray], &Reference),
@@ -214,11 +213,12 @@ impl Prepared {
         ours: &[Vec<Hit>],
     ) -> usize {
         use crate::embree::Call;
+        let Some(embree) = &self.embree else {
+            return 0;
+        };
         let mut bad = 0;
         for call in [Call::One, Call::Eight] {
-            let theirs = self
-                .embree
-                .trace(&tile.rays, (method, n_query), call, &tile.slots);
+            let theirs = embree.trace(&tile.rays, (method, n_query), call, &tile.slots);
             let label = format!("{} embree {call:?} {method:?}", self.name);
             bad += list_mismatches(&label, refi, rays, &tile.all, n_query, &theirs);
             let test = scene::agreement::F32Test::MollerTrumbore;
@@ -374,10 +374,7 @@ pub(crate) fn measure(
             let refi = Reference::with_bvh(&pr.tree.mesh, &pr.tree.b2);
             let label = format!("{} {}", pr.name, kernel.name());
             bad += list_mismatches(&label, &refi, &rays, &tile.all, n_query, &lists);
-            #[cfg(feature = "embree")]
-            {
-                bad += pr.embree_mismatches((tile, &rays, &refi), (method, n_query), &lists);
-            }
+            bad += pr.embree_mismatches((tile, &rays, &refi), (method, n_query), &lists);
             let st = session.timed_queue(&[&t]).map_err(AppError)?;
             isa::trace::recycle(t);
             pairs.push((cn.hits as f64, st.cycles as f64));

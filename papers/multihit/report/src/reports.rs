@@ -11,7 +11,6 @@ use multihit_kernels::Method;
 use rayon::prelude::*;
 use repro::plot::{Panel, Series};
 use repro::sampling::paired_ratio_systematic;
-#[cfg(feature = "embree")]
 use repro::sampling::systematic_ratio_ci;
 use repro::{AppResult, Produced, Report, ReproduceArgs, Row};
 use std::collections::BTreeMap;
@@ -138,6 +137,11 @@ fn header(
         .sum();
     let mut notes = notes;
     notes.extend(depth_notes(scenes));
+    if let Err(why) = embree_peer::available() {
+        notes.push(format!(
+            "{why}: the rows Embree traces (its hit lists checked beside ours, its native speed-up) are left out."
+        ));
+    }
     Report {
         report: name.into(),
         machine: Some(m.name.clone()),
@@ -368,14 +372,16 @@ fn group_rows(scenes: &[SceneCells]) -> Vec<Row> {
 /// method's Mhit/s and node culling's speed-up, paired over the tiles
 /// with its 95% CI as the simulated one is, and the crossover with its
 /// interval and normalisations.
-#[cfg(feature = "embree")]
 fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
     let mut rows = Vec::new();
     for sc in scenes {
+        let Some(embree) = &sc.pr.embree else {
+            continue;
+        };
         let tiles: Vec<_> = sc.pr.timed_rays().collect();
         let mut points = Vec::new();
         for (n, _, _) in &sc.cells {
-            let time = |me: Method| sc.pr.embree.time_tiles(&tiles, (me, *n), 3);
+            let time = |me: Method| embree.time_tiles(&tiles, (me, *n), 3);
             let (naive, cull) = (time(Method::Naive), time(Method::NodeCulling));
             let k = |r: Row| r.key("scene", &sc.pr.name).key("n_query", n);
             for (me, t) in [("naive", &naive), ("node culling", &cull)] {
@@ -407,11 +413,6 @@ fn embree_rows(scenes: &[SceneCells]) -> Vec<Row> {
         rows.extend(cross.into_iter().map(|r| r.unit("host-measured")));
     }
     rows
-}
-
-#[cfg(not(feature = "embree"))]
-fn embree_rows(_: &[SceneCells]) -> Vec<Row> {
-    Vec::new()
 }
 
 fn plot_fig2(a: &ReproduceArgs, scenes: &[SceneCells]) -> AppResult<()> {

@@ -85,42 +85,6 @@ fn figures_4_to_6_count_every_method_and_stream_rs_fetching_least() {
 }
 
 #[test]
-fn figure_3_times_frames_and_measures_its_shortcut() {
-    let dir = std::env::temp_dir().join(format!("mbvh-fig3-test-{}", std::process::id()));
-    let j = report(
-        "mbvh-fig3",
-        Given {
-            res: Some(64),
-            ..small(&dir)
-        },
-    );
-    assert_eq!(j["machine"], "core2-q6600");
-    for b in ["1", "2", "3", "4"] {
-        let r = value(
-            &j,
-            &[("bounces", b), ("method", "MBVH RS")],
-            "mrays_per_second",
-        )
-        .unwrap();
-        assert!(r > 0.0 && r.is_finite(), "{b}: {r}");
-    }
-    assert!(value(
-        &j,
-        &[("bounces", "1")],
-        "mrays_per_second_from_deepest_frame"
-    )
-    .is_some());
-    assert!(value(
-        &j,
-        &[("method", "MBVH RS over unordered")],
-        "speedup_of_paper_choice"
-    )
-    .is_some());
-    assert!(j["ops_simulated"].as_u64().unwrap() > 0);
-    std::fs::remove_dir_all(&dir).ok();
-}
-
-#[test]
 fn counter_reports_refuse_a_machine() {
     let def = mbvh_report::REPORTS
         .iter()
@@ -160,7 +124,7 @@ fn counts_are_the_same_on_one_and_two_host_threads() {
 }
 
 #[test]
-fn timed_runs_are_the_same_on_one_and_two_host_threads() {
+fn figure_3_times_frames_the_same_on_one_and_two_host_threads() {
     // Figure 3's ten runs (depths, variants, group sizes) run at once.
     let dir = std::env::temp_dir().join(format!("mbvh-fig3-threads-{}", std::process::id()));
     let g = || Given {
@@ -171,7 +135,31 @@ fn timed_runs_are_the_same_on_one_and_two_host_threads() {
         .iter()
         .find(|d| d.name == "mbvh-fig3")
         .unwrap();
-    let one = def.on_threads(1, g()).expect("computed");
-    assert_eq!(one, def.on_threads(2, g()).expect("computed"));
+    let j = def.on_threads(1, g()).expect("computed");
+    assert_eq!(j, def.on_threads(2, g()).expect("computed"));
     std::fs::remove_dir_all(&dir).ok();
+    // Every depth timed, and the shortcut measured.
+    assert_eq!(j["machine"], "core2-q6600");
+    for b in ["1", "2", "3", "4"] {
+        let r = value(
+            &j,
+            &[("bounces", b), ("method", "MBVH RS")],
+            "mrays_per_second",
+        )
+        .unwrap();
+        assert!(r > 0.0 && r.is_finite(), "{b}: {r}");
+    }
+    assert!(value(
+        &j,
+        &[("bounces", "1")],
+        "mrays_per_second_from_deepest_frame"
+    )
+    .is_some());
+    assert!(value(
+        &j,
+        &[("method", "MBVH RS over unordered")],
+        "speedup_of_paper_choice"
+    )
+    .is_some());
+    assert!(j["ops_simulated"].as_u64().unwrap() > 0);
 }

@@ -42,6 +42,19 @@ const PACKLET_BYTES: usize = 9 * 16;
 /// range and split axis (`min | max << 8 | axis << 16`) and its first
 /// child (or `LEAF`).
 pub fn lay_out_nodes<M: Machine>(m: &mut M, t: &MinMaxBvh) -> Buf {
+    lay_out_node_words(m, &node_words(t))
+}
+
+/// [`lay_out_nodes`] of the words [`node_words`] gave (a caller laying out
+/// the same tree for many runs makes them once).
+pub fn lay_out_node_words<M: Machine>(m: &mut M, words: &[u32]) -> Buf {
+    m.space()
+        .alloc_u32(MemKind::Volume, "minmax-bvh", words, 64)
+}
+
+/// The words [`lay_out_nodes`] writes for `t`'s nodes.
+#[must_use]
+pub fn node_words(t: &MinMaxBvh) -> Vec<u32> {
     let mut words: Vec<u32> = Vec::with_capacity(t.nodes.len() * 8);
     for n in &t.nodes {
         for c in n.lo.iter().chain(&n.hi) {
@@ -54,8 +67,7 @@ pub fn lay_out_nodes<M: Machine>(m: &mut M, t: &MinMaxBvh) -> Buf {
         words.resize(8, 0);
     }
     assert_eq!(words.len() * 4, t.nodes.len().max(1) * VNODE_BYTES);
-    m.space()
-        .alloc_u32(MemKind::Volume, "minmax-bvh", &words, 64)
+    words
 }
 
 /// The thresholds of eqs. 5 and 6 and the volume's diagonal.

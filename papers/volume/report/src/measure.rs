@@ -220,6 +220,8 @@ pub(crate) enum Framing {
 pub(crate) struct Dataset {
     pub(crate) prepared: Arc<Prepared>,
     pub(crate) tree: Arc<MinMaxBvh>,
+    /// The tree's nodes as laid out in simulated memory (made once).
+    pub(crate) node_words: Arc<Vec<u32>>,
     pub(crate) eye: [f64; 3],
     /// Vertical field of view (degrees) that frames the volume.
     pub(crate) fov: f64,
@@ -319,6 +321,7 @@ impl Dataset {
         Dataset {
             fov: 0.0,
             prepared: Arc::new(Prepared::new(vol, tf)),
+            node_words: Arc::new(volume_kernels::bvh::node_words(&tree)),
             tree: Arc::new(tree),
             eye: [c[0] * 1.6, -c[1] * 0.9, c[2] * 1.8],
             sampling,
@@ -446,7 +449,7 @@ impl UnitProgram for Units {
     fn lay_out<M: Machine>(&self, m: &mut M) -> Self::Laid {
         let pr = &self.ds.prepared;
         let v = volume_kernels::layout::lay_out(m, &pr.bricked, pr.volume.dims, &pr.tf);
-        let nodes = volume_kernels::bvh::lay_out_nodes(m, &self.ds.tree);
+        let nodes = volume_kernels::bvh::lay_out_node_words(m, &self.ds.node_words);
         (v, nodes)
     }
 

@@ -263,9 +263,9 @@ mod tests {
     fn this_binary_runs_on_this_host() {
         // The tests run on the machine that built them.
         assert_eq!(missing_features(), Vec::<&str>::new());
-        #[cfg(target_feature = "avx2")]
-        assert!(compiled_features().contains(&"avx2"));
-        #[cfg(not(target_feature = "avx2"))]
-        assert!(!compiled_features().contains(&"avx2"));
+        assert_eq!(
+            compiled_features().contains(&"avx2"),
+            cfg!(target_feature = "avx2")
+        );
     }
 }

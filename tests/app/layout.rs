@@ -1,7 +1,8 @@
 //! The layout rules of ARCHITECTURE.md, checked on the source tree: no
 //! import cycle between the files of any crate, an app under 1,000 lines,
-//! `#![warn(missing_docs)]` in every library crate, and branch sites unique
-//! and inside their module's block of the plan (`isa::sites`).
+//! `#![warn(missing_docs)]` in every library crate, branch sites unique
+//! and inside their module's block of the plan (`isa::sites`), and code
+//! compiled by instruction set in `isa` only (CI's baseline build).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -146,6 +147,29 @@ fn no_file_level_import_cycle_in_any_crate() {
             .collect();
         if let Some(c) = cycle(&g) {
             panic!("{}: import cycle {}", src.display(), c.join(" -> "));
+        }
+    }
+}
+
+#[test]
+fn only_isa_compiles_code_by_instruction_set() {
+    // CI lints and tests isa alone built for baseline x86-64: elsewhere
+    // `cfg!` (both arms compiled) or run-time detection.
+    for (src, root) in crates() {
+        if src.ends_with("isa/src") {
+            continue;
+        }
+        for file in modules(&src, &root).values() {
+            let text = std::fs::read_to_string(file).unwrap();
+            for (n, line) in text.lines().enumerate() {
+                let attr = line.trim_start().starts_with("#[cfg") || line.contains("#![cfg");
+                assert!(
+                    !(attr && line.contains("target_feature")),
+                    "{}:{}: cfg on target_feature outside isa",
+                    file.display(),
+                    n + 1
+                );
+            }
         }
     }
 }

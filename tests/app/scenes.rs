@@ -60,20 +60,26 @@ fn every_scene_loads_and_its_bvhs_validate() {
 }
 
 #[test]
-fn every_drs_scene_is_at_the_papers_scale() {
-    let o = rtsim(&[
-        "list",
-        "scenes",
-        "crown",
-        "bentley",
-        "dragon",
-        "sanmiguel",
-        "--format",
-        "json",
-    ]);
+fn the_drs_scenes_but_the_courtyard_are_at_the_papers_scale() {
+    drs_scenes_at_the_papers_scale(&["crown", "bentley", "dragon"]);
+}
+
+#[test]
+#[ignore = "builds the 7.8M-triangle courtyard: cargo test --workspace -- --ignored"]
+fn the_drs_courtyard_is_at_the_papers_scale() {
+    drs_scenes_at_the_papers_scale(&["sanmiguel"]);
+}
+
+/// `rtsim list scenes` gives each of `names` within 25% of the paper's
+/// triangle count.
+fn drs_scenes_at_the_papers_scale(names: &[&str]) {
+    let mut args = vec!["list", "scenes"];
+    args.extend(names);
+    args.extend(["--format", "json"]);
+    let o = rtsim(&args);
     let j: serde_json::Value = serde_json::from_str(&ok(&o)).unwrap();
     let rows = j["rows"].as_array().unwrap();
-    for n in ["crown", "bentley", "dragon", "sanmiguel"] {
+    for &n in names {
         let r = rows
             .iter()
             .find(|r| r["name"] == n && r["metric"] == "triangles_vs_paper")
@@ -238,6 +244,8 @@ fn a_clone_reproduces_with_only_its_own_data() {
             "1",
             "--res",
             "64",
+            "--scenes",
+            "trex",
             "--format",
             "json",
         ],

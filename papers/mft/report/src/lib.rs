@@ -19,6 +19,7 @@ mod quality;
 pub mod replay;
 mod shading;
 mod table1;
+pub use table1::{verdicts, Verdict};
 mod table2;
 
 use repro::{Opt, ReportDef};

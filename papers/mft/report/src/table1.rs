@@ -15,6 +15,7 @@ use mft_kernels::{
     PacketPrimaryRun, PlaneNoise, Shrink, SlabTest,
 };
 use rayon::prelude::*;
+use repro::options::DEFAULT_SEED;
 use repro::sampling::{paired_ratio_systematic as paired_ratio, separates};
 use repro::{AppResult, Produced, ReproduceArgs, Row};
 use scene::agreement::{Expected, F32Test};
@@ -775,45 +776,47 @@ where
     Ok((row, part))
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
+/// One verdict of `mft-table1` on a scene's rays: packets' over frusta's
+/// cycles (paired over the batches, with its 95% interval) and their AABB
+/// tests' ratio.
+#[derive(Clone, Copy, Debug)]
+pub struct Verdict {
+    /// `primary` or `shadow`.
+    pub rays: &'static str,
+    /// Packets' cycles over frusta's, with the 95% interval's half-width.
+    pub cycles: (f64, Option<f64>),
+    /// Packets' AABB tests over frusta's.
+    pub aabb: f64,
+}
 
-    /// `--quick` keeps the conclusions: on a small frame, wherever the full
-    /// design's interval separates frusta from packets (cycles), the quick
-    /// design names the same winner; AABB-test reductions (exact in the
-    /// full run) point the same way.
-    #[test]
-    fn quick_keeps_the_winner_of_every_cell_the_full_run_separates() {
-        let m = sim::MachineConfig::load("larrabee").unwrap();
-        let mut separated = 0;
-        for scene_name in ["saloon", "trex"] {
-            let pr = Prepared::new(scene_name, 256, "test", true).unwrap();
-            let run = |quick| {
-                let su = Setup::new(m.clone(), false, 256, quick, 7);
-                measure_methods(&su, &pr, scene_name).unwrap()
-            };
-            let (full, quick) = (run(false), run(true));
-            assert_eq!(full.bad + quick.bad, 0);
-            for (rays, pk, fr) in [("primary", 0, 1), ("shadow", 2, 3)] {
-                let f = paired_ratio(&full.estimates[pk], &full.estimates[fr]);
-                let q = paired_ratio(&quick.estimates[pk], &quick.estimates[fr]);
-                if separates(f) {
-                    separated += 1;
-                    assert_eq!(
-                        f.0 > 1.0,
-                        q.0 > 1.0,
-                        "{scene_name} {rays}: full {f:?}, quick {q:?}"
-                    );
-                }
-                let aabb = |s: &[MftStats; 4]| s[pk].aabb_tests as f64 / s[fr].aabb_tests as f64;
-                assert_eq!(
-                    aabb(&full.stats) > 1.0,
-                    aabb(&quick.stats) > 1.0,
-                    "{scene_name} {rays}"
-                );
-            }
-        }
-        assert!(separated > 0, "the full design separates some cell");
+impl Verdict {
+    /// Whether the interval puts the cycle ratio off 1.
+    #[must_use]
+    pub fn separates(&self) -> bool {
+        separates(self.cycles)
     }
+}
+
+/// `mft-table1`'s verdicts on `scene_name` at `res` x `res` on machine `m`
+/// by its full design or (`quick`) its `--quick` one (seed 7), and the
+/// rays whose hits differ from the reference: what the test that `--quick`
+/// keeps the full design's verdicts compares.
+///
+/// # Errors
+/// An unknown scene, or one the frusta cannot tile at `res`.
+pub fn verdicts(
+    m: &sim::MachineConfig,
+    scene_name: &str,
+    res: u32,
+    quick: bool,
+) -> AppResult<(Vec<Verdict>, usize)> {
+    let pr = Prepared::new(scene_name, res, "verdicts", true)?;
+    let su = Setup::new(m.clone(), false, res, quick, DEFAULT_SEED);
+    let ms = measure_methods(&su, &pr, scene_name)?;
+    let v = [("primary", 0, 1), ("shadow", 2, 3)].map(|(rays, pk, fr)| Verdict {
+        rays,
+        cycles: paired_ratio(&ms.estimates[pk], &ms.estimates[fr]),
+        aabb: ms.stats[pk].aabb_tests as f64 / ms.stats[fr].aabb_tests as f64,
+    });
+    Ok((v.to_vec(), ms.bad))
 }

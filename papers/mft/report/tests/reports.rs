@@ -413,3 +413,73 @@ fn loose_on(scenes: &[&str]) {
         );
     }
 }
+
+/// `--quick` keeps the conclusions: on a small frame, wherever the full
+/// design's interval separates frusta from packets (cycles), the quick
+/// design names the same winner; AABB-test reductions (exact in the full
+/// run) point the same way.
+#[test]
+fn quick_keeps_the_winner_of_every_cell_the_full_run_separates() {
+    let m = sim::MachineConfig::load("larrabee").unwrap();
+    let mut separated = 0;
+    for scene in ["saloon", "trex"] {
+        let (full, bad_f) = mft_report::verdicts(&m, scene, 256, false).unwrap();
+        let (quick, bad_q) = mft_report::verdicts(&m, scene, 256, true).unwrap();
+        assert_eq!(bad_f + bad_q, 0);
+        for (f, q) in full.iter().zip(&quick) {
+            if f.separates() {
+                separated += 1;
+                assert_eq!(
+                    f.cycles.0 > 1.0,
+                    q.cycles.0 > 1.0,
+                    "{scene} {}: full {f:?}, quick {q:?}",
+                    f.rays
+                );
+            }
+            assert_eq!(f.aabb > 1.0, q.aabb > 1.0, "{scene} {}", f.rays);
+        }
+    }
+    assert!(separated > 0, "the full design separates some cell");
+}
+
+/// Table 1's T-Rex rows, by hand: S - P over 65,536 groups.
+#[test]
+fn the_paper_s_per_set_counts_are_its_shadow_rows_less_its_primary_rows() {
+    use mft_report::perset::paper_per_set;
+    let (pk, fr) = paper_per_set("trex").unwrap();
+    let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+    assert!(close(pk.aabb_tests, (36_234e3 - 1_218e3) / 65_536.0));
+    assert!(close(pk.tris_accessed, (10_957e3 - 399e3) / 65_536.0));
+    // P-Packet gives no after-culling figure: its triangles stand in.
+    assert!(close(pk.tris_after_culling, (7_298e3 - 399e3) / 65_536.0));
+    assert!(close(fr.tris_accessed, (3_575e3 - 173e3) / 65_536.0));
+    assert!(close(fr.tris_after_culling, (725e3 - 42e3) / 65_536.0));
+    assert!(close(fr.isec_tests, (5_527e3 - 125e3) / 65_536.0));
+    assert!(paper_per_set("bunny").is_none());
+}
+
+#[test]
+fn per_set_divides_by_the_sets() {
+    use mft_report::perset::PerSet;
+    let st = mft_kernels::MftStats {
+        aabb_tests: 30,
+        tris_accessed: 20,
+        tris_after_culling: 10,
+        isec_tests: 40,
+        ..mft_kernels::MftStats::default()
+    };
+    let p = PerSet::of(&st, 10.0);
+    assert_eq!(p.named().map(|x| x.1), [3.0, 2.0, 1.0, 4.0]);
+    assert_eq!(PerSet::of(&st, 0.0).aabb_tests, 30.0, "no sets: over one");
+}
+
+#[test]
+fn a_resolution_the_frusta_cannot_tile_is_an_error() {
+    use mft_report::perset::shadow_per_set;
+    let g = (
+        scene::workload::SampleSplit::Nets,
+        mft_kernels::PacketGrouping::default(),
+    );
+    let e = shadow_per_set("trex", 100, 1, g).unwrap_err();
+    assert!(e.0.starts_with("resolution 100"), "{}", e.0);
+}

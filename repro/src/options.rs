@@ -29,7 +29,8 @@ pub enum Opt {
     ThreadsPerCore,
     /// `--out DIR`: write the report (and its figures) there too.
     Out,
-    /// `--scenes a,b`: only these of the report's scenes.
+    /// `--scenes a,b`: only these of the report's scenes (read by every
+    /// report with more than one: [`ReportDef::uses`]).
     Scenes,
 }
 
@@ -74,10 +75,10 @@ pub struct ReportDef {
     pub about: &'static str,
     /// The machine it runs on unless `--machine` says otherwise.
     pub machine: &'static str,
-    /// The options it uses; any other given is an error.
+    /// The options it uses besides `--scenes`; any other given is an error.
     pub options: &'static [Opt],
     /// Its scenes (or datasets), in the order it runs them: what
-    /// `--scenes` chooses from (empty: the report has no choice of scene).
+    /// `--scenes` chooses from when there are several.
     pub scenes: &'static [&'static str],
     /// Compute it (figures written with `--out` go to the directory).
     pub run: fn(&ReproduceArgs) -> AppResult<Produced>,
@@ -234,11 +235,12 @@ impl ReportDef {
     /// Check `g` against this report (an option it does not use, a value out
     /// of range: an error naming the option) and fill in its defaults.
     pub fn resolve(&self, g: Given) -> AppResult<ReproduceArgs> {
-        if let Some(o) = Opt::ALL
-            .into_iter()
-            .find(|&o| g.has(o) && !self.options.contains(&o))
-        {
-            let uses: Vec<&str> = self.options.iter().map(|o| o.flag()).collect();
+        if let Some(o) = Opt::ALL.into_iter().find(|&o| g.has(o) && !self.uses(o)) {
+            let uses: Vec<&str> = Opt::ALL
+                .into_iter()
+                .filter(|&o| self.uses(o))
+                .map(Opt::flag)
+                .collect();
             return Err(AppError(format!(
                 "{}: {} does not use this option (it uses {})",
                 o.flag(),
@@ -279,6 +281,13 @@ impl ReportDef {
             scenes,
             progress: crate::progress::Progress::for_terminal(self.name, g.quiet),
         })
+    }
+
+    /// Whether it reads option `o`: its own, and `--scenes` when it has
+    /// more than one scene.
+    #[must_use]
+    pub fn uses(&self, o: Opt) -> bool {
+        self.options.contains(&o) || o == Opt::Scenes && self.scenes.len() > 1
     }
 
     /// The scenes `--scenes` names (all of the report's when none), in the
@@ -388,7 +397,7 @@ mod tests {
         name: "t",
         about: "a test report",
         machine: "larrabee",
-        options: &[Opt::Quick, Opt::Tiles, Opt::Set, Opt::Scenes],
+        options: &[Opt::Quick, Opt::Tiles, Opt::Set],
         scenes: &["a", "b", "c"],
         run: nothing,
     };
@@ -409,6 +418,18 @@ mod tests {
         assert_eq!(e, "--scenes: 'd' is not a scene of t (a, b, c)");
         let e = with(&["a", "a"]).unwrap_err().0;
         assert_eq!(e, "--scenes: 'a' given twice");
+        let one = ReportDef {
+            scenes: &["a"],
+            ..DEF
+        };
+        let e = one
+            .resolve(Given {
+                scenes: vec!["a".into()],
+                ..Given::default()
+            })
+            .unwrap_err()
+            .0;
+        assert!(e.starts_with("--scenes: t does not use"), "{e}");
     }
 
     #[test]

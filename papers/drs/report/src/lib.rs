@@ -39,19 +39,6 @@ const OPTIONS: &[Opt] = &[
     Opt::Seed,
     Opt::ThreadsPerCore,
     Opt::Out,
-    Opt::Scenes,
-];
-
-/// What `drs-fig6` reads: its one scene is the paper's.
-const FIG6_OPTIONS: &[Opt] = &[
-    Opt::Quick,
-    Opt::Machine,
-    Opt::Set,
-    Opt::Tiles,
-    Opt::Spp,
-    Opt::Seed,
-    Opt::ThreadsPerCore,
-    Opt::Out,
 ];
 
 /// The DRS paper's reports.
@@ -84,7 +71,7 @@ pub const REPORTS: [ReportDef; 4] = [
         name: "drs-fig6",
         about: "DRS Figure 6: three methods against the field of view (PNG in --out DIR)",
         machine: MACHINE,
-        options: FIG6_OPTIONS,
+        options: OPTIONS,
         scenes: &["dragon"],
         run: figures::drs_fig6,
     },

@@ -37,20 +37,8 @@ const RATE_OPTIONS: &[Opt] = &[
     Opt::Out,
 ];
 
-/// What Figure 2 reads: the rates' options and a choice of its scenes.
-const FIG2_OPTIONS: &[Opt] = &[
-    Opt::Quick,
-    Opt::Machine,
-    Opt::Set,
-    Opt::Tiles,
-    Opt::Res,
-    Opt::Seed,
-    Opt::Out,
-    Opt::Scenes,
-];
-
 /// What the whole-machine tables read (their machines are the paper's two).
-const TABLE_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Seed, Opt::Out, Opt::Scenes];
+const TABLE_OPTIONS: &[Opt] = &[Opt::Quick, Opt::Tiles, Opt::Seed, Opt::Out];
 
 /// The MBVH paper's reports.
 pub const REPORTS: [ReportDef; 5] = [
@@ -58,7 +46,7 @@ pub const REPORTS: [ReportDef; 5] = [
         name: "mbvh-fig2",
         about: "MBVH RS Figure 2: Mrays/s per scene (BMW, Conference, Ferrari) on one Core 2 core, 1-4 bounces (PNG in --out DIR)",
         machine: MACHINE,
-        options: FIG2_OPTIONS,
+        options: RATE_OPTIONS,
         scenes: &rates::SCENES,
         run: rates::mbvh_fig2,
     },

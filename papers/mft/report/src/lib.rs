@@ -37,7 +37,6 @@ const OPTIONS: &[Opt] = &[
     Opt::Res,
     Opt::Seed,
     Opt::Out,
-    Opt::Scenes,
 ];
 
 /// The paper's four scenes, in its order (Figure 6 has the first three;
@@ -83,7 +82,7 @@ pub const REPORTS: [ReportDef; 6] = [
         name: "mft-loose",
         about: "MFT: why frusta access more triangles per shadow set than the paper's (drivers and one-change variants at 1024x1024, counts)",
         machine: MACHINE,
-        options: &[Opt::Quick, Opt::Machine, Opt::Res, Opt::Out, Opt::Scenes],
+        options: &[Opt::Quick, Opt::Machine, Opt::Res, Opt::Out],
         scenes: PAPER_SCENES,
         run: loose::mft_loose,
     },

@@ -29,7 +29,6 @@ const OPTIONS: &[Opt] = &[
     Opt::Tiles,
     Opt::Seed,
     Opt::Out,
-    Opt::Scenes,
 ];
 
 /// The multi-hit paper's reports.

@@ -21,7 +21,7 @@ pub(crate) fn volume_bvh(a: &ReproduceArgs) -> AppResult<Produced> {
     let m = crate::reports::one_core(a)?;
     let g = a.tiles.map_or(if a.quick { 8 } else { 32 }, |t| t as usize);
     let (mut rows, mut ops, mut bad) = (Vec::new(), 0u64, 0usize);
-    for (name, lit, leaves) in CASES {
+    for (name, lit, leaves) in CASES.into_iter().filter(|c| a.runs(c.0)) {
         for &leaf in leaves {
             let ds = Arc::new(Dataset::load(name, (lit, leaf), a.quick)?);
             let smp = sample(&ds, g, a.seed);

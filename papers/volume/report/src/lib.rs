@@ -35,17 +35,6 @@ const OPTIONS: &[Opt] = &[
     Opt::Out,
 ];
 
-/// What Figure 5 reads: the options and a choice of its datasets.
-const FIG5_OPTIONS: &[Opt] = &[
-    Opt::Quick,
-    Opt::Machine,
-    Opt::Set,
-    Opt::Tiles,
-    Opt::Seed,
-    Opt::Out,
-    Opt::Scenes,
-];
-
 /// Figure 5's datasets, in its order.
 const FIG5_DATASETS: [&str; paper::FIG5.len()] = {
     let mut names = [""; paper::FIG5.len()];
@@ -63,7 +52,7 @@ pub const REPORTS: [ReportDef; 5] = [
         name: "volume-fig5",
         about: "Volume rendering Figure 5: fps at 512^2 per dataset, gcc, sse and bvh on the 8-core X5550 workstation and bvh on the 2-core Core 2 Duo (PNG per dataset in --out DIR)",
         machine: MACHINE,
-        options: FIG5_OPTIONS,
+        options: OPTIONS,
         scenes: &FIG5_DATASETS,
         run: reports::volume_fig5,
     },
@@ -80,7 +69,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "Volume rendering Figure 6: the mixing layer (Richtmyer-Meshkov stand-in) at 256^3, 512^3, 1024^3 (256^3 at --quick), far / medium / close views at 1024^2, gcc / sse / bvh on the X5550 and bvh on the Core 2 Duo",
         machine: MACHINE,
         options: OPTIONS,
-        scenes: &["mixing256", "mixing512", "mixing1024"],
+        scenes: &["mixing"],
         run: scaling::volume_fig6,
     },
     ReportDef {
@@ -88,7 +77,7 @@ pub const REPORTS: [ReportDef; 5] = [
         about: "Volume rendering Figure 7: differential sampling rda = 2^-8 .. 2^-5 on the mixing layer, fps (bvh, X5550) and image error against uniform sampling",
         machine: MACHINE,
         options: OPTIONS,
-        scenes: &["mixing256", "mixing512", "mixing1024"],
+        scenes: &["mixing"],
         run: scaling::volume_fig7,
     },
     ReportDef {

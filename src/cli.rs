@@ -428,11 +428,7 @@ pub fn with_registries(cmd: clap::Command, reports: &[&ReportDef]) -> clap::Comm
     let list: Vec<String> = reports
         .iter()
         .map(|d| {
-            let opts: Vec<&str> = Opt::ALL
-                .into_iter()
-                .filter(|&o| d.uses(o))
-                .map(Opt::flag)
-                .collect();
+            let opts = d.flags();
             let scenes = if d.uses(Opt::Scenes) {
                 format!("; scenes {}", d.scenes.join(","))
             } else {

@@ -29,6 +29,21 @@ pub mod text;
 pub mod timeline;
 pub mod traces;
 
+/// The `name` fields of a const table of structs, as a const array (for a
+/// [`ReportDef`]'s scenes): `const NAMES: [&str; T.len()] = names_of!(T);`.
+#[macro_export]
+macro_rules! names_of {
+    ($table:expr) => {{
+        let mut names = [""; $table.len()];
+        let mut i = 0;
+        while i < names.len() {
+            names[i] = $table[i].name;
+            i += 1;
+        }
+        names
+    }};
+}
+
 pub use options::{Given, MachineSpec, Opt, Produced, ReportDef, ReproduceArgs};
 pub use report::{Format, Report, Row};
 

@@ -236,11 +236,7 @@ impl ReportDef {
     /// of range: an error naming the option) and fill in its defaults.
     pub fn resolve(&self, g: Given) -> AppResult<ReproduceArgs> {
         if let Some(o) = Opt::ALL.into_iter().find(|&o| g.has(o) && !self.uses(o)) {
-            let uses: Vec<&str> = Opt::ALL
-                .into_iter()
-                .filter(|&o| self.uses(o))
-                .map(Opt::flag)
-                .collect();
+            let uses = self.flags();
             return Err(AppError(format!(
                 "{}: {} does not use this option (it uses {})",
                 o.flag(),
@@ -288,6 +284,16 @@ impl ReportDef {
     #[must_use]
     pub fn uses(&self, o: Opt) -> bool {
         self.options.contains(&o) || o == Opt::Scenes && self.scenes.len() > 1
+    }
+
+    /// The flags of the options it reads, in [`Opt::ALL`]'s order.
+    #[must_use]
+    pub fn flags(&self) -> Vec<&'static str> {
+        Opt::ALL
+            .into_iter()
+            .filter(|&o| self.uses(o))
+            .map(Opt::flag)
+            .collect()
     }
 
     /// The scenes `--scenes` names (all of the report's when none), in the

@@ -134,9 +134,9 @@ fn report(a: &ReproduceArgs, p256: bool) -> AppResult<Produced> {
             }
         }
         let (stats, cycles) = (ms.stats, ms.cycles);
-        for (rays, pk, fr) in [("primary", 0, 1), ("shadow", 2, 3)] {
-            if !separates(paired_ratio(&ms.estimates[pk], &ms.estimates[fr])) {
-                unseparated.push(format!("{scene_name} {rays}"));
+        for v in verdicts_of(&ms) {
+            if !v.separates() {
+                unseparated.push(format!("{scene_name} {}", v.rays));
             }
         }
         count_rows(
@@ -798,8 +798,8 @@ impl Verdict {
 }
 
 /// `mft-table1`'s verdicts on `scene_name` at `res` x `res` on machine `m`
-/// by its full design or (`quick`) its `--quick` one (seed 7), and the
-/// rays whose hits differ from the reference: what the test that `--quick`
+/// by its full design and by its `--quick` one (seed 7), and the rays whose
+/// hits differ from the reference in either: what the test that `--quick`
 /// keeps the full design's verdicts compares.
 ///
 /// # Errors
@@ -808,15 +808,25 @@ pub fn verdicts(
     m: &sim::MachineConfig,
     scene_name: &str,
     res: u32,
-    quick: bool,
-) -> AppResult<(Vec<Verdict>, usize)> {
+) -> AppResult<([Verdict; 2], [Verdict; 2], usize)> {
     let pr = Prepared::new(scene_name, res, "verdicts", true)?;
-    let su = Setup::new(m.clone(), false, res, quick, DEFAULT_SEED);
-    let ms = measure_methods(&su, &pr, scene_name)?;
-    let v = [("primary", 0, 1), ("shadow", 2, 3)].map(|(rays, pk, fr)| Verdict {
+    let run = |quick| {
+        let su = Setup::new(m.clone(), false, res, quick, DEFAULT_SEED);
+        measure_methods(&su, &pr, scene_name)
+    };
+    let (full, quick) = (run(false)?, run(true)?);
+    Ok((
+        verdicts_of(&full),
+        verdicts_of(&quick),
+        full.bad + quick.bad,
+    ))
+}
+
+/// Packets against frusta on the primary and the shadow rays of `ms`.
+fn verdicts_of(ms: &Measured) -> [Verdict; 2] {
+    [("primary", 0, 1), ("shadow", 2, 3)].map(|(rays, pk, fr)| Verdict {
         rays,
         cycles: paired_ratio(&ms.estimates[pk], &ms.estimates[fr]),
         aabb: ms.stats[pk].aabb_tests as f64 / ms.stats[fr].aabb_tests as f64,
-    });
-    Ok((v.to_vec(), ms.bad))
+    })
 }

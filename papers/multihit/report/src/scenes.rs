@@ -112,15 +112,7 @@ pub(crate) const STANDS: [Stand; 12] = [
 ];
 
 /// Every scene's name, in [`STANDS`]' order (what `--scenes` chooses from).
-pub(crate) const NAMES: [&str; STANDS.len()] = {
-    let mut names = [""; STANDS.len()];
-    let mut i = 0;
-    while i < names.len() {
-        names[i] = STANDS[i].name;
-        i += 1;
-    }
-    names
-};
+pub(crate) const NAMES: [&str; STANDS.len()] = repro::names_of!(STANDS);
 
 /// The scenes a run measures: the deep group, and with `extra` the
 /// shallow one too; of those, the ones `wanted` takes.

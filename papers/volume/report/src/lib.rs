@@ -36,15 +36,7 @@ const OPTIONS: &[Opt] = &[
 ];
 
 /// Figure 5's datasets, in its order.
-const FIG5_DATASETS: [&str; paper::FIG5.len()] = {
-    let mut names = [""; paper::FIG5.len()];
-    let mut i = 0;
-    while i < names.len() {
-        names[i] = paper::FIG5[i].name;
-        i += 1;
-    }
-    names
-};
+const FIG5_DATASETS: [&str; paper::FIG5.len()] = repro::names_of!(paper::FIG5);
 
 /// The volume paper's reports.
 pub const REPORTS: [ReportDef; 5] = [
